@@ -1,0 +1,51 @@
+"""Command line of evio: ``python -m evio_lib COMMAND ...`` (see ``python -m evio_lib --help``)."""
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+import time
+
+
+def _cmd_course(args: argparse.Namespace) -> int:
+    """Build the notebooks from their jupytext sources, execute them in order, optionally open JupyterLab."""
+    from evio_lib import course
+
+    sources = course.notebook_sources()
+    if args.only:
+        sources = [s for s in sources if any(s.name.startswith(prefix) for prefix in args.only)]
+        if not sources:
+            print(f"no notebook matches {args.only}; available: {[s.name for s in course.notebook_sources()]}", file=sys.stderr)
+            return 2
+    built = course.build_notebooks(sources)
+    print(f"built {len(built)} notebooks into {course.BUILD_DIR}")
+    if not args.no_execute:
+        mode = "fast" if course.fast_mode() else "full"
+        for path in built:
+            start = time.perf_counter()
+            print(f"executing {path.name} ({mode} mode) ...", flush=True)
+            course.execute_notebook(path)
+            print(f"  done in {time.perf_counter() - start:.1f} s")
+    if args.open:
+        return subprocess.call([sys.executable, "-m", "jupyter", "lab", str(course.BUILD_DIR)])
+    print(f"open them with:  jupyter lab {course.BUILD_DIR}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Return the argument parser of the evio command line."""
+    parser = argparse.ArgumentParser(prog="python -m evio_lib", description=__doc__)
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("course", help="build and execute the course notebooks (build/notebooks/*.ipynb)")
+    p.add_argument("--only", nargs="+", metavar="NN", help="only notebooks whose names start with these prefixes, e.g. 01 02")
+    p.add_argument("--no-execute", action="store_true", help="only convert the jupytext sources to .ipynb")
+    p.add_argument("--open", action="store_true", help="start JupyterLab on the built notebooks afterwards")
+    p.set_defaults(func=_cmd_course)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; return the process exit code."""
+    args = build_parser().parse_args(argv)
+    return args.func(args)

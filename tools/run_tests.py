@@ -1,0 +1,41 @@
+"""Run every test of evio in one pytest session: unit tests, doctests of evio_lib, and all notebooks under nbval.
+
+Usage:  python tools/run_tests.py [--full] [extra pytest arguments]
+
+The notebooks are jupytext .py files; nbval only collects .ipynb, so they are first converted into build/notebooks/.
+Notebooks run in fast mode (EVIO_FAST=1) unless --full is given. Exits with pytest's code, except that "no tests collected"
+(pytest's 5) is turned into a failure: a test command that ran nothing must not pass.
+"""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from evio_lib import course  # noqa: E402
+
+
+def main(argv: list[str]) -> int:
+    """Convert the notebooks, run pytest over tests/, evio_lib/ doctests and the notebooks; return the exit code."""
+    full = "--full" in argv
+    extra = [a for a in argv if a != "--full"]
+    notebooks = course.build_notebooks()
+    env = dict(os.environ)
+    env[course.FAST_MODE_ENV] = "0" if full else "1"
+    env.setdefault("MPLBACKEND", "Agg")
+    command = [sys.executable, "-m", "pytest", "tests", "evio_lib", "--doctest-modules",
+               *[str(p.relative_to(ROOT)) for p in notebooks], "--nbval-lax", "-p", "no:cacheprovider", *extra]
+    print(f"notebooks: {len(notebooks)} ({'full' if full else 'fast'} mode)\n$ {' '.join(command)}", flush=True)
+    code = subprocess.call(command, cwd=ROOT, env=env)
+    if code == 5:
+        print("pytest collected no tests: failing, because a test run that runs nothing proves nothing", file=sys.stderr)
+        return 1
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
