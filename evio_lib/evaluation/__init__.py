@@ -1,0 +1,1 @@
+"""Evaluation: trajectory metrics and figures that the course notebooks use."""
