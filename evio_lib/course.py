@@ -49,6 +49,8 @@ def execute_notebook(path: Path, timeout_s: int = 1800) -> Path:
     from nbclient import NotebookClient
 
     notebook = nbformat.read(path, as_version=4)
+    # the kernel imports this working tree's evio_lib, whatever copy pip last installed in editable mode
+    os.environ["PYTHONPATH"] = os.pathsep.join(filter(None, [str(PROJECT_ROOT), os.environ.get("PYTHONPATH", "")]))
     client = NotebookClient(notebook, timeout=timeout_s, kernel_name="python3",
                             resources={"metadata": {"path": str(path.parent)}})
     client.execute()

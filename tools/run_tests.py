@@ -27,6 +27,8 @@ def main(argv: list[str]) -> int:
     env = dict(os.environ)
     env[course.FAST_MODE_ENV] = "0" if full else "1"
     env.setdefault("MPLBACKEND", "Agg")
+    # the notebook kernels import this working tree, whatever copy of evio_lib pip last installed in editable mode
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH", "")]))
     command = [sys.executable, "-m", "pytest", "tests", "evio_lib", "--doctest-modules",
                *[str(p.relative_to(ROOT)) for p in notebooks], "--nbval-lax", "-p", "no:cacheprovider", *extra]
     print(f"notebooks: {len(notebooks)} ({'full' if full else 'fast'} mode)\n$ {' '.join(command)}", flush=True)
