@@ -1,0 +1,202 @@
+"""Binary cache of a :class:`Sequence`: one ``.npz`` file, reloaded exactly and fast (no text parsing).
+
+Layout of the npz (``np.savez``/``np.savez_compressed``, loaded with ``allow_pickle=False``):
+
+* ``events`` (N,) EVENT_DTYPE, ``frame_times`` (F,), ``frames`` (F, H, W) uint8 -- always present;
+* ``imu_t``, ``imu_gyro``, ``imu_accel`` -- when the sequence has IMU samples;
+* ``groundtruth_<field>`` / ``groundtruth_imu_<field>`` for t, p_BinG, q_GtoB and the optional v_BinG,
+  bias_gyro, bias_accel -- when present;
+* ``R_CtoI``, ``p_CinI`` -- when known;
+* ``header``: a JSON string with the name, the camera parameters, the ground-truth bodies and the metadata.
+
+Metadata must be JSON-like (dict with str keys, list, tuple, str, int, float, bool, None, NumPy arrays and
+scalars): arrays and tuples are tagged so that they come back as arrays/tuples; float values are exact (JSON
+stores Python's shortest round-trip repr).
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from evio_lib.geometry.camera import PinholeRadtan
+from evio_lib.io.errors import DataFileError
+from evio_lib.sequence import GroundTruth, ImuSamples, Sequence
+
+__all__ = [
+    "save_sequence_npz",
+    "load_sequence_npz",
+    "to_json_value",
+    "from_json_value",
+    "camera_to_dict",
+    "camera_from_dict",
+]
+
+_FORMAT = "evio-sequence-npz"
+_VERSION = 1
+_CAMERA_FIELDS = ("fx", "fy", "cx", "cy", "width", "height", "k1", "k2", "p1", "p2", "k3")
+_GT_FIELDS = ("t", "p_BinG", "q_GtoB", "v_BinG", "bias_gyro", "bias_accel")
+
+
+def to_json_value(value: Any, where: str = "metadata") -> Any:
+    """Return ``value`` converted to plain JSON types (arrays and tuples tagged); raise ValueError naming ``where``.
+
+    >>> to_json_value({"R": np.eye(2), "size": (240, 180), "g": np.float64(9.81)})
+    {'R': {'__ndarray__': [[1.0, 0.0], [0.0, 1.0]], 'dtype': 'float64', 'shape': [2, 2]}, 'size': {'__tuple__': [240, 180]}, 'g': 9.81}
+    """
+    if isinstance(value, np.generic):  # before float: np.float64 is a float subclass
+        return value.item()
+    if value is None or isinstance(value, (bool, str, int, float)):
+        return value
+    if isinstance(value, np.ndarray):
+        if value.dtype.kind not in "biuf":
+            raise ValueError(f"{where} must hold numeric arrays only; got an array of dtype {value.dtype}")
+        return {"__ndarray__": value.tolist(), "dtype": str(value.dtype), "shape": list(value.shape)}
+    if isinstance(value, Path):
+        return str(value)
+    if isinstance(value, tuple):
+        return {"__tuple__": [to_json_value(v, f"{where}[{i}]") for i, v in enumerate(value)]}
+    if isinstance(value, list):
+        return [to_json_value(v, f"{where}[{i}]") for i, v in enumerate(value)]
+    if isinstance(value, dict):
+        out = {}
+        for key, v in value.items():
+            if not isinstance(key, str):
+                raise ValueError(f"{where} must have str keys only (JSON); got key {key!r} of type {type(key).__name__}")
+            out[key] = to_json_value(v, f"{where}[{key!r}]")
+        return out
+    raise ValueError(f"{where} must be JSON-like (dict, list, tuple, str, number, bool, None, ndarray); got {type(value).__name__}")
+
+
+def from_json_value(value: Any) -> Any:
+    """Return the value encoded by :func:`to_json_value` (tagged arrays and tuples restored)."""
+    if isinstance(value, list):
+        return [from_json_value(v) for v in value]
+    if isinstance(value, dict):
+        if "__ndarray__" in value:
+            return np.array(value["__ndarray__"], dtype=np.dtype(value["dtype"])).reshape(value["shape"])
+        if "__tuple__" in value and len(value) == 1:
+            return tuple(from_json_value(v) for v in value["__tuple__"])
+        return {k: from_json_value(v) for k, v in value.items()}
+    return value
+
+
+def camera_to_dict(camera: PinholeRadtan | None) -> dict | None:
+    """Return the camera parameters as a dict (fx, fy, cx, cy, width, height, k1, k2, p1, p2, k3), or None."""
+    if camera is None:
+        return None
+    return {name: getattr(camera, name) for name in _CAMERA_FIELDS}
+
+
+def camera_from_dict(params: dict | None) -> PinholeRadtan | None:
+    """Return the PinholeRadtan described by :func:`camera_to_dict`'s dict, or None."""
+    if params is None:
+        return None
+    missing = [name for name in _CAMERA_FIELDS if name not in params]
+    if missing:
+        raise ValueError(f"camera parameters must include {list(_CAMERA_FIELDS)}; missing {missing}")
+    return PinholeRadtan(**{name: params[name] for name in _CAMERA_FIELDS})
+
+
+def save_sequence_npz(sequence: Sequence, path: str | Path, *, compress: bool = False) -> Path:
+    """Write ``sequence`` to one npz file at exactly ``path`` and return that path.
+
+    Args:
+        sequence: the sequence to store (its metadata must be JSON-like, see the module docstring).
+        path: output file (no ".npz" is appended).
+        compress: zlib-compress the arrays (smaller, slower to write and to load).
+    """
+    if not isinstance(sequence, Sequence):
+        raise ValueError(f"sequence must be a Sequence; got {type(sequence).__name__}")
+    arrays: dict[str, np.ndarray] = {
+        "events": np.asarray(sequence.events),
+        "frame_times": np.asarray(sequence.frame_times),
+        "frames": np.asarray(sequence.frames),
+    }
+    if sequence.imu is not None:
+        arrays.update(imu_t=sequence.imu.t, imu_gyro=sequence.imu.gyro, imu_accel=sequence.imu.accel)
+    bodies = {}
+    for prefix in ("groundtruth", "groundtruth_imu"):
+        gt = getattr(sequence, prefix)
+        if gt is None:
+            continue
+        bodies[prefix] = gt.body
+        for name in _GT_FIELDS:
+            if getattr(gt, name) is not None:
+                arrays[f"{prefix}_{name}"] = getattr(gt, name)
+    for name in ("R_CtoI", "p_CinI"):
+        if getattr(sequence, name) is not None:
+            arrays[name] = np.asarray(getattr(sequence, name))
+    header = {
+        "format": _FORMAT,
+        "version": _VERSION,
+        "name": sequence.name,
+        "camera": camera_to_dict(sequence.camera),
+        "groundtruth_bodies": bodies,
+        "metadata": to_json_value(sequence.metadata),
+    }
+    arrays["header"] = np.array(json.dumps(header))
+    path = Path(path)
+    with open(path, "wb") as f:
+        (np.savez_compressed if compress else np.savez)(f, **arrays)
+    return path
+
+
+def load_sequence_npz(path: str | Path) -> Sequence:
+    """Return the Sequence stored by :func:`save_sequence_npz` (arrays identical, metadata restored).
+
+    Raises:
+        DataFileError (a ValueError): the file is missing or is not an evio sequence cache.
+
+    >>> import tempfile, os
+    >>> from evio_lib.events.array import make_events
+    >>> f = os.path.join(tempfile.mkdtemp(), "seq.npz")
+    >>> seq = Sequence("demo", events=make_events([0.0, 0.1], [1, 2], [3, 4], [1, -1]), metadata={"rate": 200.0})
+    >>> back = load_sequence_npz(save_sequence_npz(seq, f))
+    >>> back.name, back.events["x"].tolist(), back.metadata
+    ('demo', [1, 2], {'rate': 200.0})
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise DataFileError(f"{path.name}: file not found at {path} (expected an evio sequence cache .npz)")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            arrays = {key: z[key] for key in z.files}
+    except (OSError, ValueError) as exc:
+        raise DataFileError(f"{path.name}: not a readable npz file ({exc})") from None
+    if "header" not in arrays:
+        raise DataFileError(f"{path.name}: not an evio sequence cache (no 'header' entry); keys {sorted(arrays)}")
+    try:
+        header = json.loads(str(arrays.pop("header")[()]))
+    except json.JSONDecodeError as exc:
+        raise DataFileError(f"{path.name}: the 'header' entry is not valid JSON ({exc.msg})") from None
+    if header.get("format") != _FORMAT or header.get("version") != _VERSION:
+        raise DataFileError(
+            f"{path.name}: header format {header.get('format')!r} version {header.get('version')!r}; "
+            f"expected {_FORMAT!r} version {_VERSION}"
+        )
+    imu = None
+    if "imu_t" in arrays:
+        imu = ImuSamples(arrays["imu_t"], arrays["imu_gyro"], arrays["imu_accel"])
+    gts: dict[str, GroundTruth | None] = {}
+    for prefix in ("groundtruth", "groundtruth_imu"):
+        if prefix not in header["groundtruth_bodies"]:
+            gts[prefix] = None
+            continue
+        parts = {name: arrays.get(f"{prefix}_{name}") for name in _GT_FIELDS}
+        gts[prefix] = GroundTruth(body=header["groundtruth_bodies"][prefix], **parts)
+    return Sequence(
+        name=header["name"],
+        camera=camera_from_dict(header["camera"]),
+        events=arrays["events"],
+        frame_times=arrays["frame_times"],
+        frames=arrays["frames"],
+        imu=imu,
+        groundtruth=gts["groundtruth"],
+        groundtruth_imu=gts["groundtruth_imu"],
+        R_CtoI=arrays.get("R_CtoI"),
+        p_CinI=arrays.get("p_CinI"),
+        metadata=from_json_value(header["metadata"]),
+    )

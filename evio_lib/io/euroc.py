@@ -1,0 +1,314 @@
+"""EuRoC MAV dataset, ASL folder layout: camera images, IMU, calibration and ground truth.
+
+Layout (Burri et al., "The EuRoC micro aerial vehicle datasets", IJRR 2016)::
+
+    mav0/imu0/data.csv       timestamp [ns], w_x w_y w_z [rad/s], a_x a_y a_z [m/s^2]   (IMU frame S = I)
+    mav0/imu0/sensor.yaml    T_BS (IMU -> body), noise densities and random walks
+    mav0/cam0/data.csv       timestamp [ns], file name of mav0/cam0/data/<file>
+    mav0/cam0/sensor.yaml    T_BS (camera -> body), intrinsics [fu, fv, cu, cv], radtan distortion, resolution
+    mav0/state_groundtruth_estimate0/data.csv
+                             timestamp [ns], p_RS_R [m], q_RS (w x y z, Hamilton, body -> world R), v_RS_R [m/s],
+                             b_w_RS_S [rad/s], b_a_RS_S [m/s^2]
+
+Ground truth is looked for in that order: the ``groundtruth`` argument, the standard
+``mav0/state_groundtruth_estimate0/data.csv``, then ``<folder>/groundtruth_openvins/*.csv`` (open_vins' recomputed
+ground truth in the same 17-column layout). A ``.txt`` argument is read as a TUM file (pose only).
+
+Times: nanosecond integers are parsed exactly (int64) and converted once to float64 seconds
+(t = s + ns_rest / 1e9). Quaternions: the Hamilton q of R_ItoG has the same four numbers as the JPL q_GtoI.
+The camera ground truth is derived from the IMU one with the extrinsics (thesis §3.3.2, Eq. 27-28)::
+
+    R_CtoG = R_ItoG R_CtoI,     p_CinG = p_IinG + R_ItoG p_CinI
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from evio_lib.geometry.camera import PinholeRadtan
+from evio_lib.geometry.rotation import rot_to_quat
+from evio_lib.io.errors import DataFileError, read_table, require_file
+from evio_lib.io.tum import read_tum
+from evio_lib.sequence import GroundTruth, ImuSamples, Sequence
+
+__all__ = ["read_euroc", "read_asl_yaml", "ns_to_seconds", "camera_groundtruth"]
+
+_IMU_COLUMNS = ("t_ns", "wx", "wy", "wz", "ax", "ay", "az")
+_GT_COLUMNS = ("t_ns", "px", "py", "pz", "qw", "qx", "qy", "qz", "vx", "vy", "vz", "bwx", "bwy", "bwz", "bax", "bay", "baz")
+_NOISE_KEYS = ("gyroscope_noise_density", "gyroscope_random_walk", "accelerometer_noise_density", "accelerometer_random_walk")
+
+
+def ns_to_seconds(t_ns: Any) -> np.ndarray:
+    """Return float64 seconds from integer nanoseconds, rounding once (no precision lost before the last step).
+
+    >>> ns_to_seconds(np.array([1403715273262142976])).tolist()
+    [1403715273.262143]
+    """
+    t_ns = np.asarray(t_ns, dtype=np.int64)
+    seconds, rest = np.divmod(t_ns, 1_000_000_000)
+    return seconds.astype(np.float64) + rest.astype(np.float64) / 1e9  # t = s + ns / 1e9
+
+
+def _yaml_scalar(text: str) -> Any:
+    """Return a YAML flow scalar or flow list ("[1, 2]") as int / float / str / list."""
+    text = text.strip()
+    if text.startswith("[") and text.endswith("]"):
+        inner = text[1:-1].strip()
+        return [_yaml_scalar(item) for item in inner.split(",")] if inner else []
+    if len(text) >= 2 and text[0] == text[-1] and text[0] in "'\"":
+        return text[1:-1]
+    for convert in (int, float):
+        try:
+            return convert(text)
+        except ValueError:
+            pass
+    return {"true": True, "false": False, "null": None, "~": None}.get(text.lower(), text)
+
+
+def read_asl_yaml(path: str | Path, *, name: str | None = None) -> dict:
+    """Return the content of an ASL/Kalibr ``sensor.yaml`` as a nested dict (a tiny, tolerant YAML subset parser).
+
+    Supported: ``%YAML`` directives, ``#`` comments, ``key: value`` mappings nested by indentation, scalars and
+    flow lists ``[a, b, ...]`` that may span several lines. Not supported (raises): block lists ``- item``.
+
+    >>> import tempfile, os
+    >>> f = os.path.join(tempfile.mkdtemp(), "sensor.yaml")
+    >>> _ = open(f, "w").write("%YAML:1.0\\nT_BS:\\n  rows: 2\\n  data: [1.0, 0.0,\\n         0.0, 1.0]\\nrate_hz: 200 # Hz\\n")
+    >>> read_asl_yaml(f)
+    {'T_BS': {'rows': 2, 'data': [1.0, 0.0, 0.0, 1.0]}, 'rate_hz': 200}
+    """
+    path = require_file(path, "an ASL sensor.yaml")
+    name = path.name if name is None else name
+    root: dict = {}
+    stack: list[tuple[int, dict]] = [(-1, root)]
+    pending: tuple[int, int, str, str] | None = None  # (line, indent, key, text so far) of an open flow list
+    for number, raw in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
+        line = raw.split("#", 1)[0].rstrip()
+        if pending is not None:
+            start, indent, key, text = pending
+            if ":" in line:  # a new "key: value" while the list is open: the ']' is missing
+                break
+            text += " " + line.strip()
+            if "]" not in line:
+                pending = (start, indent, key, text)
+                continue
+            pending = None
+            stack[-1][1][key] = _yaml_scalar(text)
+            continue
+        if not line.strip() or line.lstrip().startswith("%") or line.strip() == "---":
+            continue
+        indent = len(line) - len(line.lstrip())
+        content = line.strip()
+        if content.startswith("- "):
+            raise DataFileError(f"{name} line {number}: block lists ('- item') are not supported; use [a, b, ...]")
+        key, sep, value = content.partition(":")
+        if not sep or not key.strip():
+            raise DataFileError(f"{name} line {number}: expected 'key: value'; got {content!r}")
+        while stack[-1][0] >= indent:
+            stack.pop()
+        parent, key, value = stack[-1][1], key.strip(), value.strip()
+        if not value:
+            child: dict = {}
+            parent[key] = child
+            stack.append((indent, child))
+        elif value.startswith("[") and "]" not in value:
+            pending = (number, indent, key, value)
+        else:
+            parent[key] = _yaml_scalar(value)
+    if pending is not None:
+        raise DataFileError(f"{name} line {pending[0]}: flow list of '{pending[2]}' is not closed with ']'")
+    return root
+
+
+def _matrix_4x4(node: Any, where: str) -> np.ndarray:
+    """Return the 4x4 matrix of a yaml node {rows: 4, cols: 4, data: [16 numbers]}."""
+    data = node.get("data") if isinstance(node, dict) else None
+    if not isinstance(data, list) or len(data) != 16:
+        raise DataFileError(f"{where}: T_BS must have 'data' with 16 numbers (4 x 4, row major); got {data!r}")
+    T = np.array(data, dtype=np.float64).reshape(4, 4)
+    if not np.allclose(T[3], [0, 0, 0, 1]) or np.abs(T[:3, :3] @ T[:3, :3].T - np.eye(3)).max() > 1e-6:
+        raise DataFileError(f"{where}: T_BS must be a rigid transform (rotation block, last row 0 0 0 1); got {T.tolist()}")
+    return T
+
+
+def _read_camera(yaml: dict, where: str) -> PinholeRadtan:
+    """Return the PinholeRadtan of a cam sensor.yaml dict."""
+    model = yaml.get("camera_model", "pinhole")
+    distortion = yaml.get("distortion_model", "radial-tangential")
+    if model != "pinhole" or distortion not in ("radial-tangential", "radtan", "plumb_bob"):
+        raise DataFileError(
+            f"{where}: only camera_model 'pinhole' with distortion_model 'radial-tangential' is supported; "
+            f"got {model!r} / {distortion!r}"
+        )
+    intr, dist, res = yaml.get("intrinsics"), yaml.get("distortion_coefficients", [0.0] * 4), yaml.get("resolution")
+    if not (isinstance(intr, list) and len(intr) == 4):
+        raise DataFileError(f"{where}: intrinsics must be [fu, fv, cu, cv]; got {intr!r}")
+    if not (isinstance(dist, list) and len(dist) in (4, 5)):
+        raise DataFileError(f"{where}: distortion_coefficients must be [k1, k2, p1, p2(, k3)]; got {dist!r}")
+    if not (isinstance(res, list) and len(res) == 2):
+        raise DataFileError(f"{where}: resolution must be [width, height]; got {res!r}")
+    k3 = dist[4] if len(dist) == 5 else 0.0
+    return PinholeRadtan(fx=float(intr[0]), fy=float(intr[1]), cx=float(intr[2]), cy=float(intr[3]),
+                         width=int(res[0]), height=int(res[1]),
+                         k1=float(dist[0]), k2=float(dist[1]), p1=float(dist[2]), p2=float(dist[3]), k3=float(k3))
+
+
+def _read_image_index(path: Path, name: str) -> tuple[np.ndarray, list[Path]]:
+    """Return (t (F,) [s], image paths) of a cam data.csv (``timestamp [ns],filename``)."""
+    stamps, files = [], []
+    with open(path, "r", encoding="utf-8") as f:
+        for number, line in enumerate(f, start=1):
+            stripped = line.split("#", 1)[0].strip()
+            if not stripped:
+                continue
+            tokens = [tok.strip() for tok in stripped.split(",")]
+            if len(tokens) != 2:
+                raise DataFileError(f"{name} line {number}: expected 2 columns (timestamp [ns], filename), got {len(tokens)}")
+            try:
+                t_ns = int(tokens[0])
+            except ValueError:
+                raise DataFileError(f"{name} line {number}: timestamp must be an integer number of ns; got {tokens[0]!r}") from None
+            if stamps and t_ns <= stamps[-1]:
+                raise DataFileError(
+                    f"{name} line {number}: timestamp {t_ns} follows {stamps[-1]}; timestamps must be strictly increasing"
+                )
+            image = path.parent / "data" / tokens[1]
+            if not image.is_file():
+                raise DataFileError(f"{name} line {number}: image file data/{tokens[1]} not found in {path.parent}")
+            stamps.append(t_ns)
+            files.append(image)
+    return ns_to_seconds(np.array(stamps, dtype=np.int64)), files
+
+
+def _find_groundtruth(folder: Path, mav0: Path, groundtruth: str | Path | None) -> Path | None:
+    """Return the ground-truth file to read (see the module docstring for the search order), or None."""
+    if groundtruth is not None:
+        return require_file(groundtruth, "a EuRoC ground-truth csv or a TUM trajectory")
+    standard = mav0 / "state_groundtruth_estimate0" / "data.csv"
+    if standard.is_file():
+        return standard
+    candidates = sorted((folder / "groundtruth_openvins").glob("*.csv"))
+    return candidates[0] if candidates else None
+
+
+def _read_groundtruth(path: Path, name: str) -> GroundTruth:
+    """Return the IMU ground truth of a EuRoC state csv (17 columns) or of a TUM .txt (pose only)."""
+    if path.suffix == ".txt":
+        t, p, q = read_tum(path, name=name)
+        return GroundTruth(t=t, p_BinG=p, q_GtoB=q, body="imu")  # Hamilton q of R_ItoG == JPL q_GtoI
+    table = read_table(path, _GT_COLUMNS, name=name, int_columns=("t_ns",), delimiter=",")
+    table.check_times("t_ns", strict=True)
+
+    def stack(names: tuple[str, ...]) -> np.ndarray:
+        return np.stack([table[c] for c in names], axis=1)
+
+    q = stack(("qx", "qy", "qz", "qw"))  # Hamilton (w x y z in the file) of R_ItoG -> JPL q_GtoI, same numbers
+    norm = np.linalg.norm(q, axis=1)
+    if np.any(norm < 1e-6):
+        raise table.error(int(np.argmax(norm < 1e-6)), "quaternion (qw qx qy qz) has zero norm")
+    return GroundTruth(t=ns_to_seconds(table["t_ns"]), p_BinG=stack(("px", "py", "pz")), q_GtoB=q, body="imu",
+                       v_BinG=stack(("vx", "vy", "vz")), bias_gyro=stack(("bwx", "bwy", "bwz")),
+                       bias_accel=stack(("bax", "bay", "baz")))
+
+
+def camera_groundtruth(gt_imu: GroundTruth, R_CtoI: np.ndarray, p_CinI: np.ndarray) -> GroundTruth:
+    """Return the camera poses implied by IMU poses and the camera-IMU extrinsics.
+
+    R_CtoG = R_ItoG R_CtoI,  p_CinG = p_IinG + R_ItoG p_CinI  (thesis §3.3.2, Eq. 27-28).
+    """
+    R_ItoG = gt_imu.R_BtoG
+    R_CtoG = R_ItoG @ R_CtoI
+    p_CinG = gt_imu.p_BinG + R_ItoG @ p_CinI
+    q_GtoC = rot_to_quat(np.swapaxes(R_CtoG, -1, -2))  # JPL q_GtoC has C(q) = R_GtoC = R_CtoG^T
+    return GroundTruth(t=gt_imu.t.copy(), p_BinG=p_CinG, q_GtoB=q_GtoC, body="camera")
+
+
+def read_euroc(folder: str | Path, *, load_frames: bool = True, camera: str = "cam0",
+               groundtruth: str | Path | None = None) -> Sequence:
+    """Return the Sequence of a EuRoC ASL folder: frames of one camera, IMU, calibration, extrinsics, ground truth.
+
+    Args:
+        folder: the dataset folder holding ``mav0/`` (or the ``mav0`` folder itself).
+        load_frames: load the PNG images (False: no frames and no frame_times; the camera is still read).
+        camera: which camera folder, "cam0" or "cam1".
+        groundtruth: optional explicit ground-truth file (EuRoC csv, or TUM .txt for pose only).
+
+    Returns:
+        Sequence with events empty; imu (gyro w then accel a, rad/s and m/s^2); camera from sensor.yaml;
+        R_CtoI/p_CinI from the two T_BS (T_CtoI = T_ItoB^-1 T_CtoB); groundtruth_imu (with velocity and
+        biases from a csv); groundtruth = the derived camera poses; metadata["imu_noise"] with the four
+        continuous-time noise parameters (Kalibr names), rates and the files read.
+
+    Raises:
+        DataFileError (a ValueError): missing files or malformed lines ("mav0/imu0/data.csv line L: ...").
+    """
+    folder = Path(folder)
+    mav0 = folder / "mav0" if (folder / "mav0").is_dir() else folder
+    if not (mav0 / "imu0").is_dir() and not (mav0 / camera).is_dir():
+        raise DataFileError(f"EuRoC folder not found: {folder} has no mav0/imu0 or mav0/{camera}")
+
+    def rel(path: Path) -> str:  # how messages name a file: relative to the dataset folder
+        return str(path.relative_to(folder)) if path.is_relative_to(folder) else str(path)
+
+    imu_csv = require_file(mav0 / "imu0" / "data.csv", "the IMU samples `timestamp [ns], w xyz, a xyz`")
+    imu_yaml_path = mav0 / "imu0" / "sensor.yaml"
+    imu_yaml = read_asl_yaml(imu_yaml_path, name=rel(imu_yaml_path)) if imu_yaml_path.is_file() else {}
+    table = read_table(imu_csv, _IMU_COLUMNS, name=rel(imu_csv), int_columns=("t_ns",), delimiter=",")
+    table.check_times("t_ns", strict=True)
+    imu = ImuSamples(t=ns_to_seconds(table["t_ns"]),
+                     gyro=np.stack([table[c] for c in ("wx", "wy", "wz")], axis=1),
+                     accel=np.stack([table[c] for c in ("ax", "ay", "az")], axis=1))
+
+    cam_dir = mav0 / camera
+    cam_yaml_path = cam_dir / "sensor.yaml"
+    cam = None
+    R_CtoI = p_CinI = None
+    if cam_yaml_path.is_file():
+        cam_yaml = read_asl_yaml(cam_yaml_path, name=rel(cam_yaml_path))
+        cam = _read_camera(cam_yaml, rel(cam_yaml_path))
+        if "T_BS" in cam_yaml:
+            T_CtoB = _matrix_4x4(cam_yaml["T_BS"], rel(cam_yaml_path))
+            T_ItoB = _matrix_4x4(imu_yaml["T_BS"], rel(imu_yaml_path)) if "T_BS" in imu_yaml else np.eye(4)
+            T_CtoI = np.linalg.inv(T_ItoB) @ T_CtoB  # x_I = T_ItoB^-1 T_CtoB x_C
+            R_CtoI, p_CinI = T_CtoI[:3, :3].copy(), T_CtoI[:3, 3].copy()
+
+    frame_times, frames = np.zeros(0), None
+    if (cam_dir / "data.csv").is_file() and load_frames:
+        frame_times, files = _read_image_index(cam_dir / "data.csv", rel(cam_dir / "data.csv"))
+        images = []
+        for path in files:
+            image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+            if image is None:
+                raise DataFileError(f"{rel(path)}: could not decode the image")
+            if images and image.shape != images[0].shape:
+                raise DataFileError(f"{rel(path)}: image size {image.shape[::-1]} differs from the first image {images[0].shape[::-1]}")
+            images.append(image)
+        if images:
+            if cam is not None and images[0].shape != (cam.height, cam.width):
+                raise DataFileError(
+                    f"{rel(files[0])}: image size {images[0].shape[1]} x {images[0].shape[0]} differs from the "
+                    f"resolution {cam.width} x {cam.height} in {rel(cam_yaml_path)}"
+                )
+            frames = np.stack(images)
+
+    metadata: dict[str, Any] = {"source": str(folder), "format": "EuRoC ASL", "camera_name": camera,
+                                "imu_file": rel(imu_csv)}
+    noise = {key: float(imu_yaml[key]) for key in _NOISE_KEYS if key in imu_yaml}
+    if noise:
+        metadata["imu_noise"] = noise
+    if "rate_hz" in imu_yaml:
+        metadata["imu_rate_hz"] = float(imu_yaml["rate_hz"])
+
+    gt_imu = gt_cam = None
+    gt_path = _find_groundtruth(folder, mav0, groundtruth)
+    if gt_path is not None:
+        gt_imu = _read_groundtruth(gt_path, rel(gt_path))
+        metadata["groundtruth_file"] = rel(gt_path)
+        if R_CtoI is not None:
+            gt_cam = camera_groundtruth(gt_imu, R_CtoI, p_CinI)
+            metadata["groundtruth_camera"] = "derived from groundtruth_imu and R_CtoI/p_CinI"
+    return Sequence(name=folder.name, camera=cam, frame_times=frame_times, frames=frames, imu=imu,
+                    groundtruth=gt_cam, groundtruth_imu=gt_imu, R_CtoI=R_CtoI, p_CinI=p_CinI, metadata=metadata)

@@ -1,0 +1,408 @@
+"""The in-memory recording: events, frames, IMU samples, ground truth and calibration of one sequence.
+
+Every reader of :mod:`evio_lib.io` (ECD, EuRoC, AEDAT4, npz cache) and the simulator produce a
+:class:`Sequence`; every estimator consumes one. Frames and conventions (project-wide):
+
+* G world (z up, gravity [0, 0, -9.81] m/s^2), I IMU/body, C camera (x right, y down, z forward);
+* ``q_GtoB`` are JPL quaternions, scalar last: C(q_GtoB) = R_GtoB (see :mod:`evio_lib.geometry.rotation`);
+* timestamps are float64 seconds, events use :data:`evio_lib.events.array.EVENT_DTYPE`;
+* frames are the raw uint8 images of the sensor (convert to float32 [0, 1] where they are used).
+
+Reference: thesis §3.3 (state of the IMU and camera poses), §2.2.1 (events).
+"""
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from evio_lib.events.array import empty_events, events_between, validate_events
+from evio_lib.geometry.camera import PinholeRadtan
+from evio_lib.geometry.rotation import quat_to_rot
+
+__all__ = ["ImuSamples", "GroundTruth", "Sequence"]
+
+_UNIT_TOL = 1e-6  # tolerance on |q| - 1 and on R R^T - I, det R - 1
+_BODIES = ("camera", "imu")
+
+
+def _float_array(value: Any, name: str, tail: tuple[int, ...]) -> np.ndarray:
+    """Return ``value`` as a float64 array of shape (N, *tail); raise ValueError naming ``name`` otherwise."""
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be a numeric array of shape (N{''.join(f', {d}' for d in tail)}); got {value!r}") from exc
+    if arr.ndim != 1 + len(tail) or arr.shape[1:] != tail:
+        raise ValueError(f"{name} must have shape (N{''.join(f', {d}' for d in tail)}); got {arr.shape}")
+    return arr
+
+
+def _check_times(t: np.ndarray, name: str) -> None:
+    """Raise ValueError unless ``t`` is finite and strictly increasing."""
+    if not np.all(np.isfinite(t)):
+        raise ValueError(f"{name} must be finite; got non-finite values at indices {np.flatnonzero(~np.isfinite(t))[:5].tolist()}")
+    bad = np.flatnonzero(t[1:] <= t[:-1])
+    if bad.size:
+        i = int(bad[0]) + 1
+        raise ValueError(f"{name} must be strictly increasing; got {name}[{i}] = {float(t[i])!r} after {name}[{i - 1}] = {float(t[i - 1])!r}")
+
+
+def _check_finite(values: np.ndarray, name: str) -> None:
+    """Raise ValueError naming ``name`` if ``values`` holds NaN or inf."""
+    bad = ~np.isfinite(values)
+    if bad.any():
+        row = int(np.flatnonzero(bad.reshape(len(values), -1).any(axis=1))[0])
+        raise ValueError(f"{name} must be finite; got a non-finite value in row {row}")
+
+
+def _time_mask(t: np.ndarray, t0: float, t1: float) -> slice:
+    """Return the slice of sorted times ``t`` with t0 <= t < t1."""
+    i0, i1 = np.searchsorted(t, [t0, t1], side="left")
+    return slice(int(i0), int(i1))
+
+
+@dataclass
+class ImuSamples:
+    """IMU measurements in the IMU frame I.
+
+    Attributes:
+        t: (N,) timestamps [s], strictly increasing.
+        gyro: (N, 3) angular velocity w_I [rad/s].
+        accel: (N, 3) specific force a_I [m/s^2] (reads +9.81 upwards when still).
+
+    Reference: thesis §3.3.3 (IMU measurement model).
+
+    >>> imu = ImuSamples(t=[0.0, 0.005], gyro=np.zeros((2, 3)), accel=[[0, 0, 9.81]] * 2)
+    >>> len(imu), imu.accel.shape
+    (2, (2, 3))
+    """
+
+    t: np.ndarray
+    gyro: np.ndarray
+    accel: np.ndarray
+
+    def __post_init__(self) -> None:
+        self.t = _float_array(self.t, "imu.t", ())
+        self.gyro = _float_array(self.gyro, "imu.gyro", (3,))
+        self.accel = _float_array(self.accel, "imu.accel", (3,))
+        n = self.t.shape[0]
+        for name in ("gyro", "accel"):
+            if getattr(self, name).shape[0] != n:
+                raise ValueError(f"imu.{name} must have shape ({n}, 3) like imu.t; got {getattr(self, name).shape}")
+
+    def __len__(self) -> int:
+        return int(self.t.shape[0])
+
+    def validate(self, prefix: str = "imu") -> None:
+        """Return None if times are strictly increasing and all values finite; else raise ValueError naming the field."""
+        _check_times(self.t, f"{prefix}.t")
+        _check_finite(self.gyro, f"{prefix}.gyro")
+        _check_finite(self.accel, f"{prefix}.accel")
+
+    def slice_time(self, t0: float, t1: float) -> "ImuSamples":
+        """Return a copy of the samples with t0 <= t < t1."""
+        s = _time_mask(self.t, t0, t1)
+        return ImuSamples(self.t[s].copy(), self.gyro[s].copy(), self.accel[s].copy())
+
+
+_GT_OPTIONAL = ("v_BinG", "bias_gyro", "bias_accel")
+
+
+@dataclass
+class GroundTruth:
+    """Poses (and optionally velocity and IMU biases) of a body frame B in the world G.
+
+    Attributes:
+        t: (K,) timestamps [s], strictly increasing.
+        p_BinG: (K, 3) position of B's origin in G [m].
+        q_GtoB: (K, 4) JPL quaternions (scalar last) with C(q_GtoB) = R_GtoB.
+        body: "camera" (B = C) or "imu" (B = I).
+        v_BinG: optional (K, 3) velocity of B in G [m/s].
+        bias_gyro: optional (K, 3) gyroscope bias [rad/s].
+        bias_accel: optional (K, 3) accelerometer bias [m/s^2].
+
+    Reference: thesis §3.3.1-3.3.2 (JPL attitude, IMU state).
+
+    >>> gt = GroundTruth(t=[0.0, 1.0], p_BinG=[[0, 0, 0], [1, 0, 0]], q_GtoB=[[0, 0, 0, 1]] * 2, body="imu")
+    >>> gt.interpolate([0.25]).p_BinG.round(3).tolist()
+    [[0.25, 0.0, 0.0]]
+    """
+
+    t: np.ndarray
+    p_BinG: np.ndarray
+    q_GtoB: np.ndarray
+    body: str = "camera"
+    v_BinG: np.ndarray | None = None
+    bias_gyro: np.ndarray | None = None
+    bias_accel: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.body not in _BODIES:
+            raise ValueError(f"body must be one of {_BODIES}; got {self.body!r}")
+        self.t = _float_array(self.t, "groundtruth.t", ())
+        self.p_BinG = _float_array(self.p_BinG, "groundtruth.p_BinG", (3,))
+        self.q_GtoB = _float_array(self.q_GtoB, "groundtruth.q_GtoB", (4,))
+        for name in _GT_OPTIONAL:
+            if getattr(self, name) is not None:
+                setattr(self, name, _float_array(getattr(self, name), f"groundtruth.{name}", (3,)))
+        k = self.t.shape[0]
+        for name in ("p_BinG", "q_GtoB", *_GT_OPTIONAL):
+            value = getattr(self, name)
+            if value is not None and value.shape[0] != k:
+                raise ValueError(f"groundtruth.{name} must have {k} rows like groundtruth.t; got shape {value.shape}")
+
+    def __len__(self) -> int:
+        return int(self.t.shape[0])
+
+    @property
+    def R_BtoG(self) -> np.ndarray:
+        """Return the (K, 3, 3) rotations R_BtoG = C(q_GtoB)^T (body orientation in the world)."""
+        return np.swapaxes(quat_to_rot(self.q_GtoB), -1, -2)
+
+    def validate(self, prefix: str = "groundtruth") -> None:
+        """Return None if times increase strictly, values are finite and quaternions unit; else raise ValueError."""
+        _check_times(self.t, f"{prefix}.t")
+        for name in ("p_BinG", "q_GtoB", *_GT_OPTIONAL):
+            if getattr(self, name) is not None:
+                _check_finite(getattr(self, name), f"{prefix}.{name}")
+        norm_err = np.abs(np.linalg.norm(self.q_GtoB, axis=1) - 1.0)
+        if np.any(norm_err > _UNIT_TOL):
+            row = int(np.argmax(norm_err))
+            raise ValueError(f"{prefix}.q_GtoB must hold unit quaternions (tol {_UNIT_TOL:g}); row {row} has norm error {norm_err[row]:.3g}")
+
+    def slice_time(self, t0: float, t1: float) -> "GroundTruth":
+        """Return a copy of the samples with t0 <= t < t1."""
+        s = _time_mask(self.t, t0, t1)
+        parts = {name: (None if getattr(self, name) is None else getattr(self, name)[s].copy())
+                 for name in ("t", "p_BinG", "q_GtoB", *_GT_OPTIONAL)}
+        return GroundTruth(body=self.body, **parts)
+
+    def interpolate(self, t: Any) -> "GroundTruth":
+        """Return the ground truth at times ``t``: linear in position/velocity/biases, slerp in rotation.
+
+        Args:
+            t: scalar or (M,) query times [s] within [self.t[0], self.t[-1]] (no extrapolation).
+
+        Slerp between neighbours q0, q1 (sign of q1 flipped so that q0 . q1 >= 0, angle cos(th) = q0 . q1)::
+
+            q(a) = sin((1 - a) th) / sin(th) q0 + sin(a th) / sin(th) q1,   a = (t - t0) / (t1 - t0)
+
+        It follows the shortest rotation between the two samples at constant angular rate (Shoemake 1985);
+        on the unit sphere the formula is the same for JPL and Hamilton quaternions.
+        """
+        tq = np.atleast_1d(np.asarray(t, dtype=np.float64))
+        if tq.ndim != 1:
+            raise ValueError(f"t must be a scalar or have shape (M,); got {np.shape(t)}")
+        if len(self) == 0:
+            raise ValueError("groundtruth is empty; nothing to interpolate")
+        if not np.all(np.isfinite(tq)) or np.any(tq < self.t[0]) or np.any(tq > self.t[-1]):
+            raise ValueError(
+                f"t must lie within the ground-truth time range [{float(self.t[0])!r}, {float(self.t[-1])!r}]; "
+                f"got values in [{float(tq.min())!r}, {float(tq.max())!r}]"
+            )
+        if len(self) == 1:
+            i = np.zeros(tq.shape, dtype=np.int64)
+            j, a = i, np.zeros(tq.shape)
+        else:
+            i = np.clip(np.searchsorted(self.t, tq, side="right") - 1, 0, len(self) - 2)
+            j = i + 1
+            a = (tq - self.t[i]) / (self.t[j] - self.t[i])  # a = (t - t_i) / (t_{i+1} - t_i)
+
+        def lerp(values: np.ndarray | None) -> np.ndarray | None:
+            return None if values is None else (1.0 - a)[:, None] * values[i] + a[:, None] * values[j]
+
+        q0, q1 = self.q_GtoB[i], self.q_GtoB[j]
+        dot = np.sum(q0 * q1, axis=1)
+        q1 = np.where(dot[:, None] < 0.0, -q1, q1)  # q and -q are the same rotation: take the short way
+        theta = np.arccos(np.clip(np.abs(dot), -1.0, 1.0))
+        small = theta < 1e-9
+        sin_theta = np.where(small, 1.0, np.sin(theta))
+        w0 = np.where(small, 1.0 - a, np.sin((1.0 - a) * theta) / sin_theta)
+        w1 = np.where(small, a, np.sin(a * theta) / sin_theta)
+        q = w0[:, None] * q0 + w1[:, None] * q1
+        q /= np.linalg.norm(q, axis=1, keepdims=True)
+        return GroundTruth(t=tq, p_BinG=lerp(self.p_BinG), q_GtoB=q, body=self.body, v_BinG=lerp(self.v_BinG),
+                           bias_gyro=lerp(self.bias_gyro), bias_accel=lerp(self.bias_accel))
+
+
+@dataclass
+class Sequence:
+    """One recording (real or simulated): events, frames, IMU, ground truth, calibration and metadata.
+
+    Attributes:
+        name: short name, e.g. "slider_depth".
+        camera: intrinsics (and sensor size), or None when the recording has no calibration.
+        events: (N,) events of dtype EVENT_DTYPE sorted by t (possibly empty; None gives an empty array).
+        frame_times: (F,) frame timestamps [s], strictly increasing.
+        frames: (F, H, W) uint8 intensity frames; (0, H, W) when there are none (H, W still give the sensor size
+            when known, else (0, 0, 0)).
+        imu: IMU samples in I, or None.
+        groundtruth: camera poses (body "camera"), or None.
+        groundtruth_imu: IMU states (body "imu", possibly with velocity and biases), or None.
+        R_CtoI: (3, 3) camera-to-IMU rotation (x_I = R_CtoI x_C + p_CinI), or None when unknown.
+        p_CinI: (3,) camera centre in I [m], or None when unknown.
+        metadata: free-form JSON-like dict (IMU noise densities under "imu_noise", source files, units notes...).
+
+    >>> from evio_lib.events.array import make_events
+    >>> seq = Sequence("demo", events=make_events([0.0, 0.5, 1.0], [1, 2, 3], [0, 0, 0], [1, -1, 1]),
+    ...                frames=np.zeros((0, 4, 5), np.uint8))
+    >>> seq.validate(); seq.sensor_size, len(seq.slice_time(0.0, 0.6).events)
+    ((5, 4), 2)
+    """
+
+    name: str
+    camera: PinholeRadtan | None = None
+    events: np.ndarray = field(default_factory=empty_events)
+    frame_times: np.ndarray | None = None
+    frames: np.ndarray | None = None
+    imu: ImuSamples | None = None
+    groundtruth: GroundTruth | None = None
+    groundtruth_imu: GroundTruth | None = None
+    R_CtoI: np.ndarray | None = None
+    p_CinI: np.ndarray | None = None
+    metadata: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.events is None:
+            self.events = empty_events()
+        if self.frame_times is None:
+            self.frame_times = np.zeros(0, dtype=np.float64)
+        else:
+            self.frame_times = np.asarray(self.frame_times, dtype=np.float64)
+        if self.frames is None:
+            h, w = (self.camera.height, self.camera.width) if self.camera is not None else (0, 0)
+            self.frames = np.zeros((0, h, w), dtype=np.uint8)
+        if self.R_CtoI is not None:
+            self.R_CtoI = np.asarray(self.R_CtoI, dtype=np.float64)
+        if self.p_CinI is not None:
+            self.p_CinI = np.asarray(self.p_CinI, dtype=np.float64)
+        if self.metadata is None:
+            self.metadata = {}
+
+    @property
+    def sensor_size(self) -> tuple[int, int] | None:
+        """Return (width, height) in pixels from the camera, else from the frame array, else None."""
+        if self.camera is not None:
+            return (self.camera.width, self.camera.height)
+        if self.frames.ndim == 3 and self.frames.shape[1] > 0 and self.frames.shape[2] > 0:
+            return (int(self.frames.shape[2]), int(self.frames.shape[1]))
+        return None
+
+    def validate(self) -> None:
+        """Return None if every part is consistent; else raise ValueError naming the field and the problem.
+
+        Checks: name is a str; events (dtype, sorted, finite, polarity, inside the sensor); frames (F, H, W) uint8
+        with F = len(frame_times), size equal to the camera's; strictly increasing finite times everywhere; IMU and
+        ground-truth shapes and finiteness; unit quaternions; ground-truth bodies; R_CtoI a rotation, p_CinI (3,).
+        """
+        if not isinstance(self.name, str):
+            raise ValueError(f"name must be a str; got {type(self.name).__name__}")
+        if self.camera is not None and not isinstance(self.camera, PinholeRadtan):
+            raise ValueError(f"camera must be a PinholeRadtan or None; got {type(self.camera).__name__}")
+        if not isinstance(self.metadata, dict):
+            raise ValueError(f"metadata must be a dict; got {type(self.metadata).__name__}")
+        size = self.sensor_size
+        try:
+            validate_events(self.events, *(size if size is not None else (None, None)))
+        except ValueError as exc:
+            raise ValueError(f"events: {exc}") from None
+        if self.frame_times.ndim != 1:
+            raise ValueError(f"frame_times must have shape (F,); got {self.frame_times.shape}")
+        f = self.frame_times.shape[0]
+        _check_times(self.frame_times, "frame_times")
+        if not isinstance(self.frames, np.ndarray) or self.frames.dtype != np.uint8 or self.frames.ndim != 3:
+            got = (self.frames.dtype, self.frames.shape) if isinstance(self.frames, np.ndarray) else type(self.frames).__name__
+            raise ValueError(f"frames must be a uint8 array of shape (F, H, W); got {got}")
+        if self.frames.shape[0] != f:
+            raise ValueError(f"frames must have shape ({f}, H, W) matching frame_times ({f},); got {self.frames.shape}")
+        if self.camera is not None and self.frames.shape[1] * self.frames.shape[2] > 0:
+            expected = (self.camera.height, self.camera.width)
+            if self.frames.shape[1:] != expected:
+                raise ValueError(f"frames must have shape (F, {expected[0]}, {expected[1]}) like the camera; got {self.frames.shape}")
+        if self.imu is not None:
+            if not isinstance(self.imu, ImuSamples):
+                raise ValueError(f"imu must be an ImuSamples or None; got {type(self.imu).__name__}")
+            self.imu.validate("imu")
+        for name, body in (("groundtruth", "camera"), ("groundtruth_imu", "imu")):
+            gt = getattr(self, name)
+            if gt is None:
+                continue
+            if not isinstance(gt, GroundTruth):
+                raise ValueError(f"{name} must be a GroundTruth or None; got {type(gt).__name__}")
+            if gt.body != body:
+                raise ValueError(f"{name}.body must be {body!r}; got {gt.body!r}")
+            gt.validate(name)
+        if self.R_CtoI is not None:
+            R = self.R_CtoI
+            if R.shape != (3, 3) or not np.all(np.isfinite(R)):
+                raise ValueError(f"R_CtoI must be a finite (3, 3) rotation matrix; got shape {R.shape}")
+            if np.abs(R @ R.T - np.eye(3)).max() > _UNIT_TOL or abs(np.linalg.det(R) - 1.0) > _UNIT_TOL:
+                raise ValueError(f"R_CtoI must be a rotation matrix (R R^T = I, det 1, tol {_UNIT_TOL:g}); got det {np.linalg.det(R):.6g}")
+        if self.p_CinI is not None and (self.p_CinI.shape != (3,) or not np.all(np.isfinite(self.p_CinI))):
+            raise ValueError(f"p_CinI must be a finite vector of shape (3,); got shape {self.p_CinI.shape}")
+
+    def slice_time(self, t0: float, t1: float) -> "Sequence":
+        """Return a new Sequence holding copies of everything with t0 <= t < t1 (half-open window).
+
+        Camera, extrinsics and (a deep copy of) metadata are kept; events are found by binary search.
+        """
+        if not (np.isfinite(t0) and np.isfinite(t1)) or t1 < t0:
+            raise ValueError(f"t0 and t1 must be finite with t0 <= t1; got t0={float(t0)!r}, t1={float(t1)!r}")
+        s = _time_mask(self.frame_times, t0, t1)
+        return replace(
+            self,
+            events=events_between(self.events, t0, t1).copy(),
+            frame_times=self.frame_times[s].copy(),
+            frames=self.frames[s].copy(),
+            imu=None if self.imu is None else self.imu.slice_time(t0, t1),
+            groundtruth=None if self.groundtruth is None else self.groundtruth.slice_time(t0, t1),
+            groundtruth_imu=None if self.groundtruth_imu is None else self.groundtruth_imu.slice_time(t0, t1),
+            R_CtoI=None if self.R_CtoI is None else self.R_CtoI.copy(),
+            p_CinI=None if self.p_CinI is None else self.p_CinI.copy(),
+            metadata=copy.deepcopy(self.metadata),
+        )
+
+    def summary(self) -> str:
+        """Return a short multi-line text describing what the sequence holds (counts, time ranges, rates)."""
+
+        def span(t: np.ndarray) -> str:
+            if t.size == 0:
+                return "none"
+            dur = float(t[-1] - t[0])
+            rate = f", {(t.size - 1) / dur:.1f} Hz" if dur > 0 and t.size > 1 else ""
+            return f"{t.size:,} over {t[0]:.6f} .. {t[-1]:.6f} s ({dur:.3f} s{rate})"
+
+        size = self.sensor_size
+        lines = [f"Sequence {self.name!r}"]
+        lines.append(f"  sensor          {'unknown' if size is None else f'{size[0]} x {size[1]} px'}")
+        if self.camera is not None:
+            c = self.camera
+            lines.append(f"  camera          fx={c.fx:.2f} fy={c.fy:.2f} cx={c.cx:.2f} cy={c.cy:.2f} "
+                         f"k=({c.k1:.4g}, {c.k2:.4g}, {c.p1:.4g}, {c.p2:.4g}, {c.k3:.4g})")
+        else:
+            lines.append("  camera          none")
+        n = self.events.shape[0]
+        if n:
+            t = self.events["t"]
+            dur = float(t[-1] - t[0])
+            rate = f", {n / dur / 1e3:.1f} kev/s" if dur > 0 else ""
+            pos = 100.0 * float(np.mean(self.events["p"] > 0))
+            lines.append(f"  events          {n:,} over {t[0]:.6f} .. {t[-1]:.6f} s ({dur:.3f} s{rate}), {pos:.1f} % positive")
+        else:
+            lines.append("  events          none")
+        lines.append(f"  frames          {span(self.frame_times)}")
+        lines.append(f"  imu             {'none' if self.imu is None else span(self.imu.t)}")
+        for name in ("groundtruth", "groundtruth_imu"):
+            gt = getattr(self, name)
+            extra = ""
+            if gt is not None:
+                have = [n for n in _GT_OPTIONAL if getattr(gt, n) is not None]
+                extra = f" [{gt.body}{', ' + ', '.join(have) if have else ''}]"
+            lines.append(f"  {name:<15} {'none' if gt is None else span(gt.t)}{extra}")
+        known = self.R_CtoI is not None or self.p_CinI is not None
+        lines.append(f"  extrinsics      {'R_CtoI/p_CinI known' if known else 'unknown'}")
+        if self.metadata:
+            lines.append(f"  metadata        {', '.join(sorted(map(str, self.metadata)))}")
+        return "\n".join(lines)

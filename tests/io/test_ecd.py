@@ -1,0 +1,230 @@
+"""Tests of evio_lib.io.ecd: the ECD text layout (read, write, exact round trip, errors with file and line)."""
+import json
+
+import cv2
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from evio_lib.events.array import make_events
+from evio_lib.geometry.camera import PinholeRadtan
+from evio_lib.geometry.rotation import rot_to_quat
+from evio_lib.io.ecd import read_ecd, read_ecd_events, write_ecd
+from evio_lib.io.errors import DataFileError
+from evio_lib.sequence import GroundTruth, ImuSamples, Sequence
+
+
+def _simulated_sequence(rng: np.random.Generator, ns_grid: bool) -> Sequence:
+    """A sequence with every part filled, like the simulator produces."""
+    width, height = 40, 30
+    cam = PinholeRadtan(fx=50.5, fy=51.25, cx=19.5, cy=14.5, width=width, height=height, k1=-0.3, k2=0.1, p1=1e-4, p2=-2e-4, k3=0.01)
+    n = 5000
+    t = np.sort(rng.uniform(0.0, 1.0, n))
+    t = np.round(t, 9) if ns_grid else t
+    t[10] = t[11]  # events may share a timestamp
+    events = make_events(t, rng.integers(0, width, n), rng.integers(0, height, n), rng.choice([-1, 1], n))
+    frame_times = np.arange(5) * 0.2 + (0.0 if ns_grid else 1e-12 * np.pi)
+    frames = rng.integers(0, 256, (5, height, width), dtype=np.uint8)
+    t_imu = np.arange(200) * 0.005 + (0.0 if ns_grid else 1e-13)
+    imu = ImuSamples(t_imu, rng.normal(size=(200, 3)), rng.normal(size=(200, 3)) + [0.0, 0.0, 9.81])
+    t_gt = np.arange(50) * 0.02 + (0.0 if ns_grid else 1 / 3)
+    q_cam = rot_to_quat(Rotation.random(50, random_state=np.random.RandomState(1)).as_matrix())
+    q_imu = rot_to_quat(Rotation.random(50, random_state=np.random.RandomState(2)).as_matrix())
+    gt_cam = GroundTruth(t_gt, rng.normal(size=(50, 3)), q_cam, body="camera")
+    gt_imu = GroundTruth(t_gt, rng.normal(size=(50, 3)), q_imu, body="imu", v_BinG=rng.normal(size=(50, 3)),
+                         bias_gyro=rng.normal(size=(50, 3)) * 1e-3, bias_accel=rng.normal(size=(50, 3)) * 1e-2)
+    metadata = {
+        "imu_noise": {"gyroscope_noise_density": 1.6968e-4, "accelerometer_noise_density": 2.0e-3},
+        "gravity_G": np.array([0.0, 0.0, -9.81]),
+        "contrast_threshold": (0.2, 0.2),
+        "simulator": "evio.sim",
+        "seed": 42,
+    }
+    return Sequence("sim_rig", camera=cam, events=events, frame_times=frame_times, frames=frames, imu=imu,
+                    groundtruth=gt_cam, groundtruth_imu=gt_imu,
+                    R_CtoI=Rotation.from_euler("xyz", [0.1, -0.2, 1.5]).as_matrix(), p_CinI=np.array([0.01, -0.02, 0.003]),
+                    metadata=metadata)
+
+
+def _assert_same_groundtruth(a: GroundTruth, b: GroundTruth) -> None:
+    assert a.body == b.body
+    for name in ("t", "p_BinG", "q_GtoB", "v_BinG", "bias_gyro", "bias_accel"):
+        x, y = getattr(a, name), getattr(b, name)
+        assert (x is None) == (y is None), name
+        if x is not None:
+            np.testing.assert_array_equal(x, y, err_msg=name)
+
+
+@pytest.mark.parametrize("ns_grid", [True, False])
+def test_write_read_round_trip_is_exact(tmp_path, rng, ns_grid):
+    seq = _simulated_sequence(rng, ns_grid)
+    folder = write_ecd(seq, tmp_path / "seq")
+    for name in ("events.txt", "imu.txt", "images.txt", "groundtruth.txt", "calib.txt", "groundtruth_imu.txt", "evio_sim.json"):
+        assert (folder / name).is_file(), name
+    back = read_ecd(folder)
+    back.validate()
+    np.testing.assert_array_equal(back.events, seq.events)
+    np.testing.assert_array_equal(back.frames, seq.frames)
+    np.testing.assert_array_equal(back.frame_times, seq.frame_times)
+    np.testing.assert_array_equal(back.imu.t, seq.imu.t)
+    np.testing.assert_array_equal(back.imu.gyro, seq.imu.gyro)
+    np.testing.assert_array_equal(back.imu.accel, seq.imu.accel)
+    _assert_same_groundtruth(back.groundtruth, seq.groundtruth)
+    _assert_same_groundtruth(back.groundtruth_imu, seq.groundtruth_imu)
+    np.testing.assert_array_equal(back.R_CtoI, seq.R_CtoI)
+    np.testing.assert_array_equal(back.p_CinI, seq.p_CinI)
+    assert back.camera == seq.camera and back.name == "sim_rig"
+    assert back.metadata.keys() == seq.metadata.keys()
+    np.testing.assert_array_equal(back.metadata["gravity_G"], seq.metadata["gravity_G"])
+    assert back.metadata["contrast_threshold"] == (0.2, 0.2) and back.metadata["imu_noise"] == seq.metadata["imu_noise"]
+    first_event = (folder / "events.txt").read_text().splitlines()[0].split()
+    assert first_event[3] in ("0", "1")  # ECD polarity 0/1 on disk
+    if ns_grid:
+        assert len(first_event[0].split(".")[1]) == 9  # ECD style 9 decimals
+
+
+def test_round_trip_minimal_sequence_keeps_unknown_size(tmp_path):
+    seq = Sequence("bare", events=make_events([0.1, 0.1, 0.3], [500, 2, 3], [7, 900, 9], [1, -1, 1]))
+    back = read_ecd(write_ecd(seq, tmp_path / "bare"))
+    np.testing.assert_array_equal(back.events, seq.events)
+    assert back.frames.shape == (0, 0, 0) and back.sensor_size is None
+    assert back.imu is None and back.groundtruth is None and back.groundtruth_imu is None and back.camera is None
+    assert back.R_CtoI is None and back.metadata == {}
+
+
+def test_write_removes_stale_layout_files(tmp_path, rng):
+    write_ecd(_simulated_sequence(rng, True), tmp_path / "f")
+    small = Sequence("small", events=make_events([0.0], [1], [1], [1]), frames=np.zeros((0, 30, 40), np.uint8))
+    back = read_ecd(write_ecd(small, tmp_path / "f"))
+    assert back.imu is None and back.groundtruth is None and back.frames.shape == (0, 30, 40) and len(back.events) == 1
+    assert not list((tmp_path / "f" / "images").glob("frame_*.png"))
+
+
+def test_write_rejects_invalid_sequence(tmp_path):
+    seq = Sequence("bad", events=make_events([0.0], [300], [1], [1]), camera=PinholeRadtan.davis240c())
+    with pytest.raises(ValueError, match=r"events: event x out of range \[0, 240\)"):
+        write_ecd(seq, tmp_path / "bad")
+    with pytest.raises(ValueError, match="sequence must be a Sequence; got dict"):
+        write_ecd({}, tmp_path / "bad")
+
+
+def test_read_hand_written_folder(tmp_path):
+    """Files written by hand in the documented ECD layout: checks the meaning of every column."""
+    f = tmp_path / "hand"
+    (f / "images").mkdir(parents=True)
+    (f / "events.txt").write_text("0.100000000 3 4 1\n0.100000000 5 6 0\n0.250000000 239 179 1\n")
+    (f / "imu.txt").write_text("0.0 0.1 0.2 9.8 0.01 0.02 0.03\n0.005 0.1 0.2 9.8 0.01 0.02 0.03\n")
+    yaw90 = Rotation.from_euler("z", 90, degrees=True)  # camera orientation in the world, R_CtoG
+    qx, qy, qz, qw = yaw90.as_quat().tolist()
+    (f / "groundtruth.txt").write_text(f"0.5 1.0 2.0 3.0 {qx!r} {qy!r} {qz!r} {qw!r}\n")
+    (f / "calib.txt").write_text("199.092366542 198.82882047 132.192071378 110.712660011 -0.368436311798 0.150947243557 "
+                                 "-0.000296130534385 -0.000759431726241 0.0\n")
+    image = (np.arange(180 * 240) % 251).astype(np.uint8).reshape(180, 240)
+    cv2.imwrite(str(f / "images" / "frame_00000000.png"), image)
+    (f / "images.txt").write_text("0.2 images/frame_00000000.png\n")
+    seq = read_ecd(f)
+    seq.validate()
+    assert seq.camera == PinholeRadtan.davis240c()
+    np.testing.assert_array_equal(seq.events["p"], [1, -1, 1])
+    np.testing.assert_array_equal(seq.events["x"], [3, 5, 239])
+    np.testing.assert_array_equal(seq.imu.accel[0], [0.1, 0.2, 9.8])  # ECD: accelerometer first
+    np.testing.assert_array_equal(seq.imu.gyro[0], [0.01, 0.02, 0.03])
+    np.testing.assert_array_equal(seq.frames[0], image)
+    np.testing.assert_array_equal(seq.frame_times, [0.2])
+    np.testing.assert_allclose(seq.groundtruth.R_BtoG[0], yaw90.as_matrix(), atol=1e-12)
+    np.testing.assert_array_equal(seq.groundtruth.p_BinG[0], [1.0, 2.0, 3.0])
+    assert seq.metadata["sensor_size_source"] == "first frame" and seq.groundtruth.body == "camera"
+    assert read_ecd(f, load_frames=False, load_events=False).frames.shape == (0, 180, 240)
+    assert len(read_ecd(f, load_events=False).events) == 0
+
+
+def test_real_slider_depth_slice(real_data_dir, tmp_path):
+    path = real_data_dir / "ecd_slider_depth_slice" / "slider_seg.txt"
+    events = read_ecd_events(path, sensor_size=(240, 180))
+    assert events.shape == (50000,)
+    assert events["t"][0] == 0.003811 and events["t"][-1] == 0.174156
+    assert events["x"].max() == 239 and events["y"].max() == 179 and events["x"].min() == 0
+    assert np.mean(events["p"] > 0) == pytest.approx(0.423, abs=0.001)
+    np.testing.assert_array_equal(events["x"][:3], [96, 127, 4])
+    np.testing.assert_array_equal(events["p"][:3], [-1, -1, -1])
+    assert events["t"][1] == 0.003820001 and np.all(np.diff(events["t"]) >= 0)
+    # the same file as events.txt of an ECD folder (a link, not a copy): DAVIS240C size assumed
+    (tmp_path / "slider").mkdir()
+    (tmp_path / "slider" / "events.txt").symlink_to(path)
+    seq = read_ecd(tmp_path / "slider")
+    assert seq.sensor_size == (240, 180) and seq.camera is None and seq.metadata["sensor_size_source"].startswith("assumed")
+    np.testing.assert_array_equal(seq.events, events)
+
+
+def _folder(tmp_path, **files):
+    folder = tmp_path / "ecd"
+    folder.mkdir(exist_ok=True)
+    files.setdefault("events_txt", "0.1 1 2 1\n0.2 3 4 0\n")
+    for key, text in files.items():
+        (folder / key.replace("_txt", ".txt").replace("_json", ".json")).write_text(text)
+    return folder
+
+
+@pytest.mark.parametrize(
+    "files, message",
+    [
+        ({"events_txt": "0.1 1 2 1\n0.2 3 4 0\n0.3 5 6\n"}, r"events.txt line 3: expected 4 columns \(t x y p\), got 3"),
+        ({"events_txt": "0.1 1 2 1\n0.2 3 4 2\n"}, r"events.txt line 2: column 'p' value 2 is out of range: polarity must be 0 \(darker\) or 1"),
+        ({"events_txt": "0.1 1 2 1\n0.2 3 4 -1\n"}, r"events.txt line 2: column 'p' value -1 is out of range"),
+        ({"events_txt": "0.1 240 2 1\n"}, r"events.txt line 1: column 'x' value 240 is out of range: x must be an integer in \[0, 240\) for a 240 x 180 sensor"),
+        ({"events_txt": "0.1 2 180 1\n"}, r"events.txt line 1: column 'y' value 180 is out of range: y must be an integer in \[0, 180\)"),
+        ({"events_txt": "0.1 1.5 2 1\n"}, r"events.txt line 1: column 'x' must be an integer; got '1.5'"),
+        ({"events_txt": "0.1 -3 2 1\n"}, r"events.txt line 1: column 'x' value -3 is out of range"),
+        ({"events_txt": "0.1 1 2 1\n0.3 1 2 1\n0.2 1 2 1\n"}, r"events.txt line 3: timestamp 0.2 follows 0.3 .*sorted \(non-decreasing\)"),
+        ({"events_txt": "0.1 1 2 1\nnan 1 2 1\n"}, r"events.txt line 2: column 't' must be a finite number"),
+        ({"imu_txt": "0.0 0 0 9.8 0 0 0\n0.1 0 0 9.8 0 0 0\n0.1 0 0 9.8 0 0 0\n"}, r"imu.txt line 3: timestamp 0.1 follows 0.1 .*no duplicates"),
+        ({"imu_txt": "0.0 0 0 9.8 0 0\n"}, r"imu.txt line 1: expected 7 columns \(t ax ay az gx gy gz\), got 6"),
+        ({"imu_txt": "0.0 0 0 9.8 0 0 inf\n"}, r"imu.txt line 1: column 'gz' must be a finite number"),
+        ({"groundtruth_txt": "0.0 0 0 0 0 0 1\n"}, r"groundtruth.txt line 1: expected 8 columns \(t px py pz qx qy qz qw\), got 7"),
+        ({"calib_txt": "199 198 132 110 -0.36 0.15 0 0\n"}, r"calib.txt line 1: expected 9 columns \(fx fy cx cy k1 k2 p1 p2 k3\), got 8"),
+        ({"calib_txt": "1 1 1 1 0 0 0 0 0\n1 1 1 1 0 0 0 0 0\n"}, r"calib.txt line 2: expected a single line"),
+        ({"images_txt": "0.0 images/frame_00000000.png\n"}, r"images.txt line 1: image file images/frame_00000000.png not found"),
+        ({"images_txt": "0.0\n"}, r"images.txt line 1: expected 2 columns \(t image_path\), got 1"),
+        ({"groundtruth_imu_txt": "0 0 0 0 0 0 0 1 0\n"}, r"groundtruth_imu.txt line 1: expected 8, 11, 14 or 17 columns .* got 9"),
+        ({"evio_sim_json": "{\n \"name\": \n"}, r"evio_sim.json line 3: invalid JSON"),
+    ],
+)
+def test_read_errors_name_file_line_and_problem(tmp_path, files, message):
+    folder = _folder(tmp_path, **files)
+    with pytest.raises(DataFileError, match=message):
+        read_ecd(folder)
+
+
+def test_image_list_errors(tmp_path):
+    folder = _folder(tmp_path)
+    (folder / "images").mkdir()
+    cv2.imwrite(str(folder / "images" / "a.png"), np.zeros((180, 240), np.uint8))
+    cv2.imwrite(str(folder / "images" / "b.png"), np.zeros((10, 10), np.uint8))
+    (folder / "images.txt").write_text("0.5 images/a.png\n0.5 images/a.png\n")
+    with pytest.raises(DataFileError, match=r"images.txt line 2: timestamp 0.5 follows 0.5; t must be strictly increasing"):
+        read_ecd(folder)
+    (folder / "images.txt").write_text("0.5 images/a.png\n0.6 images/b.png\n")
+    with pytest.raises(DataFileError, match=r"images.txt frame 1 \(b.png\): image size 10 x 10 differs from the sensor size 240 x 180"):
+        read_ecd(folder)
+
+
+def test_missing_files_and_folders(tmp_path):
+    with pytest.raises(DataFileError, match="ECD folder not found"):
+        read_ecd(tmp_path / "nothing")
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(DataFileError, match=r"events.txt: file not found at .*empty/events.txt"):
+        read_ecd(tmp_path / "empty")
+    with pytest.raises(DataFileError, match=r"slider.txt: file not found"):
+        read_ecd_events(tmp_path / "slider.txt")
+
+
+def test_sidecar_overrides_size_and_empty_events_file(tmp_path):
+    folder = _folder(tmp_path, events_txt="", evio_sim_json=json.dumps({"name": "x", "sensor_size": [4, 3], "metadata": {}}))
+    seq = read_ecd(folder)
+    assert seq.sensor_size == (4, 3) and len(seq.events) == 0 and seq.name == "x"
+    (folder / "events.txt").write_text("0.0 4 0 1\n")
+    with pytest.raises(DataFileError, match=r"events.txt line 1: column 'x' value 4 is out of range: x must be an integer in \[0, 4\)"):
+        read_ecd(folder)
+    assert len(read_ecd(folder, sensor_size=(5, 3)).events) == 1
+    with pytest.raises(ValueError, match=r"sensor_size must be \(width, height\) in positive whole pixels; got \(5, 0\)"):
+        read_ecd(folder, sensor_size=(5, 0))
