@@ -5,6 +5,7 @@ import argparse
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 
 def _cmd_course(args: argparse.Namespace) -> int:
@@ -32,6 +33,26 @@ def _cmd_course(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    """Simulate a preset recording and write it in the ECD text layout (plus the simulator's sidecar files)."""
+    from evio_lib.io.ecd import write_ecd
+    from evio_lib.sim.presets import SimulationConfig, simulate_sequence
+
+    config = SimulationConfig(preset=args.preset, duration=args.duration, seed=args.seed,
+                              with_events=not args.no_events, with_frames=not args.no_frames)
+    print(config)
+    start = time.perf_counter()
+    sequence = simulate_sequence(config, progress=not args.quiet)
+    print(f"simulated in {time.perf_counter() - start:.1f} s: {sequence.summary()}")
+    write_ecd(sequence, args.out, progress=not args.quiet)
+    if args.cache:
+        from evio_lib.io.cache import save_sequence_npz
+
+        save_sequence_npz(sequence, args.out / "sequence.npz")
+    print(f"wrote {args.out}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of the evio command line."""
     parser = argparse.ArgumentParser(prog="python -m evio_lib", description=__doc__)
@@ -42,6 +63,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-execute", action="store_true", help="only convert the jupytext sources to .ipynb")
     p.add_argument("--open", action="store_true", help="start JupyterLab on the built notebooks afterwards")
     p.set_defaults(func=_cmd_course)
+
+    p = sub.add_parser("simulate", help="simulate a preset recording and write it in the ECD text layout")
+    p.add_argument("preset", choices=["boxes_like", "aerial_like"])
+    p.add_argument("--out", type=Path, required=True, help="output folder (created)")
+    p.add_argument("--duration", type=float, default=10.0, help="seconds to simulate (default 10)")
+    p.add_argument("--seed", type=int, default=0, help="seed of every random stream (default 0)")
+    p.add_argument("--no-events", action="store_true", help="skip the event camera (IMU, frames and ground truth only)")
+    p.add_argument("--no-frames", action="store_true", help="skip the grayscale frames")
+    p.add_argument("--cache", action="store_true", help="also write sequence.npz, the fast binary cache")
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    p.set_defaults(func=_cmd_simulate)
     return parser
 
 
