@@ -25,6 +25,7 @@ from typing import Sequence
 
 import numpy as np
 from numpy.polynomial import Polynomial
+from numpy.polynomial.polynomial import polyval
 from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import BSpline, make_interp_spline
 
@@ -80,34 +81,45 @@ def _compose(f: NDArray[np.float64], u: NDArray[np.float64]) -> NDArray[np.float
     return out
 
 
-def _poly_stack(p: Polynomial, t: NDArray[np.float64], order: int) -> NDArray[np.float64]:
-    """Return (order + 1, N): the polynomial p and its derivatives at t."""
-    return np.stack([p.deriv(k)(t) if k else p(t) for k in range(order + 1)])
+class _PolyDerivatives:
+    """A polynomial with its derivative coefficients computed once (evaluating is then a few Horner passes).
+
+    Building ``Polynomial.deriv`` objects on every call dominated the cost of evaluating a trajectory at one time, which the
+    event simulator does for every render.
+    """
+
+    def __init__(self, p: Polynomial) -> None:
+        p = p.convert(kind=Polynomial, domain=[-1, 1], window=[-1, 1])  # plain power series in t
+        self.coefs = [p.coef] + [p.deriv(k).coef for k in range(1, _MAX_ORDER + 2)]
+
+    def __call__(self, t: NDArray[np.float64], order: int) -> NDArray[np.float64]:
+        """Return (order + 1, N): the polynomial and its derivatives 1..order at t."""
+        return np.stack([polyval(t, self.coefs[k]) for k in range(order + 1)])
 
 
 class _Poly(_Signal):
     """f(t) = polynomial in t."""
 
     def __init__(self, coef: Sequence[float]) -> None:
-        self.p = Polynomial(np.asarray(coef, dtype=np.float64))
+        self.p = _PolyDerivatives(Polynomial(np.asarray(coef, dtype=np.float64)))
 
     def __call__(self, t: NDArray[np.float64], order: int) -> NDArray[np.float64]:
-        return _poly_stack(self.p, t, order)
+        return self.p(t, order)
 
 
 class _Chirp(_Signal):
     """f(t) = A(t) sin(Φ(t)) with polynomial amplitude A and polynomial phase Φ (instantaneous freq. Φ'/(2π))."""
 
     def __init__(self, amplitude: Polynomial, phase: Polynomial) -> None:
-        self.amplitude = amplitude
-        self.phase = phase
+        self.amplitude = _PolyDerivatives(amplitude)
+        self.phase = _PolyDerivatives(phase)
 
     def __call__(self, t: NDArray[np.float64], order: int) -> NDArray[np.float64]:
-        phi = _poly_stack(self.phase, t, order)
+        phi = self.phase(t, order)
         s, c = np.sin(phi[0]), np.cos(phi[0])
         sin_derivs = np.stack([s, c, -s, -c, s][: order + 1])  # d^k sin(x)/dx^k
         g = _compose(sin_derivs, phi)  # sin(Φ(t)) and its time derivatives
-        return _product(_poly_stack(self.amplitude, t, order), g)  # A(t) sin(Φ(t))
+        return _product(self.amplitude(t, order), g)  # A(t) sin(Φ(t))
 
 
 class _Spline(_Signal):
@@ -132,6 +144,7 @@ def _smoothstep_poly() -> tuple[Polynomial, Polynomial]:
 
 
 _S, _IS = _smoothstep_poly()
+_S_DERIVS = [_S.deriv(k) for k in range(1, _MAX_ORDER + 2)]  # S', S'', ... computed once, not per evaluation
 
 
 class _RampIntegral(_Signal):
@@ -155,7 +168,7 @@ class _RampIntegral(_Signal):
         if order >= 1:
             out[1] = _S(xc)  # J' = S(x)  (0 before, 1 after)
         for k in range(2, order + 1):
-            out[k] = np.where(inside, _S.deriv(k - 1)(xc) / self.T ** (k - 1), 0.0)  # J^(k) = S^(k-1)(x) / T^(k-1)
+            out[k] = np.where(inside, _S_DERIVS[k - 2](xc) / self.T ** (k - 1), 0.0)  # J^(k) = S^(k-1)(x) / T^(k-1)
         return out
 
 
