@@ -379,7 +379,9 @@ def sample_homography(
         if allow_artifacts:
             t_min = t_min + translation_overflow * size
             t_max = t_max + translation_overflow * size
-        patch = patch + rng.uniform(-t_min, t_max)
+        # uniform between the two bounds; with artifacts allowed a patch larger than the image makes the interval
+        # inverted (-t_min > t_max), and the shift is then drawn between the same two bounds, as SuperPoint does
+        patch = patch + (-t_min + (t_max + t_min) * rng.random(2))
 
     if rotation:
         angles = np.concatenate([[0.0], np.linspace(-max_angle, max_angle, n_angles)])

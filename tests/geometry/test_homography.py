@@ -248,3 +248,12 @@ def test_sample_homography_bad_input(rng):
         sample_homography(SHAPE, rng, n_angles=0)
     with pytest.raises(ValueError, match="scaling_amplitude must be a finite number >= 0"):
         sample_homography(SHAPE, rng, scaling_amplitude=-0.1)
+
+
+def test_sample_homography_with_artifacts_never_fails_on_large_patches():
+    """With artifacts allowed, a perturbed patch wider than the image must still give a homography (not an error)."""
+    rng = np.random.default_rng(11)
+    for _ in range(500):
+        H = sample_homography((240, 320), rng, allow_artifacts=True, scaling_amplitude=0.2, patch_ratio=0.85,
+                              perspective_amplitude_x=0.2, perspective_amplitude_y=0.2, max_angle=np.pi / 2)
+        assert H.shape == (3, 3) and np.all(np.isfinite(H))
