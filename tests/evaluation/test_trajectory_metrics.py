@@ -1,0 +1,273 @@
+"""Tests of evio_lib.evaluation.trajectory_metrics against closed forms, scipy and hand examples."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+from scipy.stats import chi2
+
+from evio_lib.evaluation.trajectory_metrics import (
+    absolute_trajectory_error,
+    align_umeyama,
+    chi2_bounds,
+    distance_travelled,
+    final_error,
+    format_table,
+    nees,
+    orientation_errors,
+    percent_of_distance,
+    position_errors,
+    relative_pose_error,
+    rmse,
+    summarize,
+)
+
+
+def _helix(n: int = 200) -> tuple[np.ndarray, np.ndarray]:
+    t = np.linspace(0.0, 20.0, n)
+    p = np.stack([3.0 * np.cos(0.3 * t), 3.0 * np.sin(0.3 * t), 0.1 * t + 0.5 * np.sin(t)], axis=1)
+    return t, p
+
+
+def test_identical_trajectories_give_zero(rng: np.random.Generator) -> None:
+    t, p = _helix()
+    errors = position_errors(t, p, t, p)
+    assert errors.shape == (t.size, 3) and np.all(errors == 0.0)
+    assert rmse(errors) == 0.0 and final_error(errors) == 0.0
+    R = Rotation.random(t.size, random_state=1).as_matrix()
+    rpe = relative_pose_error(t, R, p, R, p, delta=1.0)
+    np.testing.assert_allclose(rpe.translation, 0.0, atol=1e-12)
+    np.testing.assert_allclose(rpe.rotation, 0.0, atol=1e-7)
+    angle, yaw, tilt = orientation_errors(R, R)
+    np.testing.assert_allclose(np.stack([angle, yaw, tilt]), 0.0, atol=1e-7)
+    assert absolute_trajectory_error(p, p) < 1e-12
+
+
+def test_constant_offset_rmse_equals_offset() -> None:
+    t, p = _helix()
+    offset = np.array([0.3, -0.4, 1.2])  # |offset| = 1.3
+    errors = position_errors(t, p + offset, t, p)
+    np.testing.assert_allclose(errors, np.broadcast_to(offset, errors.shape), atol=1e-12)
+    assert rmse(errors) == pytest.approx(1.3, abs=1e-12)
+    assert final_error(errors) == pytest.approx(1.3, abs=1e-12)
+    assert rmse(np.linalg.norm(errors, axis=1)) == pytest.approx(1.3, abs=1e-12)  # norms are accepted too
+    # a constant offset is removed by any alignment
+    assert absolute_trajectory_error(p + offset, p) < 1e-9
+    assert absolute_trajectory_error(p + offset, p, yaw_only=False) < 1e-9
+
+
+def test_position_errors_interpolates_ground_truth() -> None:
+    # ground truth p(t) = [t, t^2, 0] sampled every h = 0.01 s; estimates at off-grid times are compared to the
+    # linear interpolant, which exceeds t^2 by exactly (t - t_i)(t_i+1 - t)
+    t_gt = np.linspace(0.0, 2.0, 201)
+    p_gt = np.stack([t_gt, t_gt**2, np.zeros_like(t_gt)], axis=1)
+    t_est = np.array([0.005, 0.777, 1.2345, 1.999])
+    p_est = np.stack([t_est, t_est**2, np.zeros_like(t_est)], axis=1)
+    errors = position_errors(t_est, p_est, t_gt, p_gt)
+    np.testing.assert_allclose(errors[:, 0], 0.0, atol=1e-12)
+    t_i = np.floor(t_est / 0.01 + 1e-9) * 0.01
+    np.testing.assert_allclose(errors[:, 1], -(t_est - t_i) * (t_i + 0.01 - t_est), atol=1e-12)
+
+
+def test_percent_of_distance_hand_example() -> None:
+    # square path 0 -> (4,0) -> (4,3): D = 7 m; errors 0, 0.7, 1.4 m -> mean 0.7 m -> 10 %
+    p_gt = np.array([[0.0, 0.0, 0.0], [4.0, 0.0, 0.0], [4.0, 3.0, 0.0]])
+    assert distance_travelled(p_gt) == pytest.approx(7.0)
+    p_est = p_gt + np.array([[0.0, 0.0, 0.0], [0.0, 0.7, 0.0], [0.0, 0.0, 1.4]])
+    errors = position_errors([0.0, 1.0, 2.0], p_est, [0.0, 1.0, 2.0], p_gt)
+    assert percent_of_distance(errors, 7.0) == pytest.approx(10.0)
+    row = summarize([0.0, 1.0, 2.0], p_est, [0.0, 1.0, 2.0], p_gt, name="hand")
+    assert row["distance_m"] == pytest.approx(7.0)
+    assert row["percent_of_distance"] == pytest.approx(10.0)
+    assert row["rmse_m"] == pytest.approx(np.sqrt((0.49 + 1.96) / 3))
+    assert row["final_error_m"] == pytest.approx(1.4) and row["max_error_m"] == pytest.approx(1.4)
+    # the thesis's Table 6 relation on the Boxes IMU-only row: % = mean |e| / D, so mean |e| = 26.34 % of 69.8 m
+    assert percent_of_distance(np.full(10, 0.2634 * 69.8), 69.8) == pytest.approx(26.34)
+
+
+def test_summarize_uses_distance_over_estimate_span() -> None:
+    t = np.linspace(0.0, 10.0, 101)
+    p = np.stack([t, np.zeros_like(t), np.zeros_like(t)], axis=1)  # 1 m/s along x
+    t_est = np.linspace(2.0, 6.0, 9)
+    p_est = np.stack([t_est, np.full_like(t_est, 0.2), np.zeros_like(t_est)], axis=1)
+    row = summarize(t_est, p_est, t, p)
+    assert row["distance_m"] == pytest.approx(4.0)
+    assert row["percent_of_distance"] == pytest.approx(5.0)
+    assert row["n"] == 9
+
+
+def _umeyama_reference(a: np.ndarray, b: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """Sim(3) reference through the 4x4 quaternion eigenproblem (Horn 1987), independent of the SVD route."""
+    mu_a, mu_b = a.mean(0), b.mean(0)
+    A, B = a - mu_a, b - mu_b
+    M = A.T @ B
+    Sxx, Sxy, Sxz, Syx, Syy, Syz, Szx, Szy, Szz = M.ravel()
+    N = np.array([
+        [Sxx + Syy + Szz, Syz - Szy, Szx - Sxz, Sxy - Syx],
+        [Syz - Szy, Sxx - Syy - Szz, Sxy + Syx, Szx + Sxz],
+        [Szx - Sxz, Sxy + Syx, -Sxx + Syy - Szz, Syz + Szy],
+        [Sxy - Syx, Szx + Sxz, Syz + Szy, -Sxx - Syy + Szz],
+    ])
+    w, v = np.linalg.eigh(N)
+    q = v[:, -1]  # [w, x, y, z]
+    R = Rotation.from_quat([q[1], q[2], q[3], q[0]]).as_matrix()
+    s = np.sum(B * (A @ R.T)) / np.sum(A**2)
+    return s, R, mu_b - s * R @ mu_a
+
+
+def test_umeyama_recovers_known_similarity(rng: np.random.Generator) -> None:
+    a = rng.normal(size=(50, 3)) * [3.0, 2.0, 1.0]
+    R_true = Rotation.from_rotvec([0.4, -1.1, 2.0]).as_matrix()
+    s_true, t_true = 1.7, np.array([5.0, -2.0, 0.3])
+    b = s_true * a @ R_true.T + t_true
+    fit = align_umeyama(a, b, with_scale=True)
+    assert fit.scale == pytest.approx(s_true, rel=1e-12)
+    np.testing.assert_allclose(fit.R, R_true, atol=1e-12)
+    np.testing.assert_allclose(fit.t, t_true, atol=1e-10)
+    np.testing.assert_allclose(fit.apply(a), b, atol=1e-10)
+    assert absolute_trajectory_error(a, b, with_scale=True, yaw_only=False) < 1e-10
+    # without scale, the SE(3) part; with noise, agrees with the Horn quaternion reference
+    noisy = b + 0.05 * rng.normal(size=b.shape)
+    fit = align_umeyama(a, noisy, with_scale=True)
+    s_ref, R_ref, t_ref = _umeyama_reference(a, noisy)
+    assert fit.scale == pytest.approx(s_ref, rel=1e-9)
+    np.testing.assert_allclose(fit.R, R_ref, atol=1e-9)
+    np.testing.assert_allclose(fit.t, t_ref, atol=1e-8)
+    rigid = align_umeyama(a, a @ R_true.T + t_true)
+    assert rigid.scale == 1.0
+    np.testing.assert_allclose(rigid.R, R_true, atol=1e-12)
+    # a reflection is never returned
+    assert np.linalg.det(align_umeyama(a, a * [1.0, 1.0, -1.0]).R) == pytest.approx(1.0)
+
+
+def test_yaw_only_alignment_recovers_yaw_and_leaves_roll_pitch(rng: np.random.Generator) -> None:
+    _, p = _helix()
+    yaw_rot = Rotation.from_euler("z", 0.8).as_matrix()
+    moved = p @ yaw_rot.T + [10.0, -3.0, 2.0]
+    fit = align_umeyama(p, moved, yaw_only=True)
+    np.testing.assert_allclose(fit.R, yaw_rot, atol=1e-12)
+    assert absolute_trajectory_error(p, moved, yaw_only=True) < 1e-10
+    # a roll/pitch error cannot be removed by the 4-DoF alignment, but is by the SE(3) one
+    tilted = p @ Rotation.from_euler("xy", [0.2, -0.15]).as_matrix().T
+    assert absolute_trajectory_error(p, tilted, yaw_only=True) > 0.1
+    assert absolute_trajectory_error(p, tilted, yaw_only=False) < 1e-10
+    fit = align_umeyama(p, tilted, yaw_only=True)
+    assert fit.R[2, 2] == 1.0 and np.allclose(fit.R[:2, 2], 0.0) and np.allclose(fit.R[2, :2], 0.0)
+
+
+def test_orientation_errors_split_yaw_and_tilt() -> None:
+    R_gt = Rotation.random(20, random_state=4).as_matrix()
+    dyaw = Rotation.from_euler("z", 0.3).as_matrix()
+    angle, yaw, tilt = orientation_errors(dyaw @ R_gt, R_gt)  # world-frame yaw error
+    np.testing.assert_allclose(angle, 0.3, atol=1e-12)
+    np.testing.assert_allclose(yaw, 0.3, atol=1e-12)
+    np.testing.assert_allclose(tilt, 0.0, atol=1e-7)
+    dtilt = Rotation.from_euler("x", -0.2).as_matrix()
+    angle, yaw, tilt = orientation_errors(dtilt @ R_gt, R_gt)
+    np.testing.assert_allclose(tilt, 0.2, atol=1e-12)
+    np.testing.assert_allclose(yaw, 0.0, atol=1e-12)
+    # angle agrees with scipy's magnitude of the relative rotation
+    R_est = Rotation.random(20, random_state=5).as_matrix()
+    angle, _, _ = orientation_errors(R_est, R_gt)
+    ref = (Rotation.from_matrix(R_est) * Rotation.from_matrix(R_gt).inv()).magnitude()
+    np.testing.assert_allclose(angle, ref, atol=1e-9)
+
+
+def test_relative_pose_error_scale_drift_and_time_mode() -> None:
+    # straight line at 1 m/s; the estimate is scaled by 1.1 -> relative translation error 0.1 * delta
+    t = np.linspace(0.0, 10.0, 101)
+    p = np.stack([t, np.zeros_like(t), np.zeros_like(t)], axis=1)
+    R = np.repeat(np.eye(3)[None], t.size, axis=0)
+    rpe = relative_pose_error(t, R, 1.1 * p, R, p, delta=2.0)
+    np.testing.assert_array_equal(rpe.j - rpe.i, 20)
+    np.testing.assert_allclose(rpe.translation, 0.2, atol=1e-9)
+    rpe_t = relative_pose_error(t, R, 1.1 * p, R, p, delta=1.0, mode="time")
+    np.testing.assert_allclose(rpe_t.translation, 0.1, atol=1e-9)
+    assert rpe_t.i.size == 91
+    # a constant global rigid transform of the whole estimate leaves the RPE at zero
+    g = Rotation.from_rotvec([0.3, 0.2, -0.5]).as_matrix()
+    _, ph = _helix(101)
+    Rh = Rotation.from_rotvec(np.outer(t, [0.05, 0.1, 0.2])).as_matrix()
+    rpe = relative_pose_error(t, g @ Rh, ph @ g.T + 1.0, Rh, ph, delta=3.0)
+    np.testing.assert_allclose(rpe.translation, 0.0, atol=1e-9)
+    np.testing.assert_allclose(rpe.rotation, 0.0, atol=1e-7)
+
+
+def test_nees_of_correct_gaussian_errors_averages_dimension(rng: np.random.Generator) -> None:
+    runs, steps, d = 30, 200, 3
+    A = rng.normal(size=(steps, d, d))
+    P = A @ np.swapaxes(A, 1, 2) + 0.5 * np.eye(d)  # (steps, d, d) SPD
+    L = np.linalg.cholesky(P)
+    e = np.einsum("kij,rkj->rki", L, rng.normal(size=(runs, steps, d)))  # e ~ N(0, P)
+    values = nees(e, np.broadcast_to(P, (runs, steps, d, d)))
+    assert values.shape == (runs, steps)
+    assert values.mean() == pytest.approx(d, rel=0.03)
+    lo, hi = chi2_bounds(d, runs)
+    inside = np.mean((values.mean(axis=0) >= lo) & (values.mean(axis=0) <= hi))
+    assert 0.9 <= inside <= 0.99  # ~95 % of the time steps
+    # an over-confident filter (covariance 4x too small) is detected
+    assert nees(e, np.broadcast_to(P / 4.0, (runs, steps, d, d))).mean(axis=0).mean() > hi
+    # closed form for a diagonal covariance
+    assert nees([0.3, -0.4], np.diag([0.09, 0.16])) == pytest.approx(2.0)
+
+
+def test_chi2_bounds_against_scipy_and_bar_shalom() -> None:
+    for dof, runs, prob in ((3, 1, 0.95), (6, 20, 0.95), (3, 50, 0.99), (2, 50, 0.95)):
+        lo, hi = chi2_bounds(dof, runs, prob)
+        assert lo == pytest.approx(chi2.ppf((1 - prob) / 2, dof * runs) / runs, rel=1e-12)
+        assert hi == pytest.approx(chi2.ppf((1 + prob) / 2, dof * runs) / runs, rel=1e-12)
+        assert chi2.cdf(hi * runs, dof * runs) - chi2.cdf(lo * runs, dof * runs) == pytest.approx(prob, abs=1e-9)
+    # Bar-Shalom, Li & Kirubarajan (2001), Example in §5.4: 50 runs, n_x = 2 -> [1.5, 2.6]
+    lo, hi = chi2_bounds(2, 50)
+    assert round(lo, 1) == 1.5 and round(hi, 1) == 2.6
+    # one run of a 3-D error: the classical [0.216, 9.35]
+    lo, hi = chi2_bounds(3, 1)
+    assert lo == pytest.approx(0.2158, abs=1e-4) and hi == pytest.approx(9.3484, abs=1e-4)
+
+
+def test_format_table_markdown() -> None:
+    rows = [{"name": "IMU-only (bias corrected)", "rmse_m": 29.19, "final_error_m": 88.71,
+             "percent_of_distance": 26.34},
+            {"name": "MSCKF", "rmse_m": 0.4371, "final_error_m": 0.968, "percent_of_distance": 0.447}]
+    table = format_table(rows).splitlines()
+    assert table[0] == "| Method | RMSE [m] | Final Error [m] | % Error |"
+    assert table[1] == "|---|---|---|---|"
+    assert table[2] == "| IMU-only (bias corrected) | 29.19 | 88.71 | 26.34 % |"
+    assert table[3] == "| MSCKF | 0.437 | 0.968 | 0.447 % |"
+    custom = format_table([{"name": "x", "n": 3}], columns=[("name", "Run"), ("n", "N"), ("ate_4dof_m", "ATE")])
+    assert custom.splitlines()[2] == "| x | 3 | - |"
+
+
+def test_bad_input_raises() -> None:
+    t, p = _helix(10)
+    with pytest.raises(ValueError, match=r"p_est must have shape \(N, 3\); got \(10, 2\)"):
+        position_errors(t, p[:, :2], t, p)
+    with pytest.raises(ValueError, match="t_est must lie inside the ground truth"):
+        position_errors(t + 100.0, p, t, p)
+    with pytest.raises(ValueError, match="t_gt must be non-empty and strictly increasing"):
+        position_errors(t, p, t[::-1], p)
+    with pytest.raises(ValueError, match="t_est and p_est must have the same length"):
+        position_errors(t[:5], p, t, p)
+    with pytest.raises(ValueError, match=r"errors must have shape \(N,\) or \(N, d\)"):
+        rmse(np.zeros((0, 3)))
+    with pytest.raises(ValueError, match="distance must be a finite distance > 0"):
+        percent_of_distance([1.0], 0.0)
+    with pytest.raises(ValueError, match="p_est must hold at least 3 points"):
+        align_umeyama(p[:2], p[:2])
+    with pytest.raises(ValueError, match=r"covariances must have shape errors.shape \+ \(d,\)"):
+        nees(np.zeros((4, 3)), np.zeros((4, 2, 2)))
+    with pytest.raises(ValueError, match="covariances must be positive definite"):
+        nees(np.ones((1, 2)), np.zeros((1, 2, 2)))
+    with pytest.raises(ValueError, match="dof must be an int >= 1"):
+        chi2_bounds(0, 5)
+    with pytest.raises(ValueError, match=r"probability must be in \(0, 1\)"):
+        chi2_bounds(3, 5, 1.5)
+    R = np.repeat(np.eye(3)[None], 10, axis=0)
+    with pytest.raises(ValueError, match="delta must be a finite number > 0"):
+        relative_pose_error(t, R, p, R, p, delta=-1.0)
+    with pytest.raises(ValueError, match="mode must be 'distance' or 'time'"):
+        relative_pose_error(t, R, p, R, p, delta=1.0, mode="frames")
+    with pytest.raises(ValueError, match=r"R_est must have shape \(N, 3, 3\)"):
+        orientation_errors(np.eye(3), R)
+    with pytest.raises(ValueError, match="rows\\[0\\] must be a dict"):
+        format_table([[1, 2]])
