@@ -438,3 +438,29 @@ def test_log_intensity():
     assert log_intensity(np.array([0, 1])).dtype == np.float64  # integers too
     with pytest.raises(ValueError, match=r"log_eps must be > 0"):
         log_intensity(img, 0.0)
+
+
+def test_change_quantile_lets_sampling_follow_smooth_motion_past_a_discontinuity():
+    """A hard edge jumps by a whole log unit however short the step; a quantile bound ignores those few pixels."""
+    width, height = 64, 48
+    xx = np.arange(width)[None, :].repeat(height, axis=0)
+
+    def render(t: float) -> np.ndarray:
+        ramp = 0.3 + 0.2 * np.sin(0.2 * (xx - 300.0 * t))  # smooth texture moving at 300 px/s
+        edge = np.where(xx < 10 + 30.0 * t, 0.05, 1.0)  # an occlusion-like step edge moving at 30 px/s
+        return (ramp * edge).astype(np.float32)
+
+    params = EventCameraParams(contrast_sigma=0.0, refractory_s=0.0)
+    with pytest.warns(RuntimeWarning, match="exceeded max_log_change"):
+        events_max, times_max = simulate_events(render, 0.0, 0.2, width, height, params, dt_min=1e-4)
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no sample may need dt_min any more
+        events_q, times_q = simulate_events(render, 0.0, 0.2, width, height, params, dt_min=1e-4,
+                                            change_quantile=0.95)
+    assert np.diff(times_q).max() < 5e-3  # the smooth motion still limits the step below dt_max ...
+    assert len(times_q) < len(times_max)  # ... with fewer renders (none wasted at dt_min) ...
+    assert abs(len(events_q) - len(events_max)) <= 0.01 * len(events_max)  # ... for the same events
+    with pytest.raises(ValueError, match="change_quantile must be in"):
+        simulate_events(render, 0.0, 0.1, width, height, params, change_quantile=0.0)

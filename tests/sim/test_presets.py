@@ -1,0 +1,124 @@
+"""Tests of evio_lib.sim.presets: whole simulated recordings are mutually consistent across sensors."""
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from evio_lib.events.array import validate_events
+from evio_lib.events.simulate import EventCameraParams, log_intensity
+from evio_lib.geometry.camera import PinholeRadtan
+from evio_lib.geometry.rotation import quat_to_rot
+from evio_lib.io.ecd import read_ecd, write_ecd
+from evio_lib.sim.imu import ImuNoiseParams
+from evio_lib.sim.presets import CameraPoseTable, SimulationConfig, _pose_function, simulate_sequence
+from evio_lib.sim.rig import CameraImuExtrinsics
+from evio_lib.sim.scene import scene_from_preset
+from evio_lib.sim.trajectory import boxes_like, trajectory_from_preset
+
+SMALL_CAMERA = PinholeRadtan.davis240c().scaled(0.25)  # 60 x 45 pixels: the same lens, cheap to render
+
+
+def _ideal_config(preset: str, duration: float = 0.3, **changes) -> SimulationConfig:
+    """A short, noise-free recording with a small camera (fast to simulate)."""
+    config = SimulationConfig(
+        preset=preset, duration=duration, seed=3, camera=SMALL_CAMERA, imu_noise=ImuNoiseParams.noise_free(),
+        events=EventCameraParams(contrast_sigma=0.0, refractory_s=0.0), trajectory_duration=10.0, start_time=4.0,
+    )
+    return replace(config, **changes)
+
+
+def test_pose_table_matches_the_exact_trajectory():
+    trajectory = boxes_like(10.0, seed=1)
+    extrinsics = CameraImuExtrinsics.default()
+    table = CameraPoseTable(trajectory, extrinsics, 7.0, 10.0)  # the violent end of the preset
+    times = np.random.default_rng(0).uniform(7.0, 10.0, 3000)
+    R_table, p_table = table(times)
+    R_exact, p_exact = _pose_function(trajectory, extrinsics)(times)
+    assert np.abs(p_table - p_exact).max() < 1e-9  # metres
+    assert np.abs(R_table - R_exact).max() < 1e-6  # rad: far below a pixel (1/200 rad)
+    R_grid, p_grid = table(table.t[:50])
+    R_true, p_true = _pose_function(trajectory, extrinsics)(table.t[:50])
+    np.testing.assert_allclose(p_grid, p_true, atol=1e-12)
+    np.testing.assert_allclose(R_grid, R_true, atol=1e-12)
+    with pytest.raises(ValueError, match="times must lie in"):
+        table(np.array([6.0]))
+
+
+def test_config_validation():
+    with pytest.raises(ValueError, match="preset must be one of"):
+        SimulationConfig(preset="moon_landing")
+    with pytest.raises(ValueError, match="duration must be a positive"):
+        SimulationConfig(duration=0.0)
+    with pytest.raises(ValueError, match="must lie within the preset's motion"):
+        SimulationConfig(duration=5.0, start_time=8.0, trajectory_duration=10.0)
+    assert "imu_rate_hz" in str(SimulationConfig())
+
+
+@pytest.mark.parametrize("preset", ["boxes_like", "aerial_like"])
+def test_sensors_agree_with_the_ground_truth(preset):
+    config = _ideal_config(preset)
+    seq = simulate_sequence(config)
+    seq.validate()
+    camera = config.camera
+    # ground truth: the camera pose is the IMU pose composed with the extrinsics
+    gt, gt_imu = seq.groundtruth, seq.groundtruth_imu
+    np.testing.assert_allclose(gt.t, gt_imu.t)
+    R_CtoG, p_CinG = config.extrinsics.camera_pose(gt_imu.R_BtoG, gt_imu.p_BinG)
+    np.testing.assert_allclose(gt.p_BinG, p_CinG, atol=1e-12)
+    np.testing.assert_allclose(gt.R_BtoG, R_CtoG, atol=1e-12)
+    # noise-free IMU: the gyro reads the body rate plus the (constant) bias; the accelerometer the specific force
+    assert seq.imu.t[0] == pytest.approx(config.start_time) and seq.imu.t[-1] == pytest.approx(config.t_end)
+    np.testing.assert_allclose(np.diff(seq.imu.t), 1.0 / config.imu_rate_hz, atol=1e-9)
+    truth = trajectory_from_preset(preset, duration=config.motion_duration(), seed=config.seed).evaluate(seq.imu.t)
+    np.testing.assert_allclose(seq.imu.gyro, truth.w_I, atol=1e-12)  # noise-free: no bias, no noise
+    specific_force_I = np.einsum("nji,nj->ni", truth.R_ItoG, truth.a_IinG - np.array([0.0, 0.0, -9.81]))
+    np.testing.assert_allclose(seq.imu.accel, specific_force_I, atol=1e-9)
+    # frames: 24 Hz inside the recording, sensor-sized, 8 bit
+    assert seq.frames.dtype == np.uint8 and seq.frames.shape[1:] == (camera.height, camera.width)
+    assert len(seq.frames) == len(seq.frame_times) >= int(config.duration * config.frame_rate_hz) - 1
+    # events: the layout of the project, inside the sensor and the recording
+    validate_events(seq.events, camera.width, camera.height)
+    assert len(seq.events) > 100
+    assert seq.events["t"][0] >= config.start_time and seq.events["t"][-1] <= config.t_end
+
+
+def test_events_integrate_to_the_log_intensity_change():
+    """Per pixel, sum(p) * C equals the change of log intensity between the first and last render (within C)."""
+    config = _ideal_config("boxes_like", with_frames=False)
+    seq = simulate_sequence(config)
+    scene = scene_from_preset(config.preset)
+    pose_at = _pose_function(boxes_like(10.0, seed=config.seed), config.extrinsics)
+    R, p = pose_at(np.array([config.start_time, config.t_end]))
+    log_start = log_intensity(scene.render_intensity(config.camera, R[0], p[0]), config.events.log_eps)
+    log_end = log_intensity(scene.render_intensity(config.camera, R[1], p[1]), config.events.log_eps)
+    polarity_sum = np.zeros((config.camera.height, config.camera.width))
+    np.add.at(polarity_sum, (seq.events["y"], seq.events["x"]), seq.events["p"])
+    C = config.events.contrast_pos
+    error = polarity_sum * C - (log_end - log_start)
+    assert np.abs(error).max() <= C + 1e-6
+    assert np.abs(polarity_sum).max() >= 3  # the test is not vacuous: pixels crossed several thresholds
+
+
+def test_ecd_round_trip_of_a_simulated_sequence(tmp_path):
+    config = _ideal_config("aerial_like", duration=0.2)
+    seq = simulate_sequence(config)
+    write_ecd(seq, tmp_path / "sim")
+    back = read_ecd(tmp_path / "sim")
+    np.testing.assert_array_equal(back.events, seq.events)
+    np.testing.assert_allclose(back.imu.accel, seq.imu.accel, atol=1e-9)
+    np.testing.assert_array_equal(back.frames, seq.frames)
+    np.testing.assert_allclose(back.groundtruth.p_BinG, seq.groundtruth.p_BinG, atol=1e-9)
+    np.testing.assert_allclose(quat_to_rot(back.groundtruth.q_GtoB), quat_to_rot(seq.groundtruth.q_GtoB), atol=1e-9)
+    np.testing.assert_allclose(back.R_CtoI, seq.R_CtoI, atol=1e-12)
+    np.testing.assert_allclose(back.groundtruth_imu.bias_gyro, seq.groundtruth_imu.bias_gyro, atol=1e-9)
+
+
+def test_same_seed_same_recording_and_streams_are_independent():
+    config = _ideal_config("aerial_like", duration=0.15, imu_noise=ImuNoiseParams(),
+                           events=EventCameraParams())
+    a, b = simulate_sequence(config), simulate_sequence(config)
+    np.testing.assert_array_equal(a.events, b.events)
+    np.testing.assert_array_equal(a.imu.gyro, b.imu.gyro)
+    no_events = simulate_sequence(replace(config, with_events=False))
+    np.testing.assert_array_equal(no_events.imu.gyro, a.imu.gyro)  # switching a sensor off changes no other sensor
+    assert len(no_events.events) == 0
