@@ -1,0 +1,915 @@
+"""The detector/descriptor benchmark of the thesis (§3.2.6, Tables 2-5): data sets, the run, and the tables.
+
+Data sets (lists of ``ImagePair``, each image 1, image 2 and the homography H of image 1 -> image 2):
+
+* ``heldout_pairs``: an HPatches-style benchmark built from held-out images (the TEST split of
+  ``evio_lib.features.datasets.image_pool``, never trained on): a "viewpoint" split whose second images are warped by
+  seeded random homographies (``sample_homography``) and an "illumination" split whose second images differ only
+  photometrically (identity H). Everything follows from one seed.
+* ``event_frame_pairs``: event frames and warped copies with small random rotations and translations, like the
+  thesis's aerial event-frame set (§3.2.3); split "event_frames".
+* ``evio_lib.features.hpatches.iter_hpatches_pairs``: the real HPatches folder layout, for anyone who has it.
+
+``run_benchmark(detector, pairs, settings)`` runs one detector over the pairs with the thesis's settings
+(repeatability at 240 x 320 with the best 300 points and NMS 4; homography estimation at 480 x 640 with the best 1000
+points and NMS 8; eps = 1, 3, 5) and returns repeatability, homography correctness, matching score, mAP and timing per
+split; ``format_table(rows, kind)`` prints Markdown tables shaped like Tables 2-5 (one row per detector), and
+``main_benchmark`` is the command ``python -m evio_lib features-benchmark``.
+
+Reference: thesis §3.2.3, §3.2.6 and §4.3 (Tables 2-5); DeTone et al., "SuperPoint", CVPRW 2018, §7.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+import warnings
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import asdict, dataclass, field
+from numbers import Integral, Real
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from evio_lib.features.evaluate import (
+    corner_error,
+    estimate_homography,
+    match_descriptors,
+    matching_score,
+    mean_average_precision,
+    repeatability,
+)
+from evio_lib.features.hpatches import (
+    N_IMAGES_PER_SCENE,
+    SPLIT_PREFIXES,
+    ImagePair,
+    hpatches_scenes,
+    iter_hpatches_pairs,
+    resize_image,
+    resize_pair,
+)
+from evio_lib.geometry.homography import sample_homography, warp_image
+
+__all__ = [
+    "BenchmarkSettings",
+    "VIEWPOINT_HOMOGRAPHY",
+    "EVENT_FRAME_HOMOGRAPHY",
+    "DISPLAY_NAMES",
+    "illumination_change",
+    "viewpoint_pairs",
+    "illumination_pairs",
+    "heldout_pairs",
+    "event_frame_pairs",
+    "run_benchmark",
+    "measure_speed",
+    "format_table",
+    "add_benchmark_arguments",
+    "main_benchmark",
+]
+
+# Random homographies of the viewpoint split (HPatches-like: perspective and scale, some rotation; the perspective
+# amplitude is capped at the crop margin (1 - patch_ratio) / 2); the patch stays inside image 1 and is stretched to
+# the whole of image 2 (see viewpoint_pairs). Tuned so that SIFT scores about as in the thesis's HPatches viewpoint
+# row (Table 4: 0.46 / 0.77 / 0.83): on 32 pairs of skimage.data images it gets 0.44 / 0.75 / 0.84.
+VIEWPOINT_HOMOGRAPHY: dict[str, Any] = dict(
+    perspective=True, scaling=True, rotation=True, translation=True, patch_ratio=0.65,
+    perspective_amplitude_x=0.3, perspective_amplitude_y=0.3, scaling_amplitude=0.2, max_angle=np.pi / 4,
+    n_scales=5, n_angles=25, allow_artifacts=False,
+)
+# The thesis's aerial set: "small changes in rotation and translation" (§3.2.3).
+EVENT_FRAME_HOMOGRAPHY: dict[str, Any] = dict(
+    perspective=False, scaling=False, rotation=True, translation=True, patch_ratio=0.9,
+    max_angle=np.pi / 18, n_angles=25, allow_artifacts=False,
+)
+# Table row names as the thesis writes them.
+DISPLAY_NAMES = {
+    "harris": "Harris", "shi_tomasi": "Shi-Tomasi", "fast": "FAST", "sift": "SIFT", "orb": "ORB",
+    "fast_freak": "FAST-FREAK", "superpoint": "SuperPoint",
+}
+SPLIT_ORDER = ("viewpoint", "illumination", "event_frames")  # column order of the tables
+SPLIT_TITLES = {"viewpoint": "Viewpoint", "illumination": "Illumination", "event_frames": "Event frames"}
+TABLE_KINDS = ("repeatability", "homography", "matching_score", "mAP", "speed")
+_SPLIT_SEEDS = {"viewpoint": 1, "illumination": 2, "event_frames": 3}  # keeps the splits' random streams apart
+
+
+# ---------------------------------------------------------------------------------------------- settings
+@dataclass(frozen=True)
+class BenchmarkSettings:
+    """Sizes, point budgets, NMS radii and thresholds of the benchmark (defaults: the thesis's HPatches settings).
+
+    Attributes:
+        repeatability_size: (height, width) both images are resized to for repeatability (None: keep).
+        repeatability_keypoints: best N points kept per image for repeatability.
+        repeatability_nms: NMS radius (pixels) of the repeatability detections.
+        homography_size: (height, width) for homography estimation, matching score and mAP (None: keep).
+        homography_keypoints: best N points kept per image for homography estimation.
+        homography_nms: NMS radius (pixels) of the homography detections.
+        eps: pixel thresholds of every metric.
+        resize_mode: "crop" (keep the aspect ratio, cut the centre) or "stretch".
+        mutual: mutual nearest-neighbour matching before RANSAC.
+        ransac_threshold: RANSAC reprojection threshold (pixels; OpenCV's default 3).
+        tasks: which of "repeatability" and "homography" to run.
+
+    Reference: thesis §3.2.6 (last paragraph).
+    """
+
+    repeatability_size: tuple[int, int] | None = (240, 320)
+    repeatability_keypoints: int = 300
+    repeatability_nms: int = 4
+    homography_size: tuple[int, int] | None = (480, 640)
+    homography_keypoints: int = 1000
+    homography_nms: int = 8
+    eps: tuple[float, ...] = (1.0, 3.0, 5.0)
+    resize_mode: str = "crop"
+    mutual: bool = True
+    ransac_threshold: float = 3.0
+    tasks: tuple[str, ...] = ("repeatability", "homography")
+
+    def __post_init__(self) -> None:
+        for name in ("repeatability_size", "homography_size"):
+            size = getattr(self, name)
+            if size is not None:
+                if len(tuple(size)) != 2 or not all(isinstance(d, Integral) and not isinstance(d, bool) and d > 0
+                                                    for d in size):
+                    raise ValueError(f"{name} must be (height, width) of positive integers or None; got {size!r}")
+                object.__setattr__(self, name, (int(size[0]), int(size[1])))
+        for name in ("repeatability_keypoints", "homography_keypoints"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, Integral) or value < 1:
+                raise ValueError(f"{name} must be a positive integer; got {value!r}")
+        for name in ("repeatability_nms", "homography_nms"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, Integral) or value < 0:
+                raise ValueError(f"{name} must be an integer >= 0 (pixels); got {value!r}")
+        eps = tuple(float(e) for e in np.atleast_1d(np.asarray(self.eps, dtype=np.float64)))
+        if not eps or not all(math.isfinite(e) and e >= 0 for e in eps):
+            raise ValueError(f"eps must be a non-empty sequence of pixel thresholds >= 0; got {self.eps!r}")
+        object.__setattr__(self, "eps", eps)
+        if self.resize_mode not in ("crop", "stretch"):
+            raise ValueError(f"resize_mode must be 'crop' or 'stretch'; got {self.resize_mode!r}")
+        tasks = (self.tasks,) if isinstance(self.tasks, str) else tuple(self.tasks)
+        if not tasks or any(t not in ("repeatability", "homography") for t in tasks):
+            raise ValueError(f"tasks must name 'repeatability' and/or 'homography'; got {self.tasks!r}")
+        object.__setattr__(self, "tasks", tasks)
+
+    @classmethod
+    def thesis_hpatches(cls) -> "BenchmarkSettings":
+        """Return the thesis's HPatches settings (repeatability 240x320, 300 points, NMS 4; homography 480x640,
+        1000 points, NMS 8)."""
+        return cls()
+
+    @classmethod
+    def thesis_event_frames(cls) -> "BenchmarkSettings":
+        """Return the thesis's aerial event-frame settings (repeatability 240x320, 100 points; homography 240x320,
+        1000 points; NMS 4 throughout)."""
+        return cls(repeatability_keypoints=100, homography_size=(240, 320), homography_nms=4)
+
+
+# ---------------------------------------------------------------------------------------------- data sets
+def _check_images(images: Sequence[np.ndarray], name: str) -> list[NDArray[np.float32]]:
+    """Return the images as float32 (H, W) in [0, 1] (uint8 divided by 255), or raise ValueError naming ``name``."""
+    if isinstance(images, np.ndarray) and images.ndim == 2:
+        raise ValueError(f"{name} must be a sequence of (H, W) images (or an (N, H, W) array); got one (H, W) image")
+    out = []
+    for i, image in enumerate(images):
+        img = np.asarray(image)
+        if img.ndim != 2 or min(img.shape, default=0) < 8:
+            raise ValueError(f"{name}[{i}] must be a grayscale (H, W) image of at least 8 x 8 pixels; got {img.shape}")
+        if img.dtype == np.uint8:
+            img = img.astype(np.float32) / np.float32(255.0)
+        elif not np.issubdtype(img.dtype, np.floating) or not np.isfinite(img).all() or img.min() < 0 or img.max() > 1:
+            raise ValueError(f"{name}[{i}] must be uint8 or float in [0, 1]; got dtype {img.dtype}")
+        out.append(img.astype(np.float32))
+    if not out:
+        raise ValueError(f"{name} must hold at least one image; got none")
+    return out
+
+
+def _check_count(value: object, name: str) -> int:
+    """Return a positive int, or raise ValueError naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, Integral) or value < 1:
+        raise ValueError(f"{name} must be a positive integer; got {value!r}")
+    return int(value)
+
+
+def _pair_rng(seed: int, split: str, image_index: int, pair_index: int) -> np.random.Generator:
+    """Return the generator of one pair: independent of how many images or pairs the data set has."""
+    return np.random.default_rng([int(seed), _SPLIT_SEEDS.get(split, 0), image_index, pair_index])
+
+
+def illumination_change(image: np.ndarray, rng: np.random.Generator, strength: float = 1.0) -> NDArray[np.float32]:
+    """Return a photometrically changed copy of ``image`` (float32 in [0, 1]); the geometry is untouched.
+
+    Models what changes between HPatches' illumination images (other light sources, directions and exposures),
+    in five steps, each scaled by ``strength``:
+      1. tone curve: ``I^gamma`` with ``log(gamma) ~ U(-0.7, 0.7)`` (gamma in about [0.5, 2]);
+      2. shading: times ``s(x, y) = 1 + a (f(x, y) - mean f)``, f a linear ramp in a random direction plus a broad
+         Gaussian light spot at a random place, normalised to [0, 1], ``a ~ U(0.4, 1.0)``;
+      3. exposure: times ``g``, ``log(g) ~ U(log 0.2, log 1.5)`` (dark shots lose contrast, bright ones saturate);
+      4. sensor noise: Gaussian, std ``U(0.005, 0.02)``;
+      5. 8-bit quantisation and clipping to [0, 1] (dark images keep few grey levels, as a real camera's).
+
+    Args:
+        image: (H, W) grayscale image, float32 in [0, 1] or uint8.
+        rng: seeded numpy Generator.
+        strength: scale of every change in [0, 2] (0 returns the image, quantised to 8 bits).
+
+    Reference: thesis §3.2.3 (HPatches illumination scenes), §3.2.5 (photometric augmentation).
+
+    >>> img = np.tile(np.linspace(0, 1, 32, dtype=np.float32), (24, 1))
+    >>> out = illumination_change(img, np.random.default_rng(0))
+    >>> out.shape, out.dtype, bool(0 <= out.min() and out.max() <= 1), bool(np.abs(out - img).mean() > 0.02)
+    ((24, 32), dtype('float32'), True, True)
+    """
+    img = _check_images([image], "image")[0]
+    if isinstance(strength, bool) or not isinstance(strength, Real) or not (0.0 <= strength <= 2.0):
+        raise ValueError(f"strength must be a number in [0, 2]; got {strength!r}")
+    if not isinstance(rng, np.random.Generator):
+        raise ValueError(f"rng must be a numpy.random.Generator; got {type(rng).__name__}")
+    height, width = img.shape
+    gamma = math.exp(rng.uniform(-0.7, 0.7) * strength)
+    out = img.astype(np.float64) ** gamma  # I^gamma
+    ys, xs = np.mgrid[0:height, 0:width] / float(max(height, width))
+    angle = rng.uniform(0.0, 2.0 * np.pi)
+    ramp = np.cos(angle) * xs + np.sin(angle) * ys
+    centre = rng.uniform([0.0, 0.0], [width, height]) / float(max(height, width))
+    sigma = rng.uniform(0.2, 0.5)
+    spot = np.exp(-((xs - centre[0]) ** 2 + (ys - centre[1]) ** 2) / (2.0 * sigma**2))
+    shading = ramp + rng.uniform(0.5, 1.5) * spot
+    shading = (shading - shading.min()) / max(float(np.ptp(shading)), 1e-12)
+    amplitude = rng.uniform(0.4, 1.0) * strength
+    out = out * np.maximum(1.0 + amplitude * (shading - shading.mean()), 0.05)  # s(x, y) = 1 + a (f - mean f)
+    out = out * math.exp(rng.uniform(math.log(0.2), math.log(1.5)) * strength)  # exposure g
+    out = out + rng.normal(0.0, rng.uniform(0.005, 0.02) * strength, out.shape)  # sensor noise
+    return (np.round(np.clip(out, 0.0, 1.0) * 255.0) / 255.0).astype(np.float32)  # 8-bit camera
+
+
+def _crop_to_full(shape: tuple[int, int], patch_ratio: float) -> NDArray[np.float64]:
+    """Return the (3, 3) map A of the central crop (side ``patch_ratio``) of an image onto the whole image.
+
+    The crop spans ``m + r [0, 1]`` times the pixel-centre extent ``(W - 1, H - 1)`` with ``m = (1 - r) / 2``, so
+    ``x' = (x - m (W - 1)) / r`` (and the same for y).
+    """
+    height, width = shape
+    r = float(patch_ratio)
+    m = (1.0 - r) / 2.0
+    return np.array([[1.0 / r, 0.0, -m * (width - 1) / r], [0.0, 1.0 / r, -m * (height - 1) / r], [0.0, 0.0, 1.0]])
+
+
+def _warped_pairs(
+    images: list[NDArray[np.float32]], seed: int, pairs_per_image: int, split: str, noise_std: float,
+    homography_options: dict[str, Any], prefix: str,
+) -> list[ImagePair]:
+    """Return pairs (image, image warped by a random homography filling the whole view) for every image."""
+    patch_ratio = float(homography_options.get("patch_ratio", 0.5))
+    fill = not homography_options.get("allow_artifacts", False)
+    pairs = []
+    for i, image in enumerate(images):
+        A = _crop_to_full(image.shape, patch_ratio) if fill else np.eye(3)
+        for k in range(pairs_per_image):
+            rng = _pair_rng(seed, split, i, k)
+            H = A @ sample_homography(image.shape, rng, **homography_options)  # original -> patch -> whole view
+            H = H / H[2, 2]
+            warped = warp_image(image, H)
+            if noise_std > 0:
+                warped = np.clip(warped + rng.normal(0.0, noise_std, warped.shape), 0.0, 1.0).astype(np.float32)
+            pairs.append(ImagePair(image, warped, H, split, f"{prefix}{i:04d}/1-{k + 2}"))
+    return pairs
+
+
+def viewpoint_pairs(
+    images: Sequence[np.ndarray],
+    seed: int,
+    pairs_per_image: int = 5,
+    *,
+    noise_std: float = 0.01,
+    **homography_options: Any,
+) -> list[ImagePair]:
+    """Return the viewpoint split: each image paired with ``pairs_per_image`` copies warped by random homographies.
+
+    ``sample_homography(image.shape, rng, **VIEWPOINT_HOMOGRAPHY)`` (overridable by keyword) maps a random patch of
+    image 1 onto the central crop of side ``patch_ratio``; unless ``allow_artifacts``, that crop is then stretched
+    to the whole view (``H = A H_sample``, A the crop-to-image scaling), so image 2 ``= warp_image(image 1, H)`` is
+    filled everywhere, like a real second photograph (no black border whose edges would fake corners), zoomed
+    about ``1 / patch_ratio``. Gaussian noise of std ``noise_std`` is added to image 2. The generator of pair k of
+    image i is seeded by (seed, split, i, k), so a pair does not depend on how many images are used.
+
+    Args:
+        images: grayscale (H, W) images, float32 in [0, 1] or uint8 (held out from training).
+        seed: the data set's seed.
+        pairs_per_image: warped copies per image (HPatches has 5).
+        noise_std: std of the sensor noise added to image 2.
+        **homography_options: overrides of ``VIEWPOINT_HOMOGRAPHY`` (arguments of ``sample_homography``).
+
+    Reference: thesis §3.2.3 (HPatches viewpoint scenes); SuperPoint §7 (synthetic warps).
+    """
+    imgs = _check_images(images, "images")
+    count = _check_count(pairs_per_image, "pairs_per_image")
+    if isinstance(noise_std, bool) or not isinstance(noise_std, Real) or not 0.0 <= noise_std <= 0.5:
+        raise ValueError(f"noise_std must be a number in [0, 0.5]; got {noise_std!r}")
+    options = {**VIEWPOINT_HOMOGRAPHY, **homography_options}
+    return _warped_pairs(imgs, int(seed), count, "viewpoint", float(noise_std), options, "viewpoint/")
+
+
+def illumination_pairs(
+    images: Sequence[np.ndarray], seed: int, pairs_per_image: int = 5, *, strength: float = 1.0
+) -> list[ImagePair]:
+    """Return the illumination split: each image paired with ``pairs_per_image`` photometric changes of itself (H = I).
+
+    Image 2 is ``illumination_change(image 1, rng, strength)`` with the generator seeded by (seed, split, i, k).
+
+    Args:
+        images: grayscale (H, W) images, float32 in [0, 1] or uint8 (held out from training).
+        seed: the data set's seed.
+        pairs_per_image: changed copies per image (HPatches has 5).
+        strength: scale of the photometric change (see ``illumination_change``).
+
+    Reference: thesis §3.2.3 (HPatches illumination scenes).
+    """
+    imgs = _check_images(images, "images")
+    count = _check_count(pairs_per_image, "pairs_per_image")
+    pairs = []
+    for i, image in enumerate(imgs):
+        for k in range(count):
+            changed = illumination_change(image, _pair_rng(int(seed), "illumination", i, k), strength)
+            pairs.append(ImagePair(image, changed, np.eye(3), "illumination", f"illumination/{i:04d}/1-{k + 2}"))
+    return pairs
+
+
+def heldout_pairs(
+    seed: int = 0,
+    *,
+    images: Sequence[np.ndarray] | None = None,
+    n_images: int | None = None,
+    pairs_per_image: int = 5,
+    splits: Sequence[str] = ("viewpoint", "illumination"),
+    size: tuple[int, int] = (480, 640),
+    exclude_sources: Sequence[str] = ("texture:stripes",),
+) -> list[ImagePair]:
+    """Return the built-in HPatches-style benchmark: viewpoint and illumination pairs of held-out images.
+
+    The images are ``evio_lib.features.datasets.image_pool("test", seed, size, n_images)`` (the held-out TEST
+    split, never used in training; 60 images by default, 58 after leaving out the stripe textures, so 580 pairs with
+    5 per image and split, as many as HPatches has) unless ``images`` is given, of which ``n_images`` keeps the
+    first n. The viewpoint split comes first.
+
+    Args:
+        seed: seed of the image pool and of every random change.
+        images: use these images instead of the test pool (e.g. in tests).
+        n_images: number of images (default: the pool's default size, or all given images).
+        pairs_per_image: pairs per image and split (HPatches: 5).
+        splits: any of "viewpoint" and "illumination".
+        size: (height, width) of the pool's images; the default is the largest evaluation size (homography,
+            480 x 640), so no task works on upsampled images.
+        exclude_sources: pool images whose source name starts with one of these are left out (default: stripe
+            textures, whose homography is ill-posed by the aperture problem: any shift along the stripes fits).
+
+    Reference: thesis §3.2.3; Balntas et al., "HPatches", CVPR 2017.
+    """
+    wanted = (splits,) if isinstance(splits, str) else tuple(splits)
+    if not wanted or any(s not in ("viewpoint", "illumination") for s in wanted):
+        raise ValueError(f"splits must name 'viewpoint' and/or 'illumination'; got {splits!r}")
+    if n_images is not None:
+        n_images = _check_count(n_images, "n_images")
+    if images is None:
+        from evio_lib.features.datasets import image_pool  # the held-out pool (TEST split)
+
+        images, sources = image_pool("test", int(seed), size=tuple(size), n_images=n_images, return_sources=True)
+        excluded = tuple(exclude_sources)
+        images = [img for img, source in zip(images, sources) if not (excluded and source.startswith(excluded))]
+    imgs = _check_images(images, "images")[:n_images]
+    pairs: list[ImagePair] = []
+    if "viewpoint" in wanted:
+        pairs += viewpoint_pairs(imgs, seed, pairs_per_image)
+    if "illumination" in wanted:
+        pairs += illumination_pairs(imgs, seed, pairs_per_image)
+    return pairs
+
+
+def event_frame_pairs(
+    frames: Sequence[np.ndarray], seed: int, pairs_per_frame: int = 1, **homography_options: Any
+) -> list[ImagePair]:
+    """Return the event-frame split: each event frame paired with warped copies (small rotation and translation).
+
+    Like the thesis's aerial set (a base image and a copy warped by a random homography "limited to small changes in
+    rotation and translation"): ``H = sample_homography(frame.shape, rng, **EVENT_FRAME_HOMOGRAPHY)`` (rotation up to
+    10 degrees, a 0.9 crop moved within the frame; overridable by keyword). Frames come from the event reconstruction
+    (``evio_lib.events``) or any (N, H, W) stack; split name "event_frames". Use with
+    ``BenchmarkSettings.thesis_event_frames()``.
+
+    Args:
+        frames: event frames (H, W), float32 in [0, 1] or uint8, or an (N, H, W) array.
+        seed: the data set's seed.
+        pairs_per_frame: warped copies per frame (the thesis: 1).
+        **homography_options: overrides of ``EVENT_FRAME_HOMOGRAPHY``.
+
+    Reference: thesis §3.2.3 (UAV data set), Tables 3 and 5.
+    """
+    imgs = _check_images(frames, "frames")
+    count = _check_count(pairs_per_frame, "pairs_per_frame")
+    options = {**EVENT_FRAME_HOMOGRAPHY, **homography_options}
+    return _warped_pairs(imgs, int(seed), count, "event_frames", 0.0, options, "event_frames/")
+
+
+# ---------------------------------------------------------------------------------------------- detectors
+DetectorArg = Any  # a name, a FeatureDetector, or a factory(max_keypoints=, nms_radius=) -> FeatureDetector
+
+
+def _detector_name(detector: DetectorArg) -> str:
+    """Return the name under which results of ``detector`` are reported."""
+    if isinstance(detector, str):
+        return detector
+    return str(getattr(detector, "name", getattr(detector, "__name__", type(detector).__name__)))
+
+
+def _make_detector(detector: DetectorArg, max_keypoints: int, nms_radius: int, options: dict[str, Any]) -> Any:
+    """Return a detector configured for one task: by name, from a factory, or the given instance as it is."""
+    if isinstance(detector, str):
+        from evio_lib.features.base import create_detector
+
+        return create_detector(detector, max_keypoints=max_keypoints, nms_radius=nms_radius, **options)
+    if hasattr(detector, "detect_and_describe"):
+        return detector
+    if callable(detector):
+        return detector(max_keypoints=max_keypoints, nms_radius=nms_radius, **options)
+    raise ValueError(
+        "detector must be a name (create_detector), a FeatureDetector or a factory(max_keypoints=, nms_radius=); "
+        f"got {type(detector).__name__}"
+    )
+
+
+@dataclass
+class _Detections:
+    """Keypoints (N, 2) float64, scores (N,), descriptors (N, D) and the binary flag of one image, best first."""
+
+    keypoints: np.ndarray
+    scores: np.ndarray
+    descriptors: np.ndarray
+    binary: bool
+
+
+@dataclass
+class _Timer:
+    """Accumulated detect_and_describe time of one task."""
+
+    seconds: float = 0.0
+    images: int = 0
+    shapes: set = field(default_factory=set)
+
+
+def _detect(detector: Any, image: np.ndarray, max_keypoints: int, timer: _Timer) -> _Detections:
+    """Return the best ``max_keypoints`` detections of ``image`` (timing the call)."""
+    start = time.perf_counter()
+    features = detector.detect_and_describe(image)
+    timer.seconds += time.perf_counter() - start
+    timer.images += 1
+    timer.shapes.add(image.shape[:2])
+    keypoints = np.asarray(features.keypoints, dtype=np.float64).reshape(-1, 2)
+    scores = np.asarray(features.scores, dtype=np.float64).reshape(-1)
+    descriptors = np.asarray(features.descriptors)
+    order = np.argsort(-scores, kind="stable")[:max_keypoints]  # the best N (detectors already sort; enforce it)
+    binary = bool(getattr(features, "binary", False))
+    return _Detections(keypoints[order], scores[order], descriptors[order], binary)
+
+
+# ---------------------------------------------------------------------------------------------- the run
+def run_benchmark(
+    detector: DetectorArg,
+    pairs: Iterable[ImagePair],
+    settings: BenchmarkSettings | None = None,
+    *,
+    name: str | None = None,
+    detector_options: dict[str, Any] | None = None,
+    progress: bool = False,
+) -> dict[str, Any]:
+    """Return the benchmark results of one detector on image pairs: metrics per split and eps, timing, per-pair values.
+
+    For every pair, resized as the settings say (H updated):
+      * repeatability task (``settings.repeatability_size``, best ``repeatability_keypoints`` points, NMS
+        ``repeatability_nms``): ``repeatability`` (Eqs. 15-16) with the best points in the shared view;
+      * homography task (``homography_size``, ``homography_keypoints``, ``homography_nms``): mutual nearest-neighbour
+        descriptor matches, ``cv2.findHomography`` with RANSAC, correctness = mean corner error <= eps (Eq. 17);
+        on the same detections the matching score and the NN mAP.
+    Values are means over the pairs of each split (NaN-valued pairs, with no point in the shared view, are left out
+    of repeatability, matching score and mAP; a failed homography counts as incorrect). Timing is the mean time of
+    ``detect_and_describe`` per image after one untimed warm-up call per task.
+
+    Args:
+        detector: a detector name (``create_detector(name, max_keypoints=..., nms_radius=...)`` per task), a factory
+            called the same way, or a FeatureDetector instance (used as it is for both tasks; its NMS radius is
+            its own, the point budget is enforced by keeping the best-scoring points).
+        pairs: ``ImagePair`` objects (a list, or an iterator such as ``iter_hpatches_pairs``).
+        settings: ``BenchmarkSettings`` (default: the thesis's HPatches settings).
+        name: the row name in the tables (default: the detector's name).
+        detector_options: extra keyword options for ``create_detector`` / the factory (e.g. ``weights=``).
+        progress: show a tqdm progress bar.
+
+    Returns:
+        ``{"detector", "settings", "n_pairs": {split: n}, "repeatability" | "homography" | "matching_score" |
+        "mAP": {split: {eps: value}}, "keypoints": {task: mean per image}, "matches": {split: mean mutual matches},
+        "speed": {"HxW": {"ms": ..., "fps": ...}}, "per_pair": [...]}``.
+
+    Reference: thesis §3.2.6; SuperPoint §7.
+    """
+    settings = BenchmarkSettings() if settings is None else settings
+    if not isinstance(settings, BenchmarkSettings):
+        raise ValueError(f"settings must be a BenchmarkSettings; got {type(settings).__name__}")
+    options = dict(detector_options or {})
+    row_name = name or _detector_name(detector)
+    eps = np.asarray(settings.eps)
+    do_rep = "repeatability" in settings.tasks
+    do_hom = "homography" in settings.tasks
+    det_rep = det_hom = None
+    if do_rep:
+        det_rep = _make_detector(detector, settings.repeatability_keypoints, settings.repeatability_nms, options)
+    if do_hom:
+        det_hom = _make_detector(detector, settings.homography_keypoints, settings.homography_nms, options)
+    timers = {"repeatability": _Timer(), "homography": _Timer()}
+    counts = {"repeatability": [], "homography": []}  # keypoints per image
+    per_pair: list[dict[str, Any]] = []
+    warmed: set[str] = set()
+
+    iterator = pairs
+    if progress:
+        from tqdm.auto import tqdm
+
+        iterator = tqdm(pairs, desc=f"benchmark {row_name}", unit="pair")
+    for pair in iterator:
+        if not isinstance(pair, ImagePair):
+            raise ValueError(f"pairs must hold ImagePair objects; got {type(pair).__name__}")
+        record: dict[str, Any] = {"name": pair.name, "split": pair.split}
+        if do_rep:
+            small = resize_pair(pair, settings.repeatability_size, settings.resize_mode)
+            if "repeatability" not in warmed:
+                det_rep.detect_and_describe(small.image1)  # untimed warm-up (lazy loading, JIT)
+                warmed.add("repeatability")
+            k = settings.repeatability_keypoints
+            f1 = _detect(det_rep, small.image1, k, timers["repeatability"])
+            f2 = _detect(det_rep, small.image2, k, timers["repeatability"])
+            counts["repeatability"] += [len(f1.keypoints), len(f2.keypoints)]
+            record["repeatability"] = repeatability(
+                f1.keypoints, f2.keypoints, small.H, small.image1.shape, small.image2.shape, eps,
+                scores1=f1.scores, scores2=f2.scores, keep_k=k,
+            )
+        if do_hom:
+            large = resize_pair(pair, settings.homography_size, settings.resize_mode)
+            if "homography" not in warmed:
+                det_hom.detect_and_describe(large.image1)
+                warmed.add("homography")
+            k = settings.homography_keypoints
+            g1 = _detect(det_hom, large.image1, k, timers["homography"])
+            g2 = _detect(det_hom, large.image2, k, timers["homography"])
+            counts["homography"] += [len(g1.keypoints), len(g2.keypoints)]
+            binary = g1.binary
+            if len(g1.keypoints) and len(g2.keypoints):
+                matches = match_descriptors(g1.descriptors, g2.descriptors, binary=binary, mutual=settings.mutual)
+            else:
+                matches = np.zeros((0, 2), np.int64)
+            H_est, inliers = estimate_homography(
+                g1.keypoints, g2.keypoints, matches, ransac_threshold=settings.ransac_threshold
+            )
+            error = corner_error(H_est, large.H, large.image1.shape)
+            shape1, shape2 = large.image1.shape, large.image2.shape
+            record.update(
+                corner_error=error,
+                homography=(error <= eps).astype(float),
+                n_matches=len(matches),
+                n_inliers=int(inliers.sum()),
+                H_est=H_est,
+            )
+            if len(g1.keypoints) and len(g2.keypoints):
+                record["matching_score"] = matching_score(g1.keypoints, g2.keypoints, g1.descriptors, g2.descriptors,
+                                                          large.H, shape1, shape2, eps, binary)
+                record["mAP"] = mean_average_precision(g1.keypoints, g2.keypoints, g1.descriptors, g2.descriptors,
+                                                       large.H, shape1, shape2, eps, binary)
+            else:
+                record["matching_score"] = np.zeros(len(eps))
+                record["mAP"] = np.full(len(eps), np.nan)
+        per_pair.append(record)
+
+    splits = sorted({r["split"] for r in per_pair}, key=_split_key)
+    result: dict[str, Any] = {
+        "detector": row_name,
+        "settings": asdict(settings),
+        "n_pairs": {s: sum(r["split"] == s for r in per_pair) for s in splits},
+    }
+    metrics = (["repeatability"] if do_rep else []) + (["homography", "matching_score", "mAP"] if do_hom else [])
+    for metric in metrics:
+        result[metric] = {}
+        for s in splits:
+            values = np.array([r[metric] for r in per_pair if r["split"] == s], dtype=np.float64).reshape(-1, len(eps))
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns stay NaN
+                means = np.nanmean(values, axis=0) if len(values) else np.full(len(eps), np.nan)
+            result[metric][s] = {float(e): float(m) for e, m in zip(eps, means)}
+    result["keypoints"] = {t: float(np.mean(c)) if c else math.nan for t, c in counts.items() if c}
+    if do_hom:
+        result["matches"] = {s: float(np.mean([r["n_matches"] for r in per_pair if r["split"] == s])) for s in splits}
+    result["speed"] = {}
+    for task, timer in timers.items():
+        if timer.images:
+            shape = next(iter(timer.shapes)) if len(timer.shapes) == 1 else None
+            key = f"{shape[0]}x{shape[1]}" if shape else f"{task} (mixed sizes)"
+            ms = 1000.0 * timer.seconds / timer.images
+            result["speed"][key] = {"ms": ms, "fps": 1000.0 / ms if ms > 0 else math.inf, "images": timer.images}
+    result["per_pair"] = per_pair
+    return result
+
+
+def measure_speed(
+    detector: DetectorArg,
+    images: Sequence[np.ndarray],
+    shape: tuple[int, int],
+    *,
+    n_frames: int = 20,
+    max_keypoints: int = 300,
+    nms_radius: int = 4,
+    detector_options: dict[str, Any] | None = None,
+) -> dict[str, float]:
+    """Return {"ms", "fps", "images"}: the mean wall time of ``detect_and_describe`` on images of the given shape.
+
+    The images are resized to ``shape`` (centre crop) beforehand and cycled through ``n_frames`` timed calls after
+    two untimed warm-up calls; detection and description together, one image at a time, as a VIO front end calls it.
+
+    Args:
+        detector: a detector name, factory or instance (see ``run_benchmark``).
+        images: grayscale images to time on.
+        shape: (height, width), e.g. (180, 240) for the DAVIS resolution.
+        n_frames: timed calls.
+        max_keypoints, nms_radius: detector settings when it is created by name or factory.
+        detector_options: extra options for create_detector / the factory.
+    """
+    imgs = _check_images(images, "images")
+    count = _check_count(n_frames, "n_frames")
+    det = _make_detector(detector, max_keypoints, nms_radius, dict(detector_options or {}))
+    frames = [resize_image(img, shape, "crop")[0] for img in imgs]
+    for frame in frames[:2] if len(frames) > 1 else frames * 2:
+        det.detect_and_describe(frame)  # warm-up
+    start = time.perf_counter()
+    for i in range(count):
+        det.detect_and_describe(frames[i % len(frames)])
+    ms = 1000.0 * (time.perf_counter() - start) / count
+    return {"ms": ms, "fps": 1000.0 / ms if ms > 0 else math.inf, "images": count}
+
+
+# ---------------------------------------------------------------------------------------------- tables
+def _split_key(split: str) -> tuple[int, str]:
+    """Sort key putting the thesis's splits first, in its column order."""
+    return (SPLIT_ORDER.index(split) if split in SPLIT_ORDER else len(SPLIT_ORDER), split)
+
+
+def _display(name: str) -> str:
+    """Return the thesis's spelling of a detector name (unknown names unchanged)."""
+    return DISPLAY_NAMES.get(name.lower().replace("-", "_"), name)
+
+
+def _format_eps(e: float) -> str:
+    """Return eps without a trailing .0."""
+    return f"{e:g}"
+
+
+def format_table(rows: Sequence[dict[str, Any]], kind: str, *, digits: int = 3, bold_best: bool = True) -> str:
+    """Return a Markdown table (one row per detector) in the form of thesis Tables 2-5.
+
+    ``kind`` is "repeatability" (Tables 2, 3), "homography" (Tables 4, 5: homography estimation correctness),
+    "matching_score", "mAP" or "speed" (ms per image and frames/s per resolution). Columns are the splits present
+    (viewpoint, illumination, event frames, ...) times eps; a single split gives plain "ε = 1" columns as Tables 3
+    and 5. The best value of each column is bold (highest; for speed, the most frames/s). Missing values show "-".
+
+    Args:
+        rows: results of ``run_benchmark`` (one per detector).
+        kind: one of "repeatability", "homography", "matching_score", "mAP", "speed".
+        digits: decimals of the metrics.
+        bold_best: mark the best value of each column in bold.
+
+    >>> row = {"detector": "sift", "repeatability": {"viewpoint": {1.0: 0.26, 3.0: 0.486}}}
+    >>> print(format_table([row], "repeatability"))
+    | Model | ε = 1 | ε = 3 |
+    |---|---|---|
+    | SIFT | **0.260** | **0.486** |
+    """
+    if kind not in TABLE_KINDS:
+        raise ValueError(f"kind must be one of {TABLE_KINDS}; got {kind!r}")
+    if isinstance(rows, dict):
+        rows = [rows]
+    if not rows:
+        raise ValueError("rows must hold at least one benchmark result (a dict from run_benchmark); got none")
+    names = [_display(str(r.get("detector", "?"))) for r in rows]
+    columns: list[tuple[str, Callable[[dict[str, Any]], float]]] = []
+    if kind == "speed":
+        shapes = sorted({k for r in rows for k in r.get("speed", {})},
+                        key=lambda k: tuple(int(v) for v in k.split("x")) if "x" in k and " " not in k else (10**9,))
+        for s in shapes:
+            columns.append((f"{s} ms", lambda r, s=s: r.get("speed", {}).get(s, {}).get("ms", math.nan)))
+            columns.append((f"{s} frames/s", lambda r, s=s: r.get("speed", {}).get(s, {}).get("fps", math.nan)))
+    else:
+        splits = sorted({s for r in rows for s in r.get(kind, {})}, key=_split_key)
+        for s in splits:
+            eps_values = sorted({float(e) for r in rows for e in r.get(kind, {}).get(s, {})})
+            for e in eps_values:
+                title = f"ε = {_format_eps(e)}"
+                if len(splits) > 1:
+                    title = f"{SPLIT_TITLES.get(s, s)} {title}"
+                columns.append((title, lambda r, s=s, e=e: _lookup_eps(r.get(kind, {}).get(s, {}), e)))
+    if not columns:
+        raise ValueError(f"rows hold no {kind!r} results (run_benchmark with that task first)")
+    values = np.array([[float(get(r)) for _, get in columns] for r in rows], dtype=np.float64)
+    best = np.zeros(values.shape, bool)
+    if bold_best:
+        for j, (title, _) in enumerate(columns):
+            column = values[:, j]
+            if np.isfinite(column).any():
+                target = np.nanmin(column) if title.endswith(" ms") else np.nanmax(column)
+                best[:, j] = np.isclose(column, target, rtol=0, atol=0.5 * 10.0**-digits)
+    lines = ["| Model | " + " | ".join(t for t, _ in columns) + " |", "|---|" + "---|" * len(columns)]
+    for i, row_name in enumerate(names):
+        cells = []
+        for j, (title, _) in enumerate(columns):
+            v = values[i, j]
+            places = 1 if kind == "speed" else digits
+            text = "-" if not np.isfinite(v) else f"{v:.{places}f}"
+            cells.append(f"**{text}**" if best[i, j] and text != "-" else text)
+        lines.append(f"| {row_name} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def _lookup_eps(values: dict[Any, float], eps: float) -> float:
+    """Return the value stored under eps (keys may be floats or their strings, as after a JSON round trip)."""
+    for key, value in values.items():
+        if math.isclose(float(key), eps):
+            return float(value)
+    return math.nan
+
+
+# ---------------------------------------------------------------------------------------------- command line
+def add_benchmark_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    """Return ``parser`` with the options of ``python -m evio_lib features-benchmark`` added."""
+    parser.add_argument("--detectors", nargs="+", metavar="NAME",
+                        help="detector names (create_detector); default: every available detector")
+    parser.add_argument("--dataset", choices=["heldout", "events", "hpatches"], default="heldout",
+                        help="heldout: HPatches-style pairs of the held-out test images (default); events: event "
+                             "frames from --event-frames and warped copies; hpatches: the real HPatches folder")
+    parser.add_argument("--hpatches-root", type=Path, help="HPatches folder with i_*/v_* scenes (--dataset hpatches)")
+    parser.add_argument("--event-frames", type=Path,
+                        help=".npy (N, H, W) or .npz (array 'frames') of event frames (--dataset events)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the image pool and the random changes (default 0)")
+    parser.add_argument("--n-images", type=int, help="use only the first N images / frames / scenes per split")
+    parser.add_argument("--pairs-per-image", type=int, default=5, help="pairs per image and split (default 5)")
+    parser.add_argument("--settings", choices=["thesis-hpatches", "thesis-events"],
+                        help="evaluation settings (default: thesis-events for --dataset events, else thesis-hpatches)")
+    parser.add_argument("--speed-shapes", nargs="*", default=["180x240", "240x320"], metavar="HxW",
+                        help="also time detect_and_describe at these resolutions (default 180x240 240x320)")
+    parser.add_argument("--speed-frames", type=int, default=20, help="timed frames per resolution (default 20)")
+    parser.add_argument("--out", type=Path, help="folder to write results.json and tables.md into")
+    parser.add_argument("--fast", action="store_true", help="tiny run: 2 images, 1 pair each, 5 timed frames")
+    parser.add_argument("--quiet", action="store_true", help="no progress bars")
+    return parser
+
+
+def _parse_shape(text: str) -> tuple[int, int]:
+    """Return (height, width) from 'HxW'."""
+    try:
+        h, w = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise ValueError(f"--speed-shapes entries must look like 180x240 (height x width); got {text!r}") from None
+    if h < 8 or w < 8:
+        raise ValueError(f"--speed-shapes entries must be at least 8x8; got {text!r}")
+    return h, w
+
+
+def _load_event_frames(path: Path) -> list[np.ndarray]:
+    """Return the frames stored in a .npy (N, H, W) or .npz (array 'frames', else the first array) file."""
+    if not path.is_file():
+        raise ValueError(f"--event-frames {path} is not a file")
+    data = np.load(path)
+    if isinstance(data, np.lib.npyio.NpzFile):
+        key = "frames" if "frames" in data.files else data.files[0]
+        data = data[key]
+    frames = np.asarray(data)
+    if frames.ndim != 3:
+        raise ValueError(f"--event-frames must hold an (N, H, W) stack of frames; got shape {frames.shape}")
+    if np.issubdtype(frames.dtype, np.floating) and frames.size and (frames.min() < 0 or frames.max() > 1):
+        lo, hi = float(frames.min()), float(frames.max())  # event-count frames: scale to [0, 1]
+        frames = (frames - lo) / max(hi - lo, 1e-12)
+    return list(frames)
+
+
+class _LazyPairs:
+    """A re-iterable source of pairs: every iteration calls ``make()`` afresh (HPatches is read from disk each pass)."""
+
+    def __init__(self, make: Callable[[], Iterable[ImagePair]]) -> None:
+        self._make = make
+
+    def __iter__(self):  # type: ignore[no-untyped-def]
+        return iter(self._make())
+
+
+def _benchmark_pairs(args: argparse.Namespace) -> tuple[Iterable[ImagePair], dict[str, int], list[np.ndarray]]:
+    """Return the pairs of the chosen data set, their count per split and a few images to time the detectors on."""
+    n_images = 2 if args.fast and args.n_images is None else args.n_images
+    per_image = 1 if args.fast else args.pairs_per_image
+    if args.dataset == "hpatches":
+        if args.hpatches_root is None:
+            raise ValueError("--dataset hpatches needs --hpatches-root (the folder with the i_*/v_* scenes)")
+        root = args.hpatches_root
+        counts: dict[str, int] = {}
+        for split, prefix in SPLIT_PREFIXES.items():  # count from the folder names, without reading images
+            n = sum(p.name.startswith(prefix) for p in hpatches_scenes(root))
+            n = n if n_images is None else min(n, n_images)
+            if n:
+                counts[split] = n * (N_IMAGES_PER_SCENE - 1)
+        pairs: Iterable[ImagePair] = _LazyPairs(lambda: iter_hpatches_pairs(root, "all", max_scenes=n_images))
+        first = [p.image1 for _, p in zip(range(1), pairs)]  # time the detectors on the first reference image
+        return pairs, counts, first
+    if args.dataset == "events":
+        if args.event_frames is None:
+            raise ValueError("--dataset events needs --event-frames (an .npy/.npz stack of event frames)")
+        frames = _load_event_frames(args.event_frames)[:n_images]
+        listed = event_frame_pairs(frames, args.seed, per_image)
+    else:
+        listed = heldout_pairs(args.seed, n_images=n_images, pairs_per_image=per_image)
+    counts = {}
+    for pair in listed:
+        counts[pair.split] = counts.get(pair.split, 0) + 1
+    return listed, counts, [p.image1 for p in listed[:: max(1, len(listed) // 4)][:4]]
+
+
+def main_benchmark(args: argparse.Namespace | Sequence[str] | None = None) -> int:
+    """Run the benchmark from the command line; print the tables; return the exit code.
+
+    ``args`` is the namespace of a parser that ``add_benchmark_arguments`` set up, or an argument list (parsed
+    here). Writes ``results.json`` (everything but the per-pair records) and ``tables.md`` into ``--out``.
+    """
+    if args is None or not isinstance(args, argparse.Namespace):
+        parser = add_benchmark_arguments(argparse.ArgumentParser(prog="python -m evio_lib features-benchmark",
+                                                                 description=__doc__.split("\n")[0]))
+        args = parser.parse_args(None if args is None else list(args))
+    try:
+        pairs, counts, timing_images = _benchmark_pairs(args)
+        shapes = [_parse_shape(s) for s in args.speed_shapes]
+    except ValueError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    if args.settings is None:
+        args.settings = "thesis-events" if args.dataset == "events" else "thesis-hpatches"
+    if args.settings == "thesis-events":
+        settings = BenchmarkSettings.thesis_event_frames()
+    else:
+        settings = BenchmarkSettings.thesis_hpatches()
+    if args.detectors:
+        names = list(args.detectors)
+    else:
+        from evio_lib.features.base import available_detectors
+
+        names = available_detectors()
+    print(f"{args.dataset} benchmark: {sum(counts.values())} pairs {counts}, settings {args.settings}, "
+          f"detectors {names}")
+    rows = []
+    for detector_name in names:
+        try:
+            row = run_benchmark(detector_name, pairs, settings, progress=not args.quiet)
+            for shape in shapes:
+                key = f"{shape[0]}x{shape[1]}"
+                row["speed"][key] = measure_speed(detector_name, timing_images, shape,
+                                                  n_frames=5 if args.fast else args.speed_frames,
+                                                  max_keypoints=settings.repeatability_keypoints,
+                                                  nms_radius=settings.repeatability_nms)
+        except (ValueError, ImportError, FileNotFoundError, RuntimeError) as error:
+            print(f"skipping {detector_name}: {error}", file=sys.stderr)
+            continue
+        rows.append(row)
+    if not rows:
+        print("error: no detector could be run", file=sys.stderr)
+        return 1
+    titles = {"repeatability": "Repeatability", "homography": "Homography estimation correctness",
+              "matching_score": "Matching score", "mAP": "Nearest-neighbour mAP", "speed": "Speed (detect + describe)"}
+    sections = []
+    for kind in TABLE_KINDS:
+        try:
+            sections.append(f"### {titles[kind]} ({args.dataset})\n\n{format_table(rows, kind)}\n")
+        except ValueError:
+            continue
+    text = "\n".join(sections)
+    print(text)
+    if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
+        summary = [{k: v for k, v in r.items() if k != "per_pair"} for r in rows]
+        (args.out / "results.json").write_text(json.dumps(summary, indent=2, default=_json_default))
+        (args.out / "tables.md").write_text(text)
+        print(f"wrote {args.out / 'results.json'} and {args.out / 'tables.md'}")
+    return 0
+
+
+def _json_default(value: Any) -> Any:
+    """Return a JSON-friendly version of numpy values."""
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, (set, tuple)):
+        return list(value)
+    raise TypeError(f"cannot write {type(value).__name__} to JSON")
