@@ -74,6 +74,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--cache", action="store_true", help="also write sequence.npz, the fast binary cache")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.set_defaults(func=_cmd_simulate)
+
+    from evio_lib.features.benchmark import add_benchmark_arguments, main_benchmark
+
+    p = sub.add_parser("features-benchmark", help="detector/descriptor benchmark (repeatability, homography; thesis Tables 2-5)")
+    add_benchmark_arguments(p)
+    p.set_defaults(func=main_benchmark)
     return parser
 
 
