@@ -1,0 +1,588 @@
+"""The MSCKF orchestrator: IMU buffering, propagation, augmentation, feature bookkeeping, updates and pruning.
+
+One image (``Msckf.process_image``) runs these named steps, in the order of S-MSCKF (Sun et al., RA-L 2018; msckf_vio)
+and thesis §3.3.6.1:
+
+1. ``_propagate_to(t)``: IMU propagation to the image time (OC-modified Φ when ``observability_constrained``).
+2. ``_augment()``: clone the camera pose into the window (Eqs. 27-30).
+3. ``_add_observations``: append (camera id, xy) to each feature's track (a dict id -> observations).
+4. ``_collect_lost_features``: tracks not observed in this image have ended; those with >= ``min_track_length``
+   observations are used with all their observations, shorter ones are dropped.
+5. ``_select_cameras_to_remove`` / ``_collect_pruned_features``: when the window exceeds N_max, two states are
+   chosen by S-MSCKF's two-way keyframe rule (or the oldest third with ``marginalize_third``); the features
+   observed at >= 2 of them are used with those observations, which are then deleted from the tracks.
+6. ``_update``: the features of 4 and 5 enter ONE stacked, compressed update. (msckf_vio applies two updates in a
+   row; the two sets use disjoint observations, so stacking them changes only the linearisation point of the
+   second set and halves the cost.)
+7. ``_marginalize``: the chosen camera states leave the window (their rows and columns of P are dropped).
+
+An update (``_update``): all features are triangulated at once (inverse depth, ``triangulate_inverse_depth_batch``);
+for each, the residual and Jacobians of the observations used (Eqs. 41-48; OC-modified, Eqs. 85-86) are projected
+on the left nullspace of H_f (Eq. 50) and chi-square gated (95 %); the survivors are stacked, QR-compressed
+(Eqs. 51-55) and applied in one Joseph-form Kalman update (Eqs. 56-58). Features are processed in batches of equal
+observation count, so the per-feature work is vectorised. Every dropped feature is counted in ``rejections`` with
+its reason; an update whose result is not finite is skipped (counted), so the state never holds NaN.
+"""
+from __future__ import annotations
+
+import math
+from collections import Counter
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Mapping
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from evio_lib.geometry.rotation import quat_from_rotvec, quat_multiply, quat_normalize, quat_to_rot
+from evio_lib.msckf.augmentation import augment_state
+from evio_lib.msckf.config import MsckfConfig
+from evio_lib.msckf.observability import constrain_camera_blocks, constrain_transition
+from evio_lib.msckf.propagation import propagate
+from evio_lib.msckf.state import (
+    BA,
+    BG,
+    CAMERA_DIM,
+    IMU_DIM,
+    POS,
+    THETA,
+    VEL,
+    FilterState,
+    ImuState,
+    _camera_unchecked,
+    _filter_state_unchecked,
+    _frozen,
+    _unchecked,
+    remove_camera_states,
+)
+from evio_lib.msckf.triangulation import triangulate_inverse_depth_batch
+from evio_lib.msckf.update import chi_square_threshold, kalman_update, measurement_compress
+
+__all__ = ["FilterOutput", "Msckf", "apply_correction"]
+
+
+def apply_correction(state: FilterState, dx: NDArray[np.float64], P_new: NDArray[np.float64]) -> FilterState:
+    """Return the state corrected by dx (15 + 6N,) with covariance P_new: ``state.inject_error(dx)`` with P replaced.
+
+    Same result as ``evio_lib.msckf.state.inject_error`` (q <- quat_from_rotvec(δθ) ⊗ q for the IMU and every
+    camera, renormalised; everything else additive; first estimates kept), computed for all attitudes in one
+    batch: the filter calls it after every update. dx and P_new must be finite (the filter checks).
+    """
+    dx = np.asarray(dx, dtype=np.float64)
+    if dx.shape != (state.dim,) or np.shape(P_new) != (state.dim, state.dim):
+        raise ValueError(f"dx must have shape ({state.dim},) and P_new ({state.dim}, {state.dim}); got "
+                         f"{dx.shape} and {np.shape(P_new)}")
+    imu = state.imu
+    n_cam = state.num_cameras
+    dcam = dx[IMU_DIM:].reshape(n_cam, CAMERA_DIM)
+    q_C, p_C = state.camera_poses
+    # q <- δq(δθ) ⊗ q, for the IMU (row 0) and the cameras (rows 1..N) at once
+    q_all = quat_normalize(quat_multiply(
+        quat_from_rotvec(np.vstack((dx[THETA], dcam[:, :3]))), np.vstack((imu.q_GtoI, q_C))
+    ))
+    new_imu = _unchecked(
+        ImuState, q_GtoI=_frozen(q_all[0].copy()), b_g=_frozen(imu.b_g + dx[BG]),
+        v_IinG=_frozen(imu.v_IinG + dx[VEL]), b_a=_frozen(imu.b_a + dx[BA]), p_IinG=_frozen(imu.p_IinG + dx[POS]),
+        timestamp=imu.timestamp, q_GtoI_null=imu.q_GtoI_null, v_IinG_null=imu.v_IinG_null,
+        p_IinG_null=imu.p_IinG_null,
+    )
+    p_new = p_C + dcam[:, 3:]  # p_CinG <- p_CinG + δp_C
+    cameras = {
+        cam.id: _camera_unchecked(cam.id, cam.timestamp, _frozen(q_all[i + 1].copy()), _frozen(p_new[i].copy()),
+                                  cam.q_GtoC_null, cam.p_CinG_null)
+        for i, cam in enumerate(state.cameras.values())
+    }
+    return _filter_state_unchecked(new_imu, cameras, np.array(P_new, dtype=np.float64), state)
+
+
+@dataclass(frozen=True, eq=False)
+class FilterOutput:
+    """The filter's estimate after one image.
+
+    Attributes:
+        t: image time, s.
+        q_GtoI: (4,) JPL quaternion of R_GtoI; p_IinG, v_IinG: (3,) position and velocity of I in G.
+        b_g, b_a: (3,) gyro and accelerometer bias estimates.
+        P_imu: (15, 15) covariance of the IMU error [δθ, δb_g, δv, δb_a, δp].
+        n_features_used: features that entered this image's updates (after gating).
+        counters: per-image figures: window size, tracks, features tried / used per update kind, rows, updates.
+    """
+
+    t: float
+    q_GtoI: NDArray[np.float64]
+    p_IinG: NDArray[np.float64]
+    v_IinG: NDArray[np.float64]
+    b_g: NDArray[np.float64]
+    b_a: NDArray[np.float64]
+    P_imu: NDArray[np.float64]
+    n_features_used: int
+    counters: Mapping[str, int] = field(default_factory=dict)
+
+    @property
+    def sigma(self) -> NDArray[np.float64]:
+        """Return the (15,) standard deviations sqrt(diag(P_imu)) (3-sigma bounds are 3 * sigma)."""
+        return np.sqrt(np.clip(np.diag(self.P_imu), 0.0, None))
+
+    @property
+    def R_ItoG(self) -> NDArray[np.float64]:
+        """Return R_ItoG = C(q_GtoI)^T (3, 3)."""
+        return quat_to_rot(self.q_GtoI).T
+
+
+@dataclass
+class _FeatureUse:
+    """One feature entering an update: its observations (window indices, xy) and which of them give residuals."""
+
+    window_idx: NDArray[np.int64]  # (M,) positions of the observing cameras in the window
+    xy: NDArray[np.float64]  # (M, 2) undistorted normalised observations
+    involved: NDArray[np.bool_]  # (M,) observations used in the Jacobian (all, or those in removed states)
+
+
+class Msckf:
+    """Multi-state constraint Kalman filter (S-MSCKF flavour) driven by IMU samples and per-image feature tracks.
+
+    Args:
+        config: every parameter (``MsckfConfig``).
+        state: the initial state (e.g. ``initialization.initial_state_from_truth`` or ``initial_state_from_static``);
+            it usually holds no camera poses.
+
+    Attributes:
+        config: the configuration.
+        rejections: Counter of dropped features by reason (too_few_observations, the triangulation reasons of
+            ``TRIANGULATION_REASONS``, chi2) and of skipped updates (update_failed, nonfinite_update).
+        tracks: dict feature id -> list of (camera id, xy (2,)) observations held in the window.
+
+    Feed IMU samples with ``feed_imu`` (any chunking, in time order) and images with ``process_image``; or call
+    ``run``. Reference: thesis §3.3 (Eqs. 18-86); Mourikis & Roumeliotis, ICRA 2007; Sun et al., RA-L 2018.
+
+    >>> from evio_lib.msckf.initialization import initial_state_from_truth
+    >>> cfg = MsckfConfig()
+    >>> s0 = initial_state_from_truth(0.0, np.eye(3), np.zeros(3), np.zeros(3), np.eye(3), np.zeros(3), cfg)
+    >>> f = Msckf(cfg, s0)
+    >>> t = np.arange(0.0, 1.0005, 0.001)
+    >>> f.feed_imu(t, np.zeros((len(t), 3)), np.tile([0.0, 0.0, 9.81], (len(t), 1)))
+    >>> out = f.process_image(0.05, np.array([1, 2]), np.array([[0.1, 0.0], [0.0, 0.1]]))
+    >>> out.t, out.p_IinG + 0.0, out.counters["window"], len(f.tracks)
+    (0.05, array([0., 0., 0.]), 1, 2)
+    """
+
+    def __init__(self, config: MsckfConfig, state: FilterState) -> None:
+        if not isinstance(config, MsckfConfig):
+            raise ValueError(f"config must be an MsckfConfig; got {type(config).__name__}")
+        if not isinstance(state, FilterState):
+            raise ValueError(f"state must be a FilterState; got {type(state).__name__}")
+        self.config = config
+        self._state = state
+        self.rejections: Counter[str] = Counter()
+        self.tracks: dict[int, list[tuple[int, NDArray[np.float64]]]] = {}
+        self._next_camera_id = max(state.camera_ids, default=-1) + 1
+        self._tracking_rate = 1.0
+        self._imu_t = np.zeros(0)
+        self._imu_w = np.zeros((0, 3))
+        self._imu_a = np.zeros((0, 3))
+        self._pending: list[tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]] = []
+        self._last_imu_t = -math.inf
+        self._hook = constrain_transition if config.observability_constrained else None
+        self._noise_var = config.feature_noise_sigma ** 2
+        self._gravity = config.gravity
+        self._tri_settings = dict(
+            max_iterations=config.triangulation_max_iterations,
+            step_tol=config.triangulation_tolerance,
+            min_baseline_ratio=config.triangulation_min_baseline_ratio,
+            min_depth=config.triangulation_min_depth,
+            max_depth=config.triangulation_max_depth,
+            max_rms_residual=config.triangulation_max_reprojection_px / config.focal_length_px,
+        )
+        self._frame_counters: Counter[str] = Counter()
+
+    # ------------------------------------------------------------------------------------------------ properties
+    @property
+    def state(self) -> FilterState:
+        """Return the current filter state (immutable)."""
+        return self._state
+
+    # ------------------------------------------------------------------------------------------------ input
+    def feed_imu(self, t: float | ArrayLike, gyro: ArrayLike, accel: ArrayLike) -> None:
+        """Buffer IMU samples: one (t float, gyro (3,), accel (3,)) or a batch (t (n,), gyro (n, 3), accel (n, 3)).
+
+        Times must be finite, strictly increasing and later than every sample fed before (s); gyro in rad/s and
+        accel (specific force) in m/s^2, both in I.
+        """
+        try:
+            t_arr = np.atleast_1d(np.asarray(t, dtype=np.float64))
+            w = np.asarray(gyro, dtype=np.float64).reshape(-1, 3) if np.size(gyro) % 3 == 0 else None
+            a = np.asarray(accel, dtype=np.float64).reshape(-1, 3) if np.size(accel) % 3 == 0 else None
+        except (TypeError, ValueError) as exc:
+            raise ValueError("t, gyro and accel must be numeric: t (n,), gyro (n, 3), accel (n, 3)") from exc
+        if t_arr.ndim != 1:
+            raise ValueError(f"t must be a time or shape (n,); got shape {np.shape(t)}")
+        n = t_arr.shape[0]
+        if w is None or a is None or w.shape != (n, 3) or a.shape != (n, 3):
+            raise ValueError(
+                f"gyro and accel must have shape (n, 3) = ({n}, 3) (or (3,) for one sample); "
+                f"got {np.shape(gyro)} and {np.shape(accel)}"
+            )
+        if not (np.all(np.isfinite(t_arr)) and np.all(np.isfinite(w)) and np.all(np.isfinite(a))):
+            raise ValueError("t, gyro and accel must contain only finite values (no NaN/inf)")
+        if n == 0:
+            return
+        if np.any(np.diff(t_arr) <= 0.0) or t_arr[0] <= self._last_imu_t:
+            raise ValueError(
+                f"t must be strictly increasing and later than the last sample fed ({self._last_imu_t!r}); "
+                f"got times from {t_arr[0]!r}"
+            )
+        self._pending.append((t_arr.copy(), w.copy(), a.copy()))
+        self._last_imu_t = float(t_arr[-1])
+
+    def _imu_buffer(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """Return the buffered IMU arrays, merged, without samples older than the last one at or before the state."""
+        if self._pending:
+            self._imu_t = np.concatenate([self._imu_t] + [p[0] for p in self._pending])
+            self._imu_w = np.concatenate([self._imu_w] + [p[1] for p in self._pending])
+            self._imu_a = np.concatenate([self._imu_a] + [p[2] for p in self._pending])
+            self._pending = []
+        j = max(int(np.searchsorted(self._imu_t, self._state.timestamp, side="right")) - 1, 0)
+        if j > 0:  # views, no copies
+            self._imu_t, self._imu_w, self._imu_a = self._imu_t[j:], self._imu_w[j:], self._imu_a[j:]
+        return self._imu_t, self._imu_w, self._imu_a
+
+    def _check_image(
+        self, t: float, ids: ArrayLike, xy: ArrayLike
+    ) -> tuple[float, NDArray[np.int64], NDArray[np.float64]]:
+        if isinstance(t, bool) or not isinstance(t, (int, float, np.integer, np.floating)) or not math.isfinite(t):
+            raise ValueError(f"t must be a finite image time in seconds; got {t!r}")
+        t = float(t)
+        if t < self._state.timestamp:
+            raise ValueError(f"t must be >= the filter time {self._state.timestamp!r} (images in order); got {t!r}")
+        ids_arr = np.asarray(ids)
+        if ids_arr.size == 0:
+            ids_arr = ids_arr.astype(np.int64).reshape(0)
+        if ids_arr.ndim != 1 or ids_arr.dtype.kind not in "iu":
+            raise ValueError(f"ids must be a 1-D integer array of feature ids (K,); got dtype {ids_arr.dtype}, "
+                             f"shape {ids_arr.shape}")
+        K = ids_arr.shape[0]
+        try:
+            xy_arr = np.asarray(xy, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"xy must be a numeric array of shape (K, 2) = ({K}, 2); got {xy!r}") from exc
+        if K == 0 and xy_arr.size == 0:
+            xy_arr = xy_arr.reshape(0, 2)
+        if xy_arr.shape != (K, 2):
+            raise ValueError(f"xy must have shape (K, 2) = ({K}, 2), undistorted normalised (x, y); got {xy_arr.shape}")
+        if not np.all(np.isfinite(xy_arr)):
+            raise ValueError("xy must contain only finite values (no NaN/inf)")
+        if np.unique(ids_arr).shape[0] != K:
+            raise ValueError("ids must be unique within one image (one observation per feature)")
+        return t, ids_arr.astype(np.int64), xy_arr
+
+    # ------------------------------------------------------------------------------------------------ main steps
+    def process_image(self, t: float, ids: ArrayLike, xy: ArrayLike) -> FilterOutput:
+        """Return the estimate after processing one image's feature observations (steps in the module docstring).
+
+        Args:
+            t: image time, s (>= the filter time); IMU samples up to t should have been fed (beyond the last
+                sample the last measurement is held).
+            ids: (K,) unique integer feature (track) ids.
+            xy: (K, 2) undistorted normalised image coordinates (x, y) of the features.
+        """
+        t, ids, xy = self._check_image(t, ids, xy)
+        self._frame_counters = Counter()
+        self._propagate_to(t)
+        camera_id = self._augment()
+        remove: list[int] = []
+        if self._state.num_cameras > self.config.max_camera_states:
+            remove = self._select_cameras_to_remove()
+        used = 0
+        if self.config.imu_only:
+            self.tracks.clear()
+        else:
+            self._add_observations(camera_id, ids, xy)
+            lost = self._collect_lost_features(ids)
+            pruned = self._collect_pruned_features(remove)
+            self._frame_counters["lost_tried"] += len(lost)
+            self._frame_counters["prune_tried"] += len(pruned)
+            used_mask = self._update(lost + pruned)
+            used = int(np.count_nonzero(used_mask))
+            self._frame_counters["lost_used"] += int(np.count_nonzero(used_mask[:len(lost)]))
+            self._frame_counters["prune_used"] += int(np.count_nonzero(used_mask[len(lost):]))
+        self._marginalize(remove)
+        self._remove_unused_tracks()
+        return self._output(used)
+
+    def run(
+        self, imu_t: ArrayLike, gyro: ArrayLike, accel: ArrayLike, frames: Iterable[tuple[float, ArrayLike, ArrayLike]]
+    ) -> list[FilterOutput]:
+        """Return one FilterOutput per frame: feeds all IMU samples, then processes the frames (t, ids, xy) in order."""
+        self.feed_imu(imu_t, gyro, accel)
+        return [self.process_image(t, ids, xy) for t, ids, xy in frames]
+
+    def _propagate_to(self, t: float) -> None:
+        """Propagate the state to time t with the buffered IMU samples (OC hook when configured)."""
+        if t == self._state.timestamp:
+            return
+        imu_t, imu_w, imu_a = self._imu_buffer()
+        if imu_t.shape[0] == 0:
+            raise ValueError("no IMU samples buffered: call feed_imu before process_image")
+        self._state = propagate(self._state, imu_t, imu_w, imu_a, t, self.config, transition_hook=self._hook)
+
+    def _augment(self) -> int:
+        """Clone the current camera pose into the window; return its camera id."""
+        camera_id = self._next_camera_id
+        self._next_camera_id += 1
+        self._state = augment_state(self._state, camera_id)
+        return camera_id
+
+    def _add_observations(self, camera_id: int, ids: NDArray[np.int64], xy: NDArray[np.float64]) -> None:
+        """Append this image's observations to the tracks; record the tracking rate (share of known ids)."""
+        tracked = 0
+        tracks = self.tracks
+        for fid, z in zip(ids.tolist(), xy):
+            track = tracks.get(fid)
+            if track is None:
+                tracks[fid] = [(camera_id, z)]
+            else:
+                track.append((camera_id, z))
+                tracked += 1
+        self._tracking_rate = tracked / ids.shape[0] if ids.shape[0] else 0.0
+
+    def _collect_lost_features(self, ids: NDArray[np.int64]) -> list[_FeatureUse]:
+        """Remove the tracks that ended (not in ``ids``); return those long enough to be used (all observations)."""
+        current = set(ids.tolist())
+        lost = [fid for fid in self.tracks if fid not in current]
+        if not lost:
+            return []
+        pos = self._window_positions()
+        uses = []
+        for fid in lost:
+            track = self.tracks.pop(fid)
+            if len(track) < self.config.min_track_length:
+                self.rejections["too_few_observations"] += 1
+                continue
+            idx = np.fromiter((pos[c] for c, _ in track), dtype=np.int64, count=len(track))
+            uses.append(_FeatureUse(idx, np.array([z for _, z in track]), np.ones(len(track), dtype=bool)))
+        return uses
+
+    def _select_cameras_to_remove(self) -> list[int]:
+        """Return the camera ids to marginalise from a full window (never the newest), oldest first.
+
+        S-MSCKF's two-way rule (msckf_vio ``findRedundantCamStates``): with key = the 4th-newest state, the
+        3rd-newest and then the 2nd-newest are compared with the key; if the relative rotation angle, the distance
+        and the tracking rate say the motion is small (angle < ``keyframe_rotation_threshold``, distance <
+        ``keyframe_translation_threshold`` and tracking rate > ``keyframe_tracking_rate_threshold``), that state
+        is redundant and removed, otherwise the oldest remaining state is removed. With ``marginalize_third`` the
+        oldest third of the window (at least 2) is removed instead. Windows of fewer than 5 lose their oldest 2.
+        """
+        ids = list(self._state.camera_ids)
+        n = len(ids)
+        excess = max(n - self.config.max_camera_states, 1)
+        if self.config.marginalize_third:
+            return ids[: min(max(n // 3, 2, excess), n - 1)]
+        if n < 5:
+            return ids[: min(max(2, excess), n - 1)]
+        cams = self._state.cameras
+        key = cams[ids[-4]]
+        R_key = key.R_GtoC
+        removed: list[int] = []
+        cand, oldest = n - 3, 0
+        for _ in range(2):
+            c = cams[ids[cand]]
+            # relative rotation angle: |rotvec(R_c R_key^T)|, from the trace
+            cos_angle = (np.trace(c.R_GtoC @ R_key.T) - 1.0) / 2.0
+            angle = math.acos(min(1.0, max(-1.0, cos_angle)))
+            distance = float(np.linalg.norm(c.p_CinG - key.p_CinG))
+            if (angle < self.config.keyframe_rotation_threshold
+                    and distance < self.config.keyframe_translation_threshold
+                    and self._tracking_rate > self.config.keyframe_tracking_rate_threshold):
+                removed.append(ids[cand])
+                cand += 1
+            else:
+                removed.append(ids[oldest])
+                oldest += 1
+        extra = [i for i in ids[:-1] if i not in removed][: max(excess - 2, 0)]  # window far too large: oldest
+        return sorted(set(removed + extra), key=ids.index)
+
+    def _collect_pruned_features(self, remove: list[int]) -> list[_FeatureUse]:
+        """Return the features seen at >= 2 of the states to ``remove`` (those observations give the residuals).
+
+        The observations made at those states are deleted from every track (they are used now or never).
+        """
+        if not remove or not self.tracks:
+            return []
+        gone = set(remove)
+        pos = self._window_positions()
+        uses = []
+        for fid, track in self.tracks.items():
+            involved = [c in gone for c, _ in track]
+            n_involved = sum(involved)
+            if n_involved == 0:
+                continue
+            if n_involved >= 2:
+                idx = np.fromiter((pos[c] for c, _ in track), dtype=np.int64, count=len(track))
+                uses.append(_FeatureUse(idx, np.array([z for _, z in track]), np.array(involved)))
+            self.tracks[fid] = [(c, z) for c, z in track if c not in gone]
+        return uses
+
+    def _marginalize(self, remove: list[int]) -> None:
+        """Remove the camera states ``remove`` from the window (drop their rows and columns of P)."""
+        if remove:
+            self._state = remove_camera_states(self._state, remove)
+            self._frame_counters["cameras_removed"] += len(remove)
+
+    def _remove_unused_tracks(self) -> None:
+        """Drop tracks left without observations in the window."""
+        for fid in [fid for fid, track in self.tracks.items() if not track]:
+            del self.tracks[fid]
+
+    # ------------------------------------------------------------------------------------------------ the update
+    def _window_positions(self) -> dict[int, int]:
+        return {cid: i for i, cid in enumerate(self._state.camera_ids)}
+
+    def _update(self, uses: list[_FeatureUse]) -> NDArray[np.bool_]:
+        """Triangulate, build, gate, stack and apply ONE compressed EKF update; return which of ``uses`` were used."""
+        used = np.zeros(len(uses), dtype=bool)
+        if not uses:
+            return used
+        state = self._state
+        q_C, p_C = state.camera_poses
+        R_C = quat_to_rot(q_C)  # (N, 3, 3) R_GtoC of the window
+        results = triangulate_inverse_depth_batch(
+            [(R_C[u.window_idx], p_C[u.window_idx], u.xy) for u in uses], **self._tri_settings
+        )
+        groups: dict[int, list[tuple[int, _FeatureUse, NDArray[np.float64]]]] = {}
+        for k, (u, res) in enumerate(zip(uses, results)):
+            if not res.success:
+                self.rejections[res.reason] += 1
+                continue
+            groups.setdefault(int(np.count_nonzero(u.involved)), []).append((k, u, res.p_FinG))
+        if self.config.observability_constrained:
+            cams = state.cameras.values()
+            R_null = quat_to_rot(np.array([c.q_GtoC_null for c in cams]))
+            p_null = np.array([c.p_CinG_null for c in state.cameras.values()])
+        else:
+            R_null = p_null = None
+
+        H_parts, r_parts, col_parts = [], [], []
+        for m, items in groups.items():
+            if m < 2:  # 2 rows cannot survive the 3-column nullspace projection
+                self.rejections["too_few_observations"] += len(items)
+                continue
+            keep, H_o, r_o, cols = self._project_group(m, [(u, p) for _, u, p in items], R_C, p_C, R_null, p_null,
+                                                       state.P)
+            used[np.array([k for k, _, _ in items])[keep]] = True
+            H_parts.append(H_o)
+            r_parts.append(r_o)
+            col_parts.append(cols)
+        if not np.any(used) or not self._apply_update(H_parts, r_parts, col_parts):
+            used[:] = False
+        return used
+
+    def _project_group(
+        self,
+        m: int,
+        items: list[tuple[_FeatureUse, NDArray[np.float64]]],
+        R_C: NDArray[np.float64],
+        p_C: NDArray[np.float64],
+        R_null: NDArray[np.float64] | None,
+        p_null: NDArray[np.float64] | None,
+        P: NDArray[np.float64],
+    ) -> tuple[NDArray[np.bool_], NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
+        """Return (keep (F,), H_o, r_o, cols) for F features with m observations used: the gated ones' projected
+        Jacobians H_o (F', 2m-3, 6m) and residuals r_o (F', 2m-3), and their camera columns cols (F', 6m).
+
+        Vectorised over the F features: residuals and Jacobians (Eqs. 41-48), OC modification (Eqs. 85-86),
+        nullspace projection (Eq. 50) and chi-square test. H_o holds only the observing cameras' columns ``cols``.
+        """
+        widx = np.array([u.window_idx[u.involved] for u, _ in items])  # (F, m)
+        z = np.array([u.xy[u.involved] for u, _ in items])  # (F, m, 2)
+        p_F = np.array([p for _, p in items])  # (F, 3)
+        F = widx.shape[0]
+        R = R_C[widx]  # (F, m, 3, 3)
+        p_FinC = np.einsum("fmij,fmj->fmi", R, p_F[:, None, :] - p_C[widx])  # R_GtoC (p_F - p_C)       (Eq. 42)
+        Z = p_FinC[..., 2]
+        front = np.all(Z > 1e-9, axis=1)
+        if not np.all(front):  # cannot happen after a successful triangulation; guarded anyway
+            self.rejections["behind_camera"] += int(np.count_nonzero(~front))
+            Z = np.where(front[:, None], Z, 1.0)
+        inv_Z = 1.0 / Z
+        z_hat = p_FinC[..., :2] * inv_Z[..., None]  # [X/Z, Y/Z]                                          (Eq. 41)
+        r = (z - z_hat).reshape(F, 2 * m)  # r = z_meas - z_hat                                           (Eq. 43)
+        x, y = z_hat[..., 0], z_hat[..., 1]
+        # H_f,i = J_i R_GtoC_i with J_i = 1/Z [[1, 0, -x], [0, 1, -y]]                                  (Eqs. 46, 48)
+        H_f = (R[..., :2, :] - z_hat[..., :, None] * R[..., 2:3, :]) * inv_Z[..., None, None]  # (F, m, 2, 3)
+        blocks = np.empty((F, m, 2, CAMERA_DIM))  # J_i [[p_FinC x], -R_GtoC]                            (Eq. 47)
+        xy_ = x * y
+        blocks[..., 0, 0], blocks[..., 0, 1], blocks[..., 0, 2] = xy_, -1.0 - x * x, y
+        blocks[..., 1, 0], blocks[..., 1, 1], blocks[..., 1, 2] = 1.0 + y * y, -xy_, -x
+        blocks[..., 3:] = -H_f
+        if R_null is not None:  # OC: H_C u = 0 with the first-estimate camera poses; H_f = -H_C[:, 3:6] (85-86)
+            blocks, H_f = constrain_camera_blocks(
+                blocks, R_null[widx], p_null[widx], np.broadcast_to(p_F[:, None, :], (F, m, 3)), self._gravity
+            )
+        # left nullspace of H_f (2m, 3): the last 2m - 3 columns of its complete QR                       (Eq. 50)
+        Q = np.linalg.qr(H_f.reshape(F, 2 * m, 3), mode="complete")[0]
+        A_T = np.swapaxes(Q[:, :, 3:], 1, 2)  # (F, 2m - 3, 2m)
+        H_cam = np.zeros((F, m, 2, m, CAMERA_DIM))  # block diagonal: camera j's rows use camera j's columns
+        ar = np.arange(m)
+        H_cam[:, ar, :, ar, :] = np.moveaxis(blocks, 1, 0)
+        H_o = A_T @ H_cam.reshape(F, 2 * m, m * CAMERA_DIM)
+        r_o = np.einsum("fkr,fr->fk", A_T, r)
+        cols = ((IMU_DIM + CAMERA_DIM * widx)[:, :, None] + np.arange(CAMERA_DIM)).reshape(F, m * CAMERA_DIM)
+        keep = front & np.all(np.isfinite(H_o), axis=(1, 2)) & np.all(np.isfinite(r_o), axis=1)
+        if self.config.chi2_gating:
+            # γ = r_o^T (H_o P H_o^T + σ² I)^-1 r_o < χ²_0.95(2m - 3); H_o only touches ``cols``
+            P_sub = P[cols[:, :, None], cols[:, None, :]]
+            S = H_o @ P_sub @ np.swapaxes(H_o, 1, 2)
+            S[:, np.arange(2 * m - 3), np.arange(2 * m - 3)] += self._noise_var
+            try:
+                gamma = np.einsum("fk,fk->f", r_o, np.linalg.solve(S, r_o[:, :, None])[..., 0])
+            except np.linalg.LinAlgError:
+                gamma = np.full(F, np.inf)
+            passed = gamma < chi_square_threshold(2 * m - 3, self.config.chi2_probability)
+            self.rejections["chi2"] += int(np.count_nonzero(keep & ~passed))
+            keep &= passed
+        return keep, H_o[keep], r_o[keep], cols[keep]
+
+    def _apply_update(
+        self, H_parts: list[NDArray[np.float64]], r_parts: list[NDArray[np.float64]],
+        col_parts: list[NDArray[np.int64]],
+    ) -> bool:
+        """Stack the projected rows into one (rows, 15 + 6N) system, QR-compress it and apply the Kalman update.
+
+        Returns False (state unchanged, counted in ``rejections``) when the update fails or is not finite."""
+        state = self._state
+        n = state.dim
+        rows = sum(h.shape[0] * h.shape[1] for h in H_parts)
+        H = np.zeros((rows, n))
+        r = np.empty(rows)
+        start = 0
+        for H_o, r_o, cols in zip(H_parts, r_parts, col_parts):
+            F, k, _ = H_o.shape
+            row_idx = start + np.arange(F * k).reshape(F, k)
+            H[row_idx[:, :, None], cols[:, None, :]] = H_o
+            r[start:start + F * k] = r_o.reshape(-1)
+            start += F * k
+        H_c, r_c = measurement_compress(H, r)  # (Eqs. 51-55) when rows > n
+        self._frame_counters["rows"] += rows
+        try:
+            dx, P_new = kalman_update(state.P, H_c, r_c, self._noise_var)  # (Eqs. 56-58)
+        except ValueError:
+            self.rejections["update_failed"] += 1
+            return False
+        if not (np.all(np.isfinite(dx)) and np.all(np.isfinite(P_new)) and np.all(np.diag(P_new) > 0.0)):
+            self.rejections["nonfinite_update"] += 1
+            return False
+        self._state = apply_correction(state, dx, P_new)
+        self._frame_counters["updates"] += 1
+        return True
+
+    # ------------------------------------------------------------------------------------------------ output
+    def _output(self, used: int) -> FilterOutput:
+        imu = self._state.imu
+        counters = dict(self._frame_counters)
+        counters.update(window=self._state.num_cameras, tracks=len(self.tracks))
+        return FilterOutput(
+            t=imu.timestamp, q_GtoI=imu.q_GtoI.copy(), p_IinG=imu.p_IinG.copy(), v_IinG=imu.v_IinG.copy(),
+            b_g=imu.b_g.copy(), b_a=imu.b_a.copy(), P_imu=self._state.P[:IMU_DIM, :IMU_DIM].copy(),
+            n_features_used=used, counters=MappingProxyType(counters),
+        )

@@ -1,0 +1,419 @@
+"""Tests for evio_lib.msckf.filter: perfect-data-association runs on the simulator (boxes_like, 1 px noise) against
+ground truth and IMU-only dead reckoning, one update against an independent reference built from the public update
+functions, chi-square gating of moving-point (outlier) tracks, keyframe pruning, the IMU-only mode against plain
+propagation, degenerate input (no features, one pixel, no baseline) and bad input.
+
+The feature tracks are made here (random landmarks spawned in front of the simulated camera, projected with noise),
+independently of the library's track simulator."""
+import dataclasses
+
+import numpy as np
+import pytest
+
+from evio_lib.geometry.rotation import quat_to_rot
+from evio_lib.msckf.config import MsckfConfig
+from evio_lib.msckf.filter import FilterOutput, Msckf, _FeatureUse, apply_correction
+from evio_lib.msckf.initialization import initial_state_from_truth
+from evio_lib.msckf.observability import constrain_feature_jacobians, constrain_transition
+from evio_lib.msckf.propagation import propagate
+from evio_lib.msckf.augmentation import augment_state
+from evio_lib.msckf.state import FilterState, ImuState, state_difference
+from evio_lib.msckf.triangulation import triangulate_inverse_depth_batch
+from evio_lib.msckf.update import (
+    chi_square_gate,
+    feature_jacobians,
+    kalman_update,
+    measurement_compress,
+    nullspace_project,
+)
+from evio_lib.sim.imu import ImuNoiseParams, synthesize_imu
+from evio_lib.sim.rig import CameraImuExtrinsics
+from evio_lib.sim.trajectory import trajectory_from_preset
+
+SIGMA = 1.0 / 199.0  # 1 px at the default focal length
+EXT = CameraImuExtrinsics.default()
+HALF_FOV = (0.6, 0.45)  # DAVIS240C: 120 / 199, 90 / 199 in normalised units
+
+
+# ---------------------------------------------------------------- simulated feature tracks (independent)
+
+
+class _Landmarks:
+    """Landmarks tracked by the simulated camera: born at a random pixel and depth, alive for a random number of
+    frames while visible, replaced to keep ``count`` tracks; ``speed`` > 0 makes them move (outliers)."""
+
+    def __init__(self, rng, count, depth, life, first_id, speed=0.0):
+        self.rng, self.count, self.depth, self.life, self.next_id, self.speed = rng, count, depth, life, first_id, speed
+        self.pts, self.vel = np.zeros((0, 3)), np.zeros((0, 3))
+        self.ids, self.left = np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+
+    def observe(self, R_CtoG, p_CinG, dt, sigma):
+        self.pts = self.pts + self.vel * dt
+        p_C = (self.pts - p_CinG) @ R_CtoG  # p_C = R_GtoC (p_G - p_CinG)
+        xy = p_C[:, :2] / np.where(p_C[:, 2:] > 1e-6, p_C[:, 2:], 1.0)
+        vis = (p_C[:, 2] > 0.3) & (np.abs(xy[:, 0]) < HALF_FOV[0]) & (np.abs(xy[:, 1]) < HALF_FOV[1]) & (self.left > 0)
+        self.pts, self.vel, self.ids = self.pts[vis], self.vel[vis], self.ids[vis]
+        self.left, xy = self.left[vis], xy[vis]
+        n = self.count - len(self.ids)
+        if n > 0:
+            u = self.rng.uniform(-1.0, 1.0, (n, 2)) * HALF_FOV
+            d = self.rng.uniform(*self.depth, n)
+            new = np.column_stack([u * d[:, None], d]) @ R_CtoG.T + p_CinG  # p_G = R_CtoG p_C + p_CinG
+            v = self.rng.normal(size=(n, 3))
+            v *= self.speed / np.linalg.norm(v, axis=1, keepdims=True)
+            self.pts, self.vel = np.vstack([self.pts, new]), np.vstack([self.vel, v])
+            self.ids = np.concatenate([self.ids, self.next_id + np.arange(n)])
+            self.next_id += n
+            self.left = np.concatenate([self.left, self.rng.integers(self.life[0], self.life[1] + 1, n)])
+            xy = np.vstack([xy, u])
+        self.left = self.left - 1
+        return self.ids.copy(), xy + self.rng.normal(0.0, sigma, xy.shape)
+
+
+def make_tracks(traj, times, rng, n_features=60, depth=(1.5, 5.0), sigma=SIGMA, life=(3, 30), n_movers=0,
+                mover_speed=1.0):
+    """Return frames [(t, ids (K,), xy (K, 2))] of landmarks seen by the simulated camera, with pixel noise.
+
+    ``n_movers`` extra tracks (ids >= 10**6, drawn from their own generator so the static tracks do not change)
+    follow points moving at ``mover_speed`` m/s for 6 frames: no static-world model explains them (outliers)."""
+    s = traj.evaluate(times)
+    R_CtoG, p_CinG = EXT.camera_pose(s.R_ItoG, s.p_IinG)
+    static = _Landmarks(rng, n_features, depth, life, 0)
+    movers = _Landmarks(np.random.default_rng(12345), n_movers, depth, (6, 6), 10**6, mover_speed)
+    frames = []
+    for k, t in enumerate(times):
+        dt = times[k] - times[k - 1] if k else 0.0
+        ids, xy = static.observe(R_CtoG[k], p_CinG[k], dt, sigma)
+        if n_movers:
+            ids_m, xy_m = movers.observe(R_CtoG[k], p_CinG[k], dt, sigma)
+            ids, xy = np.concatenate([ids, ids_m]), np.vstack([xy, xy_m])
+        frames.append((float(t), ids, xy))
+    return frames
+
+
+def simulation(seed=1, duration=10.0, preset="boxes_like", **track_options):
+    rng = np.random.default_rng(seed)
+    traj = trajectory_from_preset(preset, duration, seed=0)
+    noise = ImuNoiseParams()
+    imu = synthesize_imu(traj, 1000.0, noise, rng)
+    times = np.arange(0.05, duration - 1e-9, 0.05)  # 20 Hz
+    frames = make_tracks(traj, times, rng, **track_options)
+    cfg = MsckfConfig().with_imu_noise(noise)
+    s0 = traj.evaluate(0.0)
+    state = initial_state_from_truth(0.0, s0.R_ItoG[0], s0.p_IinG[0], s0.v_IinG[0], EXT.R_CtoI, EXT.p_CinI, cfg)
+    return traj, imu, frames, cfg, state
+
+
+def position_errors(traj, outputs):
+    truth = traj.evaluate(np.array([o.t for o in outputs]))
+    return np.linalg.norm(np.array([o.p_IinG for o in outputs]) - truth.p_IinG, axis=1)
+
+
+def assert_finite(outputs):
+    for o in outputs:
+        for value in (o.q_GtoI, o.p_IinG, o.v_IinG, o.b_g, o.b_a, o.P_imu):
+            assert np.all(np.isfinite(value))
+
+
+@pytest.fixture(scope="module")
+def boxes_run():
+    traj, imu, frames, cfg, state = simulation()
+    f = Msckf(cfg, state)
+    windows, newest_kept = [], []
+    outputs = []
+    f.feed_imu(imu.t, imu.gyro, imu.accel)
+    for t, ids, xy in frames:
+        outputs.append(f.process_image(t, ids, xy))
+        windows.append(f.state.num_cameras)
+        newest_kept.append(f.state.camera_ids[-1] == f._next_camera_id - 1)
+    imu_only = Msckf(dataclasses.replace(cfg, imu_only=True), state).run(imu.t, imu.gyro, imu.accel, frames)
+    return dict(traj=traj, imu=imu, frames=frames, cfg=cfg, filter=f, outputs=outputs, windows=windows,
+                newest_kept=newest_kept, imu_only=imu_only)
+
+
+# ---------------------------------------------------------------- accuracy
+
+
+def test_boxes_run_is_far_more_accurate_than_imu_only_dead_reckoning(boxes_run):
+    """10 s boxes_like, 1 kHz noisy IMU with unknown biases, 20 Hz images, 60 tracks, 1 px noise.
+    Measured: RMSE 0.05 m, final 0.07 m over 7.7 m travelled (0.66 %); IMU-only: RMSE 6.1 m, final 16 m."""
+    traj, out = boxes_run["traj"], boxes_run["outputs"]
+    err = position_errors(traj, out)
+    err_imu = position_errors(traj, boxes_run["imu_only"])
+    assert_finite(out)
+    assert np.sqrt(np.mean(err**2)) < 0.15 and err[-1] < 0.25
+    assert err_imu[-1] > 5.0 and err_imu[-1] > 30 * err[-1]
+    truth = traj.evaluate(np.array([o.t for o in out]))
+    distance = np.sum(np.linalg.norm(np.diff(truth.p_IinG, axis=0), axis=1))
+    assert 100 * err.mean() / distance < 1.5  # % of distance travelled (thesis definition)
+    # the filter is not overconfident: mean position NEES within reach of 3
+    nees = [e @ np.linalg.solve(o.P_imu[12:15, 12:15], e) for o, e in
+            zip(out, truth.p_IinG - np.array([o.p_IinG for o in out]))]
+    assert np.mean(nees) < 9.0
+    # biases are learnt: the gyro bias error shrinks well below its prior (0.03 rad/s per axis)
+    imu = boxes_run["imu"]
+    assert np.linalg.norm(out[-1].b_g - imu.bias_gyro[-1]) < 0.01
+    assert sum(o.n_features_used for o in out) > 2000
+
+
+def test_window_never_exceeds_n_max_and_keeps_the_newest_state(boxes_run):
+    cfg, f = boxes_run["cfg"], boxes_run["filter"]
+    assert max(boxes_run["windows"]) == cfg.max_camera_states
+    assert all(boxes_run["newest_kept"])
+    counters = [o.counters for o in boxes_run["outputs"]]
+    assert sum(c.get("cameras_removed", 0) for c in counters) > 100
+    assert all(c["window"] <= cfg.max_camera_states for c in counters)
+    # every observation left in a track refers to a camera in the window
+    window = set(f.state.camera_ids)
+    assert all(c in window for track in f.tracks.values() for c, _ in track)
+    assert isinstance(boxes_run["outputs"][0], FilterOutput)
+    assert boxes_run["outputs"][0].sigma.shape == (15,)
+
+
+def test_oc_on_and_off_both_run_and_track_the_truth():
+    traj, imu, frames, cfg, state = simulation(seed=2, duration=4.0)
+    results = {}
+    for oc in (True, False):
+        f = Msckf(dataclasses.replace(cfg, observability_constrained=oc), state)
+        out = f.run(imu.t, imu.gyro, imu.accel, frames)
+        assert_finite(out)
+        results[oc] = position_errors(traj, out)
+        assert results[oc].max() < 0.15
+    assert not np.allclose(results[True], results[False])  # the switch changes the estimate
+
+
+# ---------------------------------------------------------------- one update against a reference
+
+
+def _window_state(rng, n_cameras=6):
+    """A state with n_cameras clones along a short curved path, the IMU covariance from the config."""
+    cfg = MsckfConfig()
+    imu = ImuState.from_pose(np.eye(3), np.zeros(3), np.zeros(3), 0.0)
+    s = FilterState.initial(imu, EXT.R_CtoI, EXT.p_CinI, cfg.initial_imu_covariance())
+    for i in range(n_cameras):
+        a = 0.05 * i
+        R = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
+        s = s.replace(imu=ImuState.from_pose(R, [0.1 * i, 0.02 * i * i, 0.0], np.zeros(3), 0.1 * i))
+        s = augment_state(s, i)
+        P = s.P + np.diag(rng.uniform(1e-8, 1e-6, s.dim))  # a little extra uncertainty (as after propagation)
+        s = s.replace(P=P)
+    return cfg, s
+
+
+@pytest.mark.parametrize("oc", [False, True])
+def test_one_update_equals_the_reference_pipeline_of_the_update_module(rng, oc):
+    cfg, s = _window_state(rng)
+    cfg = dataclasses.replace(cfg, observability_constrained=oc)
+    if oc:  # first estimates different from the estimates, so that OC matters
+        cams = {cid: dataclasses.replace(c, p_CinG_null=c.p_CinG + rng.normal(scale=0.01, size=3))
+                for cid, c in s.cameras.items()}
+        s = s.replace(cameras=cams)
+    q_C, p_C = s.camera_poses
+    R_C = quat_to_rot(q_C)
+    points = np.column_stack([rng.uniform(-1, 1, 12), rng.uniform(-1, 1, 12), rng.uniform(3, 6, 12)])
+    uses = []
+    for k, p_F in enumerate(points):
+        obs_cams = np.arange(6) if k % 2 == 0 else np.arange(1 + k % 3, 6)  # varying track lengths
+        p_FinC = np.einsum("mij,mj->mi", R_C[obs_cams], p_F - p_C[obs_cams])
+        xy = p_FinC[:, :2] / p_FinC[:, 2:] + rng.normal(scale=SIGMA, size=(len(obs_cams), 2))
+        if k in (4, 8):  # outliers: one observation 10 px off (the triangulation's 5 px RMS check lets them pass)
+            xy[2] += 10.0 * SIGMA * np.array([0.6, 0.8])
+        involved = np.ones(len(obs_cams), dtype=bool)
+        if k % 4 == 1:  # like a pruned feature: only two of its observations give residuals
+            involved[:] = False
+            involved[[0, 2]] = True
+        uses.append(_FeatureUse(obs_cams.astype(np.int64), xy, involved))
+    f = Msckf(cfg, s)
+    used = f._update(uses)
+    # reference: triangulate, per-feature Jacobians, OC, nullspace, gate, stack, compress, Joseph update
+    tri = triangulate_inverse_depth_batch([(R_C[u.window_idx], p_C[u.window_idx], u.xy) for u in uses],
+                                          max_rms_residual=cfg.triangulation_max_reprojection_px / cfg.focal_length_px)
+    H_rows, r_rows, ref_used = [], [], []
+    for u, res in zip(uses, tri):
+        idx = u.window_idx[u.involved]
+        cols = 15 + 6 * idx
+        r, H_x, H_f = feature_jacobians(q_C[idx], p_C[idx], cols, res.p_FinG, u.xy[u.involved], s.dim)
+        if oc:
+            cams = list(s.cameras.values())
+            H_x, H_f = constrain_feature_jacobians(
+                H_x, H_f, cols, np.array([cams[i].q_GtoC_null for i in idx]),
+                np.array([cams[i].p_CinG_null for i in idx]), res.p_FinG, cfg.gravity)
+        H_o, r_o = nullspace_project(H_x, H_f, r)
+        ok, _ = chi_square_gate(H_o, r_o, s.P, cfg.feature_noise_sigma**2)
+        ref_used.append(bool(res.success and ok))
+        if ref_used[-1]:
+            H_rows.append(H_o)
+            r_rows.append(r_o)
+    np.testing.assert_array_equal(used, ref_used)
+    assert sum(ref_used) >= 9
+    assert not used[4] and not used[8] and f.rejections["chi2"] >= 2  # the outliers were gated and counted
+    H_c, r_c = measurement_compress(np.vstack(H_rows), np.concatenate(r_rows))
+    dx, P_ref = kalman_update(s.P, H_c, r_c, cfg.feature_noise_sigma**2)
+    ref = s.inject_error(dx)
+    np.testing.assert_allclose(f.state.P, P_ref, atol=1e-12)
+    np.testing.assert_allclose(state_difference(ref, f.state), 0.0, atol=1e-10)
+
+
+def test_apply_correction_equals_inject_error(rng):
+    _, s = _window_state(rng, n_cameras=3)
+    dx = rng.normal(scale=0.01, size=s.dim)
+    P_new = s.P * 0.5
+    a = apply_correction(s, dx, P_new)
+    b = s.inject_error(dx)
+    np.testing.assert_allclose(a.imu.q_GtoI, b.imu.q_GtoI, atol=1e-15)
+    np.testing.assert_allclose(np.hstack(a.camera_poses), np.hstack(b.camera_poses), atol=1e-15)
+    np.testing.assert_allclose(state_difference(b, a), 0.0, atol=1e-14)
+    np.testing.assert_array_equal(a.P, P_new)
+    np.testing.assert_array_equal(a.imu.q_GtoI_null, s.imu.q_GtoI_null)
+    with pytest.raises(ValueError, match=r"dx must have shape \(33,\)"):
+        apply_correction(s, dx[:-1], P_new)
+
+
+# ---------------------------------------------------------------- robustness
+
+
+def test_chi_square_gate_drops_moving_point_tracks_and_counts_them():
+    """4 tracks at a time follow points moving at 3 m/s (80 such tracks in 5 s). The chi-square gate and the
+    triangulation residual check drop them (counted), and the estimate stays as good as without them; with the
+    gate off they get in and the error grows ~10x. Measured RMSE: clean 0.056 m, gated 0.055 m, ungated 0.60 m."""
+    traj, imu, frames, cfg, state = simulation(seed=3, duration=5.0, n_movers=4, mover_speed=3.0)
+    _, _, clean_frames, _, _ = simulation(seed=3, duration=5.0)  # the same static tracks, without the movers
+    runs = {}
+    for name, fr, gating in (("clean", clean_frames, True), ("gated", frames, True), ("ungated", frames, False)):
+        f = Msckf(dataclasses.replace(cfg, chi2_gating=gating), state)
+        out = f.run(imu.t, imu.gyro, imu.accel, fr)
+        assert_finite(out)
+        runs[name] = (f.rejections, position_errors(traj, out))
+    n_mover_tracks = len({i for _, ids, _ in frames for i in ids.tolist() if i >= 10**6})
+    dropped = {name: rej["chi2"] + rej["large_residual"] for name, (rej, _) in runs.items()}
+    assert dropped["gated"] - dropped["clean"] > 0.4 * n_mover_tracks
+    assert runs["ungated"][0]["chi2"] == 0
+    rmse = {name: np.sqrt(np.mean(err**2)) for name, (_, err) in runs.items()}
+    assert rmse["gated"] < 1.5 * rmse["clean"] + 0.01
+    assert rmse["ungated"] > 3.0 * rmse["gated"]
+
+
+def _static_setup(rng, duration=3.0):
+    cfg = MsckfConfig(max_camera_states=8)
+    state = initial_state_from_truth(0.0, np.eye(3), np.zeros(3), np.zeros(3), EXT.R_CtoI, EXT.p_CinI, cfg)
+    t = np.arange(0.0, duration + 1e-9, 0.001)
+    gyro = rng.normal(scale=2.8e-3, size=(len(t), 3))
+    accel = np.array([0.0, 0.0, 9.81]) + rng.normal(scale=0.12, size=(len(t), 3))
+    times = np.arange(0.05, duration, 0.05)
+    return cfg, state, t, gyro, accel, times
+
+
+def test_degenerate_input_never_gives_nan(rng):
+    cfg, state, t, gyro, accel, times = _static_setup(rng)
+    ids = np.arange(60)
+    xy_fixed = rng.uniform(-0.5, 0.5, (60, 2))
+    no_features = [(tt, np.zeros(0, dtype=np.int64), np.zeros((0, 2))) for tt in times]
+    reference = Msckf(dataclasses.replace(cfg, imu_only=True), state).run(t, gyro, accel, no_features)
+    # a frame without features only propagates: identical to the IMU-only mode
+    out = Msckf(cfg, state).run(t, gyro, accel, no_features)
+    assert_finite(out)
+    np.testing.assert_allclose(out[-1].P_imu, reference[-1].P_imu, rtol=1e-12)
+    np.testing.assert_allclose(out[-1].p_IinG, reference[-1].p_IinG, atol=1e-12)
+    # a static camera (no baseline): tracks stay at their pixels. Finite and bounded by default; features whose
+    # baseline is only the drift of the estimate pass the default 0.002 baseline ratio and bias the gyro estimate
+    # (~0.7 m drift in 3 s here), which a stricter ratio (0.02) prevents: the rig then stays put.
+    static_frames = [(tt, ids, xy_fixed + rng.normal(scale=SIGMA, size=(60, 2))) for tt in times]
+    for ratio, bound in ((cfg.triangulation_min_baseline_ratio, 2.0), (0.02, 0.05)):
+        f = Msckf(dataclasses.replace(cfg, triangulation_min_baseline_ratio=ratio), state)
+        out = f.run(t, gyro, accel, static_frames)
+        assert_finite(out)
+        assert np.linalg.norm(out[-1].p_IinG) < bound and np.all(np.linalg.eigvalsh(out[-1].P_imu) > 0)
+        assert max(o.counters["window"] for o in out) <= cfg.max_camera_states
+    # every feature at one pixel while the rig moves and turns: nothing consistent, nothing breaks
+    traj, imu, frames, cfg2, state2 = simulation(seed=5, duration=2.0)
+    f = Msckf(cfg2, state2)
+    out = f.run(imu.t, imu.gyro, imu.accel, [(tt, ids, np.zeros((60, 2))) for tt, _, _ in frames])
+    assert_finite(out)
+    assert sum(v for k, v in f.rejections.items() if k != "too_few_observations") > 0
+
+
+def test_keyframe_selection_keeps_the_oldest_state_when_the_camera_does_not_move(rng):
+    """At rest with every track continued, the 2nd/3rd-newest states are redundant and removed: the oldest state
+    (a keyframe) stays. With marginalize_third the oldest third goes instead."""
+    cfg, state, t, gyro, accel, times = _static_setup(rng, duration=2.0)
+    ids = np.arange(30)
+    xy = rng.uniform(-0.5, 0.5, (30, 2))
+    frames = [(tt, ids, xy + rng.normal(scale=SIGMA, size=(30, 2))) for tt in times]
+    f = Msckf(cfg, state)
+    f.feed_imu(t, gyro, accel)
+    for frame in frames:
+        f.process_image(*frame)
+        assert f.state.num_cameras <= cfg.max_camera_states
+        assert f.state.camera_ids[-1] == f._next_camera_id - 1
+    assert f.state.camera_ids[0] == 0  # the first keyframe is never marginalised
+    g = Msckf(dataclasses.replace(cfg, marginalize_third=True), state)
+    g.feed_imu(t, gyro, accel)
+    for frame in frames:
+        g.process_image(*frame)
+        assert g.state.num_cameras <= cfg.max_camera_states
+    ids_third = g.state.camera_ids
+    assert ids_third[0] > 0 and ids_third[-1] == len(frames) - 1
+    assert list(ids_third) == list(range(ids_third[0], ids_third[-1] + 1))  # oldest removed, contiguous window
+
+
+def test_keyframe_selection_removes_the_oldest_states_when_the_camera_moves_fast(rng):
+    cfg = MsckfConfig(max_camera_states=6)
+    state = initial_state_from_truth(0.0, np.eye(3), np.zeros(3), [20.0, 0.0, 0.0], EXT.R_CtoI, EXT.p_CinI, cfg)
+    t = np.arange(0.0, 1.5, 0.001)
+    gyro, accel = np.zeros((len(t), 3)), np.tile([0.0, 0.0, 9.81], (len(t), 1))
+    f = Msckf(cfg, state)
+    f.feed_imu(t, gyro, accel)
+    for k, tt in enumerate(np.arange(0.05, 1.0, 0.05)):  # 1 m between images > keyframe_translation_threshold
+        f.process_image(tt, np.zeros(0, dtype=np.int64), np.zeros((0, 2)))
+        ids = f.state.camera_ids
+        assert list(ids) == list(range(ids[0], k + 1))  # always the newest, contiguous: the oldest were removed
+
+
+def test_imu_only_mode_equals_plain_propagation(rng):
+    traj, imu, frames, cfg, state = simulation(seed=4, duration=2.0)
+    for oc in (True, False):
+        c = dataclasses.replace(cfg, imu_only=True, observability_constrained=oc)
+        out = Msckf(c, state).run(imu.t, imu.gyro, imu.accel, frames)
+        s = state
+        for o in out:
+            s = propagate(s, imu.t, imu.gyro, imu.accel, o.t, c, transition_hook=constrain_transition if oc else None)
+            np.testing.assert_allclose(o.p_IinG, s.imu.p_IinG, atol=1e-12)
+            np.testing.assert_allclose(o.q_GtoI, s.imu.q_GtoI, atol=1e-14)
+            np.testing.assert_allclose(o.P_imu, s.P, rtol=1e-10, atol=1e-18)
+            assert o.n_features_used == 0
+
+
+# ---------------------------------------------------------------- bad input
+
+
+def test_bad_input_raises_value_errors(rng):
+    cfg, state, t, gyro, accel, _ = _static_setup(rng, duration=0.5)
+    with pytest.raises(ValueError, match=r"config must be an MsckfConfig"):
+        Msckf("cfg", state)
+    with pytest.raises(ValueError, match=r"state must be a FilterState"):
+        Msckf(cfg, None)
+    f = Msckf(cfg, state)
+    with pytest.raises(ValueError, match=r"no IMU samples buffered"):
+        f.process_image(0.1, [1], [[0.0, 0.0]])
+    with pytest.raises(ValueError, match=r"gyro and accel must have shape \(n, 3\) = \(5, 3\)"):
+        f.feed_imu(t[:5], gyro[:4], accel[:5])
+    with pytest.raises(ValueError, match=r"t must be strictly increasing"):
+        f.feed_imu(t[:5][::-1], gyro[:5], accel[:5])
+    with pytest.raises(ValueError, match=r"finite"):
+        f.feed_imu(t[:2], np.full((2, 3), np.nan), accel[:2])
+    f.feed_imu(t[:300], gyro[:300], accel[:300])
+    f.feed_imu(t[300], gyro[300], accel[300])  # one sample at a time works too
+    with pytest.raises(ValueError, match=r"later than the last sample fed"):
+        f.feed_imu(t[300], gyro[300], accel[300])
+    with pytest.raises(ValueError, match=r"xy must have shape \(K, 2\) = \(2, 2\)"):
+        f.process_image(0.1, [1, 2], [[0.0, 0.0]])
+    with pytest.raises(ValueError, match=r"ids must be unique"):
+        f.process_image(0.1, [1, 1], [[0.0, 0.0], [0.1, 0.1]])
+    with pytest.raises(ValueError, match=r"ids must be a 1-D integer array"):
+        f.process_image(0.1, [1.5], [[0.0, 0.0]])
+    with pytest.raises(ValueError, match=r"xy must contain only finite values"):
+        f.process_image(0.1, [1], [[np.nan, 0.0]])
+    f.process_image(0.1, [1], [[0.0, 0.0]])
+    with pytest.raises(ValueError, match=r"t must be >= the filter time 0.1"):
+        f.process_image(0.05, [1], [[0.0, 0.0]])
+    assert f.state.num_cameras == 1  # failed calls changed nothing
