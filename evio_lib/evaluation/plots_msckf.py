@@ -1,0 +1,220 @@
+"""Figures for the MSCKF lessons (notebooks 09-10): error growth, Monte-Carlo errors against 3-sigma bounds, covariance.
+
+Plotting only (plus :func:`correlation_matrix`, the normalised covariance the structure plot shows); the filter lives
+in :mod:`evio_lib.msckf`. Matplotlib is imported when a figure is made.
+"""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Mapping, Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.figure import Figure
+
+__all__ = [
+    "correlation_matrix",
+    "plot_error_growth",
+    "plot_monte_carlo_bounds",
+    "plot_covariance_structure",
+]
+
+_IMU_BLOCKS = ("δθ", "δb_g", "δv", "δb_a", "δp")  # error-state order of thesis Eq. 22 (evio_lib.msckf.state)
+
+
+def _square_covariance(P: ArrayLike, name: str = "P") -> NDArray[np.float64]:
+    """Return P as a finite float64 (n, n) array with a non-negative diagonal; raise ValueError otherwise."""
+    try:
+        arr = np.asarray(P, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be a numeric (n, n) covariance matrix; got {type(P).__name__}") from exc
+    if arr.ndim != 2 or arr.shape[0] != arr.shape[1] or arr.shape[0] == 0:
+        raise ValueError(f"{name} must have shape (n, n); got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must contain only finite values (no NaN/inf)")
+    if np.any(np.diag(arr) < 0.0):
+        raise ValueError(f"{name} must have a non-negative diagonal (variances); got min {np.diag(arr).min():.3g}")
+    return arr
+
+
+def correlation_matrix(P: ArrayLike) -> NDArray[np.float64]:
+    """Return the correlation matrix ρ (n, n) of a covariance P: ρ_ij = P_ij / sqrt(P_ii P_jj).
+
+    Args:
+        P: (n, n) covariance (symmetric, non-negative diagonal). Rows/columns with zero variance get ρ = 0 off the
+            diagonal and 1 on it.
+
+    >>> correlation_matrix([[4.0, 1.0], [1.0, 1.0]]).round(2).tolist()
+    [[1.0, 0.5], [0.5, 1.0]]
+    """
+    P = _square_covariance(P)
+    sigma = np.sqrt(np.diag(P))
+    denom = np.outer(sigma, sigma)
+    rho = np.divide(P, denom, out=np.zeros_like(P), where=denom > 0.0)  # ρ_ij = P_ij / (σ_i σ_j)
+    np.fill_diagonal(rho, 1.0)
+    return np.clip(rho, -1.0, 1.0)
+
+
+def plot_error_growth(t: ArrayLike, errors: Mapping[str, ArrayLike], ylabel: str = "position error [m]",
+                      title: str = "", loglog: bool = False,
+                      guides: Sequence[tuple[float, float, str]] = ()) -> "Figure":
+    """Return a figure of error curves against time (one line per entry of ``errors``), optionally log-log.
+
+    Args:
+        t: (T,) times [s].
+        errors: label -> (T,) error magnitudes (e.g. |p_est - p_true|) [any unit, >= 0].
+        ylabel: y-axis label; title: figure title.
+        loglog: log-log axes (then a power law c t^k is a straight line of slope k; only t > 0, e > 0 are drawn).
+        guides: dashed reference power laws, each (power k, value at t[-1], label): y = value (t / t[-1])^k.
+
+    >>> import matplotlib; matplotlib.use("Agg")
+    >>> fig = plot_error_growth([0.0, 1.0, 2.0], {"a": [0.0, 0.1, 0.4]}, loglog=True, guides=[(2, 0.4, "t^2")])
+    >>> len(fig.axes[0].lines)
+    2
+    """
+    import matplotlib.pyplot as plt
+
+    t = np.asarray(t, dtype=np.float64)
+    if t.ndim != 1 or t.shape[0] < 2 or not np.all(np.isfinite(t)):
+        raise ValueError(f"t must be a finite array of shape (T,), T >= 2; got shape {t.shape}")
+    if not isinstance(errors, Mapping) or not errors:
+        raise ValueError(f"errors must be a non-empty mapping label -> (T,) array; got {type(errors).__name__}")
+    curves = {}
+    for label, value in errors.items():
+        e = np.asarray(value, dtype=np.float64)
+        if e.shape != t.shape:
+            raise ValueError(f"errors[{label!r}] must have shape (T,) = {t.shape} like t; got {e.shape}")
+        curves[label] = e
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for label, e in curves.items():
+        keep = (t > 0) & (e > 0) if loglog else np.ones_like(t, dtype=bool)
+        ax.plot(t[keep], e[keep], lw=1.5, label=label)
+    t_end = t[-1]
+    for power, value, label in guides:
+        if not (np.isfinite(power) and np.isfinite(value) and value > 0 and t_end > 0):
+            raise ValueError(f"guides must be (power, value > 0 at t[-1] > 0, label); got {(power, value, label)!r}")
+        tg = t[t > 0]
+        ax.plot(tg, value * (tg / t_end) ** power, "k--", lw=0.8, alpha=0.7, label=label)  # y = v (t / t_end)^k
+    if loglog:
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel(ylabel)
+    if title:
+        ax.set_title(title)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def plot_monte_carlo_bounds(t: ArrayLike, errors: ArrayLike, sigma: ArrayLike, labels: Sequence[str],
+                            n_sigma: float = 3.0, max_runs: int = 30, title: str = "") -> "Figure":
+    """Return a figure with one panel per error component: Monte-Carlo error traces inside the filter's ±n σ bounds.
+
+    Args:
+        t: (T,) times [s].
+        errors: (R, T, d) errors true - estimate of R runs (d components, e.g. δθ_xyz and δp_xyz).
+        sigma: (T, d) standard deviations the filter predicts, sqrt(diag P).
+        labels: d component names (y-axis labels, with units).
+        n_sigma: width of the bounds (3 by default: a consistent filter keeps ~99.7 % of the errors inside).
+        max_runs: at most this many traces are drawn (all runs enter the empirical ±n std curve).
+        title: figure title.
+
+    Solid red: ±n σ of the filter; dashed blue: ±n times the sample standard deviation over the runs.
+
+    >>> import matplotlib; matplotlib.use("Agg")
+    >>> fig = plot_monte_carlo_bounds([0.0, 1.0], np.zeros((4, 2, 1)), np.ones((2, 1)), ["x [m]"])
+    >>> fig.axes[0].lines[-2].get_ydata().tolist()      # +3 sigma
+    [3.0, 3.0]
+    """
+    import matplotlib.pyplot as plt
+
+    t = np.asarray(t, dtype=np.float64)
+    e = np.asarray(errors, dtype=np.float64)
+    s = np.asarray(sigma, dtype=np.float64)
+    if t.ndim != 1:
+        raise ValueError(f"t must have shape (T,); got {t.shape}")
+    if e.ndim != 3 or e.shape[1] != t.shape[0] or e.shape[0] < 1:
+        raise ValueError(f"errors must have shape (R, T, d) with T = {t.shape[0]}; got {e.shape}")
+    d = e.shape[2]
+    if s.shape != (t.shape[0], d):
+        raise ValueError(f"sigma must have shape (T, d) = ({t.shape[0]}, {d}); got {s.shape}")
+    if np.any(s < 0) or not np.all(np.isfinite(s)):
+        raise ValueError("sigma must contain finite standard deviations >= 0")
+    if len(labels) != d:
+        raise ValueError(f"labels must name the d = {d} components; got {len(labels)} labels")
+    if not (np.isfinite(n_sigma) and n_sigma > 0):
+        raise ValueError(f"n_sigma must be a finite number > 0; got {n_sigma!r}")
+    ncols = 3 if d % 3 == 0 else d
+    nrows = int(np.ceil(d / ncols))
+    fig, axes = plt.subplots(nrows, ncols, figsize=(4 * ncols, 2.8 * nrows), sharex=True, squeeze=False)
+    spread = n_sigma * e.std(axis=0)  # empirical ±n std over the runs
+    for k, ax in enumerate(axes.ravel()):
+        if k >= d:
+            ax.set_visible(False)
+            continue
+        for r in range(min(e.shape[0], max_runs)):
+            ax.plot(t, e[r, :, k], color="0.6", lw=0.6, alpha=0.7)
+        ax.plot(t, spread[:, k], "b--", lw=1.0)
+        ax.plot(t, -spread[:, k], "b--", lw=1.0)
+        ax.plot(t, n_sigma * s[:, k], "r", lw=1.6)
+        ax.plot(t, -n_sigma * s[:, k], "r", lw=1.6)
+        ax.set_ylabel(labels[k])
+        ax.grid(True, alpha=0.3)
+    for ax in axes[-1]:
+        ax.set_xlabel("time [s]")
+    fig.suptitle(title or f"{e.shape[0]} Monte-Carlo runs (grey), filter ±{n_sigma:g}σ (red), "
+                          f"sample ±{n_sigma:g} std (blue dashed)", fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def plot_covariance_structure(P: ArrayLike, correlation: bool = True, title: str = "") -> "Figure":
+    """Return an image of an MSCKF covariance (15 + 6N)²: correlations (or log10 |P|) with the state blocks marked.
+
+    Args:
+        P: (15 + 6N, 15 + 6N) error-state covariance in the order [δθ, δb_g, δv, δb_a, δp, (δθ_Ci, δp_Ci)_i]
+            (thesis Eq. 26; ``evio_lib.msckf.state``).
+        correlation: show ρ = correlation_matrix(P) in [-1, 1] (True) or log10 |P_ij| (False).
+        title: figure title.
+
+    >>> import matplotlib; matplotlib.use("Agg")
+    >>> fig = plot_covariance_structure(np.eye(27))
+    >>> fig.axes[0].images[0].get_array().shape
+    (27, 27)
+    """
+    import matplotlib.pyplot as plt
+
+    P = _square_covariance(P)
+    n = P.shape[0]
+    if n < 15 or (n - 15) % 6:
+        raise ValueError(f"P must have shape (15 + 6N, 15 + 6N); got {P.shape}")
+    n_cam = (n - 15) // 6
+    fig, ax = plt.subplots(figsize=(6.5, 5.5))
+    if correlation:
+        image = ax.imshow(correlation_matrix(P), cmap="coolwarm", vmin=-1.0, vmax=1.0, interpolation="nearest")
+        label = "correlation ρ_ij"
+    else:
+        with np.errstate(divide="ignore"):
+            logabs = np.log10(np.abs(P))  # log10 |P_ij|; exact zeros -> -inf, shown as the lowest colour
+        finite = logabs[np.isfinite(logabs)]
+        low = float(finite.min()) if finite.size else 0.0
+        image = ax.imshow(np.where(np.isfinite(logabs), logabs, low), cmap="viridis", interpolation="nearest")
+        label = "log10 |P_ij|"
+    fig.colorbar(image, ax=ax, label=label, fraction=0.046)
+    edges = [3 * k for k in range(1, 5)] + [15 + 6 * i for i in range(n_cam)]
+    for x in edges:
+        width = 1.4 if x >= 15 else 0.5
+        ax.axhline(x - 0.5, color="k", lw=width)
+        ax.axvline(x - 0.5, color="k", lw=width)
+    centres = [3 * k + 1 for k in range(5)] + [15 + 6 * i + 2.5 for i in range(n_cam)]
+    names = list(_IMU_BLOCKS) + [f"C{i + 1}" for i in range(n_cam)]
+    ax.set_xticks(centres)
+    ax.set_xticklabels(names, rotation=90, fontsize=7)
+    ax.set_yticks(centres)
+    ax.set_yticklabels(names, fontsize=7)
+    ax.set_title(title or f"error-state covariance, 15 + 6·{n_cam} = {n} states")
+    fig.tight_layout()
+    return fig
