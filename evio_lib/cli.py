@@ -80,6 +80,12 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("features-benchmark", help="detector/descriptor benchmark (repeatability, homography; thesis Tables 2-5)")
     add_benchmark_arguments(p)
     p.set_defaults(func=main_benchmark)
+
+    from evio_lib.msckf.experiment import add_vio_sim_arguments, main_vio_sim
+
+    p = sub.add_parser("vio-sim", help="MSCKF on simulated perfect-data-association tracks; TUM files and error metrics")
+    add_vio_sim_arguments(p)
+    p.set_defaults(func=main_vio_sim)
     return parser
 
 
