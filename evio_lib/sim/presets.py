@@ -153,9 +153,9 @@ def simulate_sequence(config: SimulationConfig, progress: bool = False) -> Seque
     The random streams of the IMU, the event camera and the APS frames are independent children of ``config.seed``
     (``numpy.random.SeedSequence.spawn``), so switching one sensor off does not change the others.
     """
-    seed_imu, seed_events, seed_aps = np.random.SeedSequence(config.seed).spawn(3)
+    seed_imu, seed_events, seed_aps = np.random.SeedSequence(config.seed).spawn(3)  # the scene and trajectory use the seed too
     trajectory = trajectory_from_preset(config.preset, duration=config.motion_duration(), seed=config.seed)
-    scene = scene_from_preset(config.preset)
+    scene = scene_from_preset(config.preset, seed=config.seed)
     camera = config.camera
     pose_at = _pose_function(trajectory, config.extrinsics)
     timings: dict[str, float] = {}

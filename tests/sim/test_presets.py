@@ -86,7 +86,7 @@ def test_events_integrate_to_the_log_intensity_change():
     """Per pixel, sum(p) * C equals the change of log intensity between the first and last render (within C)."""
     config = _ideal_config("boxes_like", with_frames=False)
     seq = simulate_sequence(config)
-    scene = scene_from_preset(config.preset)
+    scene = scene_from_preset(config.preset, seed=config.seed)
     pose_at = _pose_function(boxes_like(10.0, seed=config.seed), config.extrinsics)
     R, p = pose_at(np.array([config.start_time, config.t_end]))
     log_start = log_intensity(scene.render_intensity(config.camera, R[0], p[0]), config.events.log_eps)

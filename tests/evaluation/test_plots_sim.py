@@ -1,0 +1,118 @@
+"""Tests of evio_lib.evaluation.plots_sim: figures render to Agg; event_rate agrees with numpy.histogram."""
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from evio_lib.events.array import empty_events, make_events  # noqa: E402
+from evio_lib.evaluation.plots_sim import (  # noqa: E402
+    event_rate,
+    plot_event_cloud,
+    plot_event_rates,
+    plot_image_row,
+    plot_imu_vs_truth,
+    plot_pixel_events,
+    plot_sample_intervals,
+)
+
+
+@pytest.fixture
+def events(rng: np.random.Generator) -> np.ndarray:
+    n = 5000
+    t = np.sort(rng.uniform(0.0, 1.0, n))
+    return make_events(t, rng.integers(0, 40, n), rng.integers(0, 30, n), rng.choice([-1, 1], n))
+
+
+@pytest.fixture(autouse=True)
+def close_figures():
+    yield
+    plt.close("all")
+
+
+def _render(fig) -> np.ndarray:
+    """Draw the figure on the Agg canvas and return its pixels (fails on any drawing error)."""
+    fig.canvas.draw()
+    return np.asarray(fig.canvas.buffer_rgba())
+
+
+def test_event_rate_matches_numpy_histogram(events: np.ndarray) -> None:
+    centres, rate = event_rate(events, 0.0, 1.0, bin_s=0.05)
+    counts, edges = np.histogram(events["t"], bins=np.linspace(0.0, 1.0, 21))
+    assert centres.shape == (20,)
+    np.testing.assert_allclose(centres, 0.5 * (edges[:-1] + edges[1:]))
+    np.testing.assert_allclose(rate * 0.05, counts)
+    assert rate.sum() * 0.05 == len(events)
+
+
+def test_event_rate_drops_partial_bin_and_checks_input(events: np.ndarray) -> None:
+    centres, rate = event_rate(events, 0.0, 0.33, bin_s=0.1)
+    assert centres.shape == rate.shape == (3,)
+    with pytest.raises(ValueError, match="bin_s must be in"):
+        event_rate(events, 0.0, 1.0, bin_s=0.0)
+    with pytest.raises(ValueError, match="t_end > t_start"):
+        event_rate(events, 1.0, 1.0)
+    with pytest.raises(ValueError, match="EVENT_DTYPE"):
+        event_rate(np.zeros(3), 0.0, 1.0)
+
+
+def test_pixel_events_figure_draws_levels_and_events() -> None:
+    t = np.linspace(0.0, 1.0, 101)
+    log_i = 0.5 * t
+    fig = plot_pixel_events(t, log_i, make_events([0.4, 0.8], [0, 0], [0, 0], [1, 1]), contrast=0.2)
+    image = _render(fig)
+    assert image.ndim == 3 and image.shape[2] == 4
+    top = fig.axes[0]
+    assert len(top.collections) == 2  # ON and OFF scatter
+    assert top.collections[0].get_offsets().shape == (2, 2)  # two ON events
+    with pytest.raises(ValueError, match="contrast must be"):
+        plot_pixel_events(t, log_i, empty_events(), contrast=0.0)
+    with pytest.raises(ValueError, match="same shape"):
+        plot_pixel_events(t, log_i[:-1], empty_events(), contrast=0.2)
+
+
+def test_image_row_symmetric_range(rng: np.random.Generator) -> None:
+    signed = rng.integers(-3, 2, (30, 40)).astype(float)
+    fig = plot_image_row([rng.random((30, 40)), signed], ["frame", "events"], cmaps=["gray", "bwr"],
+                         symmetric=[False, True], colorbar=True)
+    _render(fig)
+    lo, hi = fig.axes[1].images[0].get_clim()
+    assert lo == -hi == -3.0
+    with pytest.raises(ValueError, match="equally long"):
+        plot_image_row([signed], ["a", "b"])
+    with pytest.raises(ValueError, match=r"shape \(H, W\)"):
+        plot_image_row([np.zeros(3)], ["a"])
+
+
+def test_event_cloud_thins_deterministically(events: np.ndarray) -> None:
+    fig = plot_event_cloud(events, max_points=1000)
+    _render(fig)
+    drawn = fig.axes[0].collections[0]
+    assert len(drawn.get_offsets()) == 1000  # every 5th of 5000
+    with pytest.raises(ValueError, match="at least one event"):
+        plot_event_cloud(empty_events())
+    with pytest.raises(ValueError, match="max_points"):
+        plot_event_cloud(events, max_points=0)
+
+
+def test_imu_rates_and_sampling_figures(rng: np.random.Generator, events: np.ndarray) -> None:
+    t = np.linspace(0.0, 1.0, 200)
+    truth = np.column_stack([np.sin(t), np.cos(t), t])
+    fig = plot_imu_vs_truth(t, truth + 0.01 * rng.standard_normal((200, 3)), truth, truth, truth)
+    _render(fig)
+    assert len(fig.axes) == 6
+    with pytest.raises(ValueError, match=r"accel_true must have shape \(N, 3\)"):
+        plot_imu_vs_truth(t, truth, truth, truth, truth[:, :2])
+    centres, rate = event_rate(events, 0.0, 1.0, 0.1)
+    fig = plot_event_rates({"a": (centres, rate), "b": (centres, 2 * rate)}, {"a": (t, truth[:, 0])})
+    _render(fig)
+    assert len(fig.axes) == 3  # two panels + one twin axis
+    with pytest.raises(ValueError, match="at least one"):
+        plot_event_rates({})
+    fig = plot_sample_intervals(np.cumsum(rng.uniform(1e-3, 1e-2, 50)), t, truth[:, 0])
+    _render(fig)
+    assert len(fig.axes) == 2
+    with pytest.raises(ValueError, match="strictly increasing"):
+        plot_sample_intervals([0.0, 0.0, 1.0])
