@@ -81,6 +81,12 @@ def build_parser() -> argparse.ArgumentParser:
     add_benchmark_arguments(p)
     p.set_defaults(func=main_benchmark)
 
+    from evio_lib.features.train import add_train_arguments, main_train
+
+    p = sub.add_parser("features-train", help="train a SuperPoint-style variant (or a chain of them) from its config")
+    add_train_arguments(p)
+    p.set_defaults(func=main_train)
+
     from evio_lib.msckf.experiment import add_vio_sim_arguments, main_vio_sim
 
     p = sub.add_parser("vio-sim", help="MSCKF on simulated perfect-data-association tracks; TUM files and error metrics")
