@@ -417,3 +417,39 @@ def test_bad_input_raises_value_errors(rng):
     with pytest.raises(ValueError, match=r"t must be >= the filter time 0.1"):
         f.process_image(0.05, [1], [[0.0, 0.0]])
     assert f.state.num_cameras == 1  # failed calls changed nothing
+
+
+# ---------------------------------------------------------------- bookkeeping on long tracks (issue 5 diagnosis)
+
+
+def test_long_tracks_each_observation_enters_at_most_one_update_with_its_own_camera():
+    """Long-lived tracks (every track lives the whole run, so the window is pruned again and again): every
+    observation handed to an update is the one the image gave for that camera, and no (camera, feature)
+    observation ever enters the Jacobian of two updates (pruned observations are erased, a track used at its end
+    is gone). The filter's own state is used only to read the window; the truth is the frame list."""
+    traj, imu, frames, cfg, state = simulation(seed=3, duration=3.0, life=(200, 200), n_features=30)
+    cfg = dataclasses.replace(cfg, max_camera_states=8)
+    f = Msckf(cfg, state)
+    by_camera = [{tuple(z): int(i) for i, z in zip(ids, xy)} for _, ids, xy in frames]  # camera id k = frame k
+    seen, n_checked = set(), [0]
+    update = f._update
+
+    def checked_update(uses):
+        window = f.state.camera_ids
+        for u in uses:
+            cams = [window[j] for j in u.window_idx]
+            fid = by_camera[cams[0]][tuple(u.xy[0])]
+            assert cams == sorted(cams) and len(set(cams)) == len(cams)
+            for cam, z, involved in zip(cams, u.xy, u.involved):
+                assert by_camera[cam].get(tuple(z)) == fid  # the observation belongs to this camera and feature
+                if involved:
+                    assert (cam, fid) not in seen  # never in two updates
+                    seen.add((cam, fid))
+                    n_checked[0] += 1
+        return update(uses)
+
+    f._update = checked_update
+    outputs = f.run(imu.t, imu.gyro, imu.accel, frames)
+    assert n_checked[0] > 500  # the pruning path was exercised with many observations
+    assert max(o.counters.get("prune_tried", 0) for o in outputs) > 10
+    assert_finite(outputs)
