@@ -82,7 +82,14 @@ def skew(v: ArrayLike) -> NDArray[np.float64]:
            [ 3.,  0., -1.],
            [-2.,  1.,  0.]])
     """
-    v = _as_array(v, "v", (3,))
+    return skew_unchecked(_as_array(v, "v", (3,)))
+
+
+def skew_unchecked(v: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Return [v x] (..., 3, 3) for an already validated float64 (..., 3) array: the fast path of :func:`skew`.
+
+    For inner loops (filter propagation and updates) whose inputs were checked once upstream.
+    """
     x, y, z = v[..., 0], v[..., 1], v[..., 2]
     out = np.zeros(v.shape[:-1] + (3, 3), dtype=np.float64)
     # [v x] = [[0, -z, y], [z, 0, -x], [-y, x, 0]]

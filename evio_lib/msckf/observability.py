@@ -43,7 +43,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from evio_lib.geometry.rotation import quat_to_rot
+from evio_lib.geometry.rotation import quat_to_rot, skew_unchecked
 from evio_lib.msckf.propagation import PropagationSteps
 from evio_lib.msckf.state import CAMERA_DIM, IMU_DIM, POS, THETA, VEL, FilterState
 
@@ -55,15 +55,6 @@ __all__ = [
     "constrain_camera_blocks",
     "constrain_feature_jacobians",
 ]
-
-
-def _skew(v: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Return [v x] (..., 3, 3) for validated vectors (..., 3)."""
-    out = np.zeros(v.shape[:-1] + (3, 3))
-    x, y, z = v[..., 0], v[..., 1], v[..., 2]
-    out[..., 0, 1], out[..., 0, 2], out[..., 1, 2] = -z, y, -x
-    out[..., 1, 0], out[..., 2, 0], out[..., 2, 1] = z, -y, x
-    return out
 
 
 def _finite(x: ArrayLike, name: str, tail: tuple[int, ...]) -> NDArray[np.float64]:

@@ -48,7 +48,7 @@ from typing import Callable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from evio_lib.geometry.rotation import skew
+from evio_lib.geometry.rotation import skew, skew_unchecked
 from evio_lib.msckf.config import MsckfConfig
 from evio_lib.msckf.state import (
     BA,
@@ -189,15 +189,6 @@ def error_state_jacobians(
     return F, G
 
 
-def _skew(v: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Return [v x] (..., 3, 3) of already validated vectors (fast path of rotation.skew)."""
-    out = np.zeros(v.shape[:-1] + (3, 3))
-    x, y, z = v[..., 0], v[..., 1], v[..., 2]
-    out[..., 0, 1], out[..., 0, 2], out[..., 1, 2] = -z, y, -x
-    out[..., 1, 0], out[..., 2, 0], out[..., 2, 1] = z, -y, x
-    return out
-
-
 # c_j(φ) = Σ_m (-1)^m φ^2m / (2m + j)!, j = 1..5: coefficient table (5, terms) for the power series
 _SERIES_COEF = np.array(
     [[(-1.0) ** m / math.factorial(2 * m + j) for m in range(_SERIES_TERMS)] for j in range(1, 6)]
@@ -225,7 +216,7 @@ def _gammas(w: NDArray[np.float64], tau: NDArray[np.float64]) -> NDArray[np.floa
     Γ_k(τ) = ∫_0^τ Γ_k-1(s) ds, Γ_0(τ) = exp(-[ω x] τ); in closed form
     Γ_k = τ^k (I / k! - c_k+1 Θ + c_k+2 Θ²) with Θ = [ω x] τ, φ = |ω| τ.
     """
-    theta = _skew(w * tau[:, None])  # Θ = [ω x] τ
+    theta = skew_unchecked(w * tau[:, None])  # Θ = [ω x] τ
     theta2 = theta @ theta
     c = _c_coefficients(np.sqrt(np.einsum("ij,ij->i", w, w)) * np.abs(tau))[:, :, None, None]
     tau_k = np.power(tau[None, :], np.arange(4)[:, None])[:, :, None, None]  # τ^k, (4, n, 1, 1)
@@ -258,7 +249,7 @@ def _discretize(
     if m > 1:
         tau[:, 1:] = 0.5 * dt[:, None] * (1.0 + _GL_X[None, :])  # quadrature nodes s_i on [0, h]
     gam = _gammas(np.repeat(w, m, axis=0), tau.reshape(-1)).reshape(4, K, m, 3, 3)
-    A = (-R_ItoG @ _skew(a))[:, None]  # A = -R_ItoG [a x], (K, 1, 3, 3)
+    A = (-R_ItoG @ skew_unchecked(a))[:, None]  # A = -R_ItoG [a x], (K, 1, 3, 3)
     AG1, AG2, AG3 = A @ gam[1], A @ gam[2], A @ gam[3]  # (K, m, 3, 3)
 
     Phi = np.zeros((K, IMU_DIM, IMU_DIM))
@@ -386,7 +377,7 @@ def propagate_covariance(P: ArrayLike, Phi: ArrayLike, Q_d: ArrayLike) -> NDArra
 def _left_matrix(q: NDArray[np.float64]) -> NDArray[np.float64]:
     """Return L(q) (..., 4, 4) with q ⊗ p = L(q) p (JPL): [[qw I - [qv x], qv], [-qv^T, qw]]."""
     L = np.empty(q.shape[:-1] + (4, 4))
-    L[..., :3, :3] = q[..., 3, None, None] * _EYE3 - _skew(q[..., :3])
+    L[..., :3, :3] = q[..., 3, None, None] * _EYE3 - skew_unchecked(q[..., :3])
     L[..., :3, 3] = q[..., :3]
     L[..., 3, :3] = -q[..., :3]
     L[..., 3, 3] = q[..., 3]
@@ -396,7 +387,7 @@ def _left_matrix(q: NDArray[np.float64]) -> NDArray[np.float64]:
 def _rot_ItoG(q: NDArray[np.float64]) -> NDArray[np.float64]:
     """Return R_ItoG = C(q_GtoI)^T = (2 qw² - 1) I + 2 qw [qv x] + 2 qv qv^T (n, 3, 3) of unit quaternions (n, 4)."""
     qv, qw = q[:, :3], q[:, 3]
-    R = 2.0 * qv[:, :, None] * qv[:, None, :] + (2.0 * qw)[:, None, None] * _skew(qv)
+    R = 2.0 * qv[:, :, None] * qv[:, None, :] + (2.0 * qw)[:, None, None] * skew_unchecked(qv)
     R += (2.0 * qw * qw - 1.0)[:, None, None] * _EYE3
     return R
 
