@@ -37,7 +37,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from evio_lib.evaluation.trajectory_metrics import chi2_bounds, format_table, orientation_errors, summarize
 from evio_lib.geometry.camera import PinholeRadtan
@@ -57,6 +57,8 @@ __all__ = [
     "SimulatedData",
     "experiment_msckf_config",
     "undistortion_noise_factor",
+    "observation_covariance",
+    "NOISE_MODELS",
     "simulate_data",
     "initial_state",
     "pose_nees",
@@ -67,6 +69,12 @@ __all__ = [
 ]
 
 _POSE_IDX = np.r_[0:3, 12:15]  # [δθ, δp] rows of the IMU error state
+
+#: How the filter models the feature noise (``VioSimConfig.noise_model``):
+#: 'per_observation': Σ_i = σ_px² J_i J_i^T at each observation's pixel (:func:`observation_covariance`);
+#: 'global_factor': isotropic σ_px · :func:`undistortion_noise_factor` / f for every observation;
+#: 'nominal': isotropic σ_px / f (ignores the undistortion's stretch of the noise).
+NOISE_MODELS = ("per_observation", "global_factor", "nominal")
 
 
 @dataclass(frozen=True)
@@ -87,6 +95,8 @@ class VioSimConfig:
         trajectory_seed: seed of the preset trajectory's random phases / turbulence.
         max_track_length: end simulated tracks after this many images (None: only when they leave the view).
         msckf_overrides: (name, value) pairs replacing fields of :func:`experiment_msckf_config`'s config.
+        noise_model: one of :data:`NOISE_MODELS`: how the filter models the feature noise (default
+            'per_observation': each observation's own covariance, from its noisy pixel).
     """
 
     preset: str = "boxes_like"
@@ -101,10 +111,13 @@ class VioSimConfig:
     trajectory_seed: int = 0
     max_track_length: int | None = None
     msckf_overrides: tuple[tuple[str, Any], ...] = ()
+    noise_model: str = "per_observation"
 
     def __post_init__(self) -> None:
         if self.preset not in PRESETS:
             raise ValueError(f"preset must be one of {PRESETS}; got {self.preset!r}")
+        if self.noise_model not in NOISE_MODELS:
+            raise ValueError(f"noise_model must be one of {NOISE_MODELS}; got {self.noise_model!r}")
         if self.duration is not None:
             if isinstance(self.duration, bool) or not isinstance(self.duration, (int, float, np.integer, np.floating)) \
                     or not math.isfinite(self.duration) or self.duration < 2.0:
@@ -231,7 +244,8 @@ class VioSimResult:
                    ("percent_of_distance", "% Error"), ("ate_4dof_m", "ATE 4-DoF [m]"))
         lines = [
             f"vio-sim {cfg.preset}: {self.t[-1] - self.t[0] + 1.0 / cfg.frame_rate_hz:.1f} s, seed {cfg.seed}, "
-            f"{cfg.features} features/image, {cfg.pixel_noise_px:g} px noise, OC {'on' if cfg.oc else 'off'}"
+            f"{cfg.features} features/image, {cfg.pixel_noise_px:g} px noise ({cfg.noise_model}), "
+            f"OC {'on' if cfg.oc else 'off'}"
             f"{', IMU-only' if cfg.imu_only else ''}; distance travelled {self.metrics['distance_m']:.2f} m",
             format_table(self.rows, columns),
         ]
@@ -254,23 +268,25 @@ def experiment_msckf_config(config: VioSimConfig, noise: ImuNoiseParams | None =
     """Return the MsckfConfig of a run: the library defaults, the simulated IMU noise model, the run's pixel noise.
 
     Args:
-        config: the run (oc, imu_only, pixel_noise_px, msckf_overrides).
+        config: the run (oc, imu_only, pixel_noise_px, noise_model, msckf_overrides).
         noise: the simulated IMU noise model (default ``ImuNoiseParams()``): densities and initial bias spreads.
         camera: gives the focal length that converts pixel noise to normalised units (default DAVIS240C).
 
-    The filter models the measurement noise as isotropic in undistorted normalised coordinates with std
-    pixel_noise_sigma / focal_length_px, but the simulated noise is added to the DISTORTED pixels: undistortion
-    (DAVIS240C, k1 = -0.37) stretches it by up to 1.48x at the image corners. The filter's pixel noise is therefore
-    the simulated one times the RMS stretch over the image (:func:`undistortion_noise_factor`, 1.19 for the
-    DAVIS240C), floored at 0.1 px so that noise-free runs keep a proper measurement covariance. Measured on
-    boxes_like 10 s, seeds 0-5: with the unscaled 1 px the filter rejects ~500 features by chi-square and the RMSE
-    is 0.08-5.5 m; with 1.19 px it is 0.04-0.13 m. ``msckf_overrides`` are applied last.
+    The simulated noise is added to the DISTORTED pixels; the filter sees undistorted normalised coordinates, where
+    undistortion (DAVIS240C, k1 = -0.37) stretches it by 1.03x at the centre and up to 1.49x at the border.
+    With ``noise_model`` 'per_observation' (default) the filter receives each observation's own covariance
+    (:func:`observation_covariance`, passed by :func:`run_vio_sim_config`) and pixel_noise_sigma is the simulated
+    one; 'global_factor' scales the isotropic pixel noise by the RMS stretch over the image
+    (:func:`undistortion_noise_factor`, 1.19 for the DAVIS240C); 'nominal' uses the simulated pixel noise as is.
+    pixel_noise_sigma is floored at 0.1 px so that noise-free runs keep a proper measurement covariance.
+    ``msckf_overrides`` are applied last. Measured figures: see :func:`run_vio_sim_config`.
     """
     noise = ImuNoiseParams() if noise is None else noise
     camera = PinholeRadtan.davis240c() if camera is None else camera
     focal = math.sqrt(camera.fx * camera.fy)  # σ_xy = σ_px / f
     cfg = MsckfConfig().with_imu_noise(noise)
-    sigma_px = max(config.pixel_noise_px * undistortion_noise_factor(camera), 0.1)
+    factor = undistortion_noise_factor(camera) if config.noise_model == "global_factor" else 1.0
+    sigma_px = max(config.pixel_noise_px * factor, 0.1)
     cfg = dataclasses.replace(cfg, pixel_noise_sigma=sigma_px, focal_length_px=focal,
                               observability_constrained=config.oc, imu_only=config.imu_only)
     return dataclasses.replace(cfg, **dict(config.msckf_overrides)) if config.msckf_overrides else cfg
@@ -294,6 +310,40 @@ def undistortion_noise_factor(camera: PinholeRadtan, step_px: float = 4.0) -> fl
     J_v = (camera.unproject(uv + [0.0, h]) - camera.unproject(uv - [0.0, h])) / (2 * h)  # d(x, y)/dv
     trace = np.sum(J_u**2, axis=1) + np.sum(J_v**2, axis=1)  # tr(J J^T)
     return float(np.sqrt(trace.mean() / 2.0) * math.sqrt(camera.fx * camera.fy))
+
+
+def observation_covariance(camera: PinholeRadtan, uv: ArrayLike, sigma_px: float) -> NDArray[np.float64]:
+    """Return (N, 2, 2) covariances Σ = σ_px² J J^T of undistorted normalised coordinates of noisy pixels.
+
+    Args:
+        camera: the (distorting) camera model that maps normalised coordinates to pixels.
+        uv: (N, 2) distorted pixel coordinates (x = column, y = row) at which the noise is linearised.
+        sigma_px: std of the isotropic Gaussian pixel noise, pixels (> 0).
+
+    J = d(x, y)/d(u, v) is the Jacobian of ``camera.unproject``; as unproject inverts the projection,
+    J = D^-1 with D = d(u, v)/d(x, y) = diag(fx, fy) d(x_d, y_d)/d(x, y), the first two columns of
+    ``camera.projection_jacobian`` at the point [x, y, 1] (Z = 1, so d/dX = d/dx). First order: a pixel error n
+    ~ N(0, σ² I) gives δ(x, y) = J n ~ N(0, σ² J J^T). Without distortion Σ = σ² diag(1/fx², 1/fy²).
+
+    >>> cam = PinholeRadtan.davis240c()
+    >>> cov = observation_covariance(cam, np.array([[cam.cx, cam.cy], [5.0, 5.0]]), 1.0)  # principal point, corner
+    >>> (np.sqrt(np.diagonal(cov, axis1=1, axis2=2)) * 199.0).round(2).tolist()  # std in pixels at f = 199 px
+    [[1.0, 1.0], [1.34, 1.33]]
+    """
+    pixels = np.asarray(uv, dtype=np.float64)
+    if pixels.ndim != 2 or pixels.shape[1] != 2:
+        raise ValueError(f"uv must have shape (N, 2) distorted pixels (x, y); got {pixels.shape}")
+    if not np.all(np.isfinite(pixels)):
+        raise ValueError("uv must contain only finite values (no NaN/inf)")
+    if isinstance(sigma_px, bool) or not isinstance(sigma_px, (int, float, np.integer, np.floating)) \
+            or not math.isfinite(sigma_px) or sigma_px <= 0:
+        raise ValueError(f"sigma_px must be a finite number > 0 (pixels); got {sigma_px!r}")
+    if pixels.shape[0] == 0:
+        return np.zeros((0, 2, 2))
+    xy = camera.unproject(pixels)  # undistorted normalised (x, y)
+    D = camera.projection_jacobian(np.column_stack([xy, np.ones(len(xy))]))[:, :, :2]  # d(u, v)/d(x, y) at Z = 1
+    J = np.linalg.inv(D)  # d(x, y)/d(u, v)
+    return float(sigma_px) ** 2 * (J @ np.swapaxes(J, 1, 2))  # Σ = σ² J J^T
 
 
 def _streams(seed: int) -> list[np.random.Generator]:
@@ -389,14 +439,22 @@ def pose_nees(q_est: NDArray[np.float64], p_est: NDArray[np.float64], q_gt: NDAr
     return {"pose": nees_pose, "position": nees_pos, "attitude": nees_att, "yaw": yaw_err**2 / yaw_var}
 
 
-def _run_filter(msckf_config: MsckfConfig, state: FilterState, data: SimulatedData
+def _run_filter(msckf_config: MsckfConfig, state: FilterState, data: SimulatedData, per_observation: bool = False
                 ) -> tuple[list[FilterOutput], Msckf, float, float]:
-    """Return (outputs, filter, cpu_s, wall_s): the filter fed with all IMU samples and all frames."""
+    """Return (outputs, filter, cpu_s, wall_s): the filter fed with all IMU samples and all frames.
+
+    With ``per_observation`` each frame's observations carry their own covariance (:func:`observation_covariance`
+    at the noisy pixels, σ = msckf_config.pixel_noise_sigma); its cost is included in the timing."""
     imu = data.imu
     wall0, cpu0 = time.perf_counter(), time.process_time()
     f = Msckf(msckf_config, state)
     f.feed_imu(imu.t, imu.gyro, imu.accel)
-    outputs = [f.process_image(fr.t, fr.ids, fr.xy) for fr in data.frames]
+    if per_observation and not msckf_config.imu_only:
+        sigma_px = msckf_config.pixel_noise_sigma
+        outputs = [f.process_image(fr.t, fr.ids, fr.xy, observation_covariance(data.camera, fr.uv, sigma_px))
+                   for fr in data.frames]
+    else:
+        outputs = [f.process_image(fr.t, fr.ids, fr.xy) for fr in data.frames]
     return outputs, f, time.process_time() - cpu0, time.perf_counter() - wall0
 
 
@@ -421,7 +479,7 @@ def run_vio_sim_config(config: VioSimConfig, baselines: bool = True, out_dir: st
     msckf_config = experiment_msckf_config(config, data.noise, data.camera)
     _, _, rng_init = _streams(config.seed)
     state = initial_state(data, msckf_config, rng_init)
-    outputs, f, cpu_s, wall_s = _run_filter(msckf_config, state, data)
+    outputs, f, cpu_s, wall_s = _run_filter(msckf_config, state, data, config.noise_model == "per_observation")
 
     t = _stack(outputs, "t")
     truth = data.trajectory.evaluate(t)
@@ -505,6 +563,9 @@ def add_vio_sim_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--features", type=int, default=60, help="tracked features per image (default 60)")
     parser.add_argument("--pixel-noise", type=float, default=1.0, help="pixel noise std of the tracks (default 1)")
     parser.add_argument("--no-oc", action="store_true", help="plain EKF instead of the observability-constrained one")
+    parser.add_argument("--noise-model", choices=list(NOISE_MODELS), default="per_observation",
+                        help="feature noise model of the filter (default per_observation: each observation's own "
+                             "covariance from the undistortion Jacobian)")
     parser.add_argument("--imu-only", action="store_true", help="propagate only (no visual updates)")
     parser.add_argument("--no-baselines", action="store_true", help="skip the IMU-only baseline rows")
     parser.add_argument("--out", type=Path, default=None,
@@ -514,7 +575,8 @@ def add_vio_sim_arguments(parser: argparse.ArgumentParser) -> None:
 def main_vio_sim(args: argparse.Namespace) -> int:
     """Run the experiment for parsed ``vio-sim`` arguments, print the report; return the exit code (0)."""
     config = VioSimConfig(preset=args.preset, duration=args.duration, seed=args.seed, features=args.features,
-                          oc=not args.no_oc, imu_only=args.imu_only, pixel_noise_px=args.pixel_noise)
+                          oc=not args.no_oc, imu_only=args.imu_only, pixel_noise_px=args.pixel_noise,
+                          noise_model=getattr(args, "noise_model", "per_observation"))
     result = run_vio_sim_config(config, baselines=not args.no_baselines, out_dir=args.out)
     print(result.report())
     if args.out is not None:

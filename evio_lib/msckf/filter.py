@@ -5,7 +5,8 @@ and thesis §3.3.6.1:
 
 1. ``_propagate_to(t)``: IMU propagation to the image time (OC-modified Φ when ``observability_constrained``).
 2. ``_augment()``: clone the camera pose into the window (Eqs. 27-30).
-3. ``_add_observations``: append (camera id, xy) to each feature's track (a dict id -> observations).
+3. ``_add_observations``: append (camera id, xy, W) to each feature's track (a dict id -> observations); W (2, 2)
+   is the whitening matrix L^-1 of the observation's noise covariance Σ = L L^T (``xy_cov``; default σ² I).
 4. ``_collect_lost_features``: tracks not observed in this image have ended; those with >= ``min_track_length``
    observations are used with all their observations, shorter ones are dropped.
 5. ``_select_cameras_to_remove`` / ``_collect_pruned_features``: when the window exceeds N_max, two states are
@@ -17,8 +18,9 @@ and thesis §3.3.6.1:
 7. ``_marginalize``: the chosen camera states leave the window (their rows and columns of P are dropped).
 
 An update (``_update``): all features are triangulated at once (inverse depth, ``triangulate_inverse_depth_batch``);
-for each, the residual and Jacobians of the observations used (Eqs. 41-48; OC-modified, Eqs. 85-86) are projected
-on the left nullspace of H_f (Eq. 50) and chi-square gated (95 %); the survivors are stacked, QR-compressed
+for each, the residual and Jacobians of the observations used (Eqs. 41-48; OC-modified, Eqs. 85-86) are
+whitened per observation (rows 2i, 2i+1 of r, H_x and H_f multiplied by W_i = L_i^-1, so the noise becomes N(0, I)),
+projected on the left nullspace of H_f (Eq. 50) and chi-square gated (95 %) with unit noise; the survivors are stacked, QR-compressed
 (Eqs. 51-55) and applied in one Joseph-form Kalman update (Eqs. 56-58). Features are processed in batches of equal
 observation count, so the per-feature work is vectorised. Every dropped feature is counted in ``rejections`` with
 its reason; an update whose result is not finite is skipped (counted), so the state never holds NaN.
@@ -30,7 +32,7 @@ from collections import Counter
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Mapping
+from typing import Any, Mapping
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -59,7 +61,41 @@ from evio_lib.msckf.state import (
 from evio_lib.msckf.triangulation import triangulate_inverse_depth_batch
 from evio_lib.msckf.update import chi_square_threshold, kalman_update, measurement_compress
 
-__all__ = ["FilterOutput", "Msckf", "apply_correction"]
+__all__ = ["FilterOutput", "Msckf", "apply_correction", "whitening_matrices"]
+
+
+def whitening_matrices(xy_cov: ArrayLike) -> NDArray[np.float64]:
+    """Return (K, 2, 2) whitening matrices W = L^-1 of observation covariances Σ = L L^T (L lower Cholesky).
+
+    Args:
+        xy_cov: (K, 2, 2) symmetric positive-definite covariances of undistorted normalised coordinates.
+
+    W Σ W^T = I, so W r has unit covariance. Closed form for 2 x 2: L = [[a, 0], [b, c]] with a = sqrt(Σ00),
+    b = Σ10 / a, c = sqrt(Σ11 - b²), and L^-1 = [[1/a, 0], [-b/(a c), 1/c]].
+
+    >>> whitening_matrices(np.array([[[4.0, 2.0], [2.0, 5.0]]])).round(3).tolist()
+    [[[0.5, 0.0], [-0.25, 0.5]]]
+    """
+    cov = np.asarray(xy_cov, dtype=np.float64)
+    if cov.ndim != 3 or cov.shape[1:] != (2, 2):
+        raise ValueError(f"xy_cov must have shape (K, 2, 2), one covariance per observation; got {cov.shape}")
+    if not np.all(np.isfinite(cov)):
+        raise ValueError("xy_cov must contain only finite values (no NaN/inf)")
+    scale = np.maximum(np.abs(cov).max(axis=(1, 2)), 1e-300)
+    if np.any(np.abs(cov[:, 0, 1] - cov[:, 1, 0]) > 1e-9 * scale):
+        raise ValueError("xy_cov must hold symmetric 2 x 2 matrices (Σ01 = Σ10)")
+    a2 = cov[:, 0, 0]
+    safe_a = np.sqrt(np.where(a2 > 0.0, a2, 1.0))
+    b = cov[:, 1, 0] / safe_a  # b = Σ10 / a
+    c2 = cov[:, 1, 1] - b * b  # c² = Σ11 - b²  (the Schur complement, > 0 iff Σ is positive definite)
+    if np.any(a2 <= 0.0) or np.any(c2 <= 1e-12 * scale):
+        raise ValueError("xy_cov must hold positive-definite covariances (Σ00 > 0 and det Σ > 0)")
+    c = np.sqrt(c2)
+    W = np.zeros(cov.shape)
+    W[:, 0, 0] = 1.0 / safe_a  # W = L^-1 = [[1/a, 0], [-b/(a c), 1/c]]
+    W[:, 1, 0] = -b / (safe_a * c)
+    W[:, 1, 1] = 1.0 / c
+    return W
 
 
 def apply_correction(state: FilterState, dx: NDArray[np.float64], P_new: NDArray[np.float64]) -> FilterState:
@@ -137,6 +173,7 @@ class _FeatureUse:
     window_idx: NDArray[np.int64]  # (M,) positions of the observing cameras in the window
     xy: NDArray[np.float64]  # (M, 2) undistorted normalised observations
     involved: NDArray[np.bool_]  # (M,) observations used in the Jacobian (all, or those in removed states)
+    whiten: NDArray[np.float64] | None = None  # (M, 2, 2) W_i = L_i^-1 of Σ_i; None: I / feature_noise_sigma
 
 
 class Msckf:
@@ -151,7 +188,8 @@ class Msckf:
         config: the configuration.
         rejections: Counter of dropped features by reason (too_few_observations, the triangulation reasons of
             ``TRIANGULATION_REASONS``, chi2) and of skipped updates (update_failed, nonfinite_update).
-        tracks: dict feature id -> list of (camera id, xy (2,)) observations held in the window.
+        tracks: dict feature id -> list of (camera id, xy (2,), W (2, 2)) observations held in the window; W is
+            the whitening matrix L^-1 of the observation's noise covariance Σ = L L^T (:func:`whitening_matrices`).
 
     Feed IMU samples with ``feed_imu`` (any chunking, in time order) and images with ``process_image``; or call
     ``run``. Reference: thesis §3.3 (Eqs. 18-86); Mourikis & Roumeliotis, ICRA 2007; Sun et al., RA-L 2018.
@@ -175,7 +213,7 @@ class Msckf:
         self.config = config
         self._state = state
         self.rejections: Counter[str] = Counter()
-        self.tracks: dict[int, list[tuple[int, NDArray[np.float64]]]] = {}
+        self.tracks: dict[int, list[tuple[int, NDArray[np.float64], NDArray[np.float64]]]] = {}
         self._next_camera_id = max(state.camera_ids, default=-1) + 1
         self._tracking_rate = 1.0
         self._imu_t = np.zeros(0)
@@ -184,7 +222,8 @@ class Msckf:
         self._pending: list[tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]] = []
         self._last_imu_t = -math.inf
         self._hook = constrain_transition if config.observability_constrained else None
-        self._noise_var = config.feature_noise_sigma ** 2
+        self._iso_whiten = np.eye(2) / config.feature_noise_sigma  # W = I / σ (Σ = σ² I); shared, never written
+        self._iso_whiten.flags.writeable = False
         self._gravity = config.gravity
         self._tri_settings = dict(
             max_iterations=config.triangulation_max_iterations,
@@ -277,7 +316,7 @@ class Msckf:
         return t, ids_arr.astype(np.int64), xy_arr
 
     # ------------------------------------------------------------------------------------------------ main steps
-    def process_image(self, t: float, ids: ArrayLike, xy: ArrayLike) -> FilterOutput:
+    def process_image(self, t: float, ids: ArrayLike, xy: ArrayLike, xy_cov: ArrayLike | None = None) -> FilterOutput:
         """Return the estimate after processing one image's feature observations (steps in the module docstring).
 
         Args:
@@ -285,8 +324,19 @@ class Msckf:
                 sample the last measurement is held).
             ids: (K,) unique integer feature (track) ids.
             xy: (K, 2) undistorted normalised image coordinates (x, y) of the features.
+            xy_cov: (K, 2, 2) noise covariance of each observation in normalised coordinates (e.g. σ_px² J J^T with
+                J = d(xy)/d(pixel), ``experiment.observation_covariance``), or None for the isotropic
+                ``config.feature_noise_sigma``² I. The update whitens each observation by its own covariance.
         """
         t, ids, xy = self._check_image(t, ids, xy)
+        if xy_cov is None:
+            whiten = None
+        else:
+            cov = np.asarray(xy_cov, dtype=np.float64)
+            if cov.shape != (ids.shape[0], 2, 2):
+                raise ValueError(f"xy_cov must have shape (K, 2, 2) = ({ids.shape[0]}, 2, 2), one covariance per "
+                                 f"observation; got {cov.shape}")
+            whiten = whitening_matrices(cov)
         self._frame_counters = Counter()
         self._propagate_to(t)
         camera_id = self._augment()
@@ -297,7 +347,7 @@ class Msckf:
         if self.config.imu_only:
             self.tracks.clear()
         else:
-            self._add_observations(camera_id, ids, xy)
+            self._add_observations(camera_id, ids, xy, whiten)
             lost = self._collect_lost_features(ids)
             pruned = self._collect_pruned_features(remove)
             self._frame_counters["lost_tried"] += len(lost)
@@ -311,11 +361,13 @@ class Msckf:
         return self._output(used)
 
     def run(
-        self, imu_t: ArrayLike, gyro: ArrayLike, accel: ArrayLike, frames: Iterable[tuple[float, ArrayLike, ArrayLike]]
+        self, imu_t: ArrayLike, gyro: ArrayLike, accel: ArrayLike, frames: Iterable[tuple[Any, ...]]
     ) -> list[FilterOutput]:
-        """Return one FilterOutput per frame: feeds all IMU samples, then processes the frames (t, ids, xy) in order."""
+        """Return one FilterOutput per frame: feeds all IMU samples, then processes the frames in order.
+
+        Each frame is (t, ids, xy) or (t, ids, xy, xy_cov), the arguments of :meth:`process_image`."""
         self.feed_imu(imu_t, gyro, accel)
-        return [self.process_image(t, ids, xy) for t, ids, xy in frames]
+        return [self.process_image(*frame) for frame in frames]
 
     def _propagate_to(self, t: float) -> None:
         """Propagate the state to time t with the buffered IMU samples (OC hook when configured)."""
@@ -333,16 +385,19 @@ class Msckf:
         self._state = augment_state(self._state, camera_id)
         return camera_id
 
-    def _add_observations(self, camera_id: int, ids: NDArray[np.int64], xy: NDArray[np.float64]) -> None:
-        """Append this image's observations to the tracks; record the tracking rate (share of known ids)."""
+    def _add_observations(self, camera_id: int, ids: NDArray[np.int64], xy: NDArray[np.float64],
+                          whiten: NDArray[np.float64] | None) -> None:
+        """Append this image's observations (with their whitening matrices) to the tracks; record the tracking
+        rate (share of known ids)."""
         tracked = 0
         tracks = self.tracks
-        for fid, z in zip(ids.tolist(), xy):
+        W_all = [self._iso_whiten] * ids.shape[0] if whiten is None else whiten
+        for fid, z, W in zip(ids.tolist(), xy, W_all):
             track = tracks.get(fid)
             if track is None:
-                tracks[fid] = [(camera_id, z)]
+                tracks[fid] = [(camera_id, z, W)]
             else:
-                track.append((camera_id, z))
+                track.append((camera_id, z, W))
                 tracked += 1
         self._tracking_rate = tracked / ids.shape[0] if ids.shape[0] else 0.0
 
@@ -359,8 +414,9 @@ class Msckf:
             if len(track) < self.config.min_track_length:
                 self.rejections["too_few_observations"] += 1
                 continue
-            idx = np.fromiter((pos[c] for c, _ in track), dtype=np.int64, count=len(track))
-            uses.append(_FeatureUse(idx, np.array([z for _, z in track]), np.ones(len(track), dtype=bool)))
+            idx = np.fromiter((pos[c] for c, _, _ in track), dtype=np.int64, count=len(track))
+            uses.append(_FeatureUse(idx, np.array([z for _, z, _ in track]), np.ones(len(track), dtype=bool),
+                                    np.array([W for _, _, W in track])))
         return uses
 
     def _select_cameras_to_remove(self) -> list[int]:
@@ -413,14 +469,15 @@ class Msckf:
         pos = self._window_positions()
         uses = []
         for fid, track in self.tracks.items():
-            involved = [c in gone for c, _ in track]
+            involved = [obs[0] in gone for obs in track]
             n_involved = sum(involved)
             if n_involved == 0:
                 continue
             if n_involved >= 2:
-                idx = np.fromiter((pos[c] for c, _ in track), dtype=np.int64, count=len(track))
-                uses.append(_FeatureUse(idx, np.array([z for _, z in track]), np.array(involved)))
-            self.tracks[fid] = [(c, z) for c, z in track if c not in gone]
+                idx = np.fromiter((pos[c] for c, _, _ in track), dtype=np.int64, count=len(track))
+                uses.append(_FeatureUse(idx, np.array([z for _, z, _ in track]), np.array(involved),
+                                        np.array([W for _, _, W in track])))
+            self.tracks[fid] = [obs for obs in track if obs[0] not in gone]
         return uses
 
     def _marginalize(self, remove: list[int]) -> None:
@@ -495,6 +552,8 @@ class Msckf:
         """
         widx = np.array([u.window_idx[u.involved] for u, _ in items])  # (F, m)
         z = np.array([u.xy[u.involved] for u, _ in items])  # (F, m, 2)
+        W = np.array([np.broadcast_to(self._iso_whiten, (m, 2, 2)) if u.whiten is None else u.whiten[u.involved]
+                      for u, _ in items])  # (F, m, 2, 2) W_i = L_i^-1, Σ_i = L_i L_i^T
         p_F = np.array([p for _, p in items])  # (F, 3)
         F = widx.shape[0]
         R = R_C[widx]  # (F, m, 3, 3)
@@ -519,6 +578,11 @@ class Msckf:
             blocks, H_f = constrain_camera_blocks(
                 blocks, R_null[widx], p_null[widx], np.broadcast_to(p_F[:, None, :], (F, m, 3)), self._gravity
             )
+        # whitening: W_i r_i = W_i H_Ci δx_Ci + W_i H_fi δp_F + W_i n_i with W_i n_i ~ N(0, I). Left-multiplying
+        # keeps OC's H_C u = 0; done BEFORE the nullspace so that A^T (W n) stays white (A^T A = I).
+        r = np.einsum("fmij,fmj->fmi", W, r.reshape(F, m, 2)).reshape(F, 2 * m)  # r_w = W r
+        H_f = W @ H_f  # (F, m, 2, 3)
+        blocks = W @ blocks  # (F, m, 2, 6)
         # left nullspace of H_f (2m, 3): the last 2m - 3 columns of its complete QR                       (Eq. 50)
         Q = np.linalg.qr(H_f.reshape(F, 2 * m, 3), mode="complete")[0]
         A_T = np.swapaxes(Q[:, :, 3:], 1, 2)  # (F, 2m - 3, 2m)
@@ -530,10 +594,10 @@ class Msckf:
         cols = ((IMU_DIM + CAMERA_DIM * widx)[:, :, None] + np.arange(CAMERA_DIM)).reshape(F, m * CAMERA_DIM)
         keep = front & np.all(np.isfinite(H_o), axis=(1, 2)) & np.all(np.isfinite(r_o), axis=1)
         if self.config.chi2_gating:
-            # γ = r_o^T (H_o P H_o^T + σ² I)^-1 r_o < χ²_0.95(2m - 3); H_o only touches ``cols``
+            # γ = r_o^T (H_o P H_o^T + I)^-1 r_o < χ²_0.95(2m - 3) (whitened: unit noise); H_o only touches ``cols``
             P_sub = P[cols[:, :, None], cols[:, None, :]]
             S = H_o @ P_sub @ np.swapaxes(H_o, 1, 2)
-            S[:, np.arange(2 * m - 3), np.arange(2 * m - 3)] += self._noise_var
+            S[:, np.arange(2 * m - 3), np.arange(2 * m - 3)] += 1.0
             try:
                 gamma = np.einsum("fk,fk->f", r_o, np.linalg.solve(S, r_o[:, :, None])[..., 0])
             except np.linalg.LinAlgError:
@@ -565,7 +629,7 @@ class Msckf:
         H_c, r_c = measurement_compress(H, r)  # (Eqs. 51-55) when rows > n
         self._frame_counters["rows"] += rows
         try:
-            dx, P_new = kalman_update(state.P, H_c, r_c, self._noise_var)  # (Eqs. 56-58)
+            dx, P_new = kalman_update(state.P, H_c, r_c, 1.0)  # (Eqs. 56-58), whitened rows: R = I
         except ValueError:
             self.rejections["update_failed"] += 1
             return False

@@ -12,7 +12,7 @@ import pytest
 
 from evio_lib.geometry.rotation import quat_to_rot
 from evio_lib.msckf.config import MsckfConfig
-from evio_lib.msckf.filter import FilterOutput, Msckf, _FeatureUse, apply_correction
+from evio_lib.msckf.filter import FilterOutput, Msckf, _FeatureUse, apply_correction, whitening_matrices
 from evio_lib.msckf.initialization import initial_state_from_truth
 from evio_lib.msckf.observability import constrain_feature_jacobians, constrain_transition
 from evio_lib.msckf.propagation import propagate
@@ -165,7 +165,7 @@ def test_window_never_exceeds_n_max_and_keeps_the_newest_state(boxes_run):
     assert all(c["window"] <= cfg.max_camera_states for c in counters)
     # every observation left in a track refers to a camera in the window
     window = set(f.state.camera_ids)
-    assert all(c in window for track in f.tracks.values() for c, _ in track)
+    assert all(c in window for track in f.tracks.values() for c, *_ in track)
     assert isinstance(boxes_run["outputs"][0], FilterOutput)
     assert boxes_run["outputs"][0].sigma.shape == (15,)
 
@@ -252,6 +252,108 @@ def test_one_update_equals_the_reference_pipeline_of_the_update_module(rng, oc):
     ref = s.inject_error(dx)
     np.testing.assert_allclose(f.state.P, P_ref, atol=1e-12)
     np.testing.assert_allclose(state_difference(ref, f.state), 0.0, atol=1e-10)
+
+
+# ---------------------------------------------------------------- per-observation noise (whitening)
+
+
+def _random_covariances(rng, n, sigma=SIGMA):
+    """(n, 2, 2) anisotropic covariances: std 0.8-1.6 sigma along a random direction, correlated."""
+    a = rng.uniform(0, np.pi, n)
+    U = np.stack([np.column_stack([np.cos(a), np.sin(a)]), np.column_stack([-np.sin(a), np.cos(a)])], axis=2)
+    s = rng.uniform(0.8, 1.6, (n, 2)) * sigma
+    return U @ (s[:, :, None] ** 2 * np.swapaxes(U, 1, 2))
+
+
+def test_whitening_matrices_whiten_and_match_numpy_cholesky(rng):
+    cov = _random_covariances(rng, 50)
+    W = whitening_matrices(cov)
+    np.testing.assert_allclose(W @ cov @ np.swapaxes(W, 1, 2), np.broadcast_to(np.eye(2), cov.shape), atol=1e-12)
+    np.testing.assert_allclose(W, np.linalg.inv(np.linalg.cholesky(cov)), rtol=1e-12)
+    np.testing.assert_allclose(whitening_matrices(np.eye(2)[None] * 4.0)[0], np.eye(2) / 2.0)
+    with pytest.raises(ValueError, match=r"xy_cov must have shape \(K, 2, 2\).*got \(2, 2\)"):
+        whitening_matrices(np.eye(2))
+    with pytest.raises(ValueError, match=r"xy_cov must hold positive-definite"):
+        whitening_matrices(np.array([[[1.0, 1.0], [1.0, 1.0]]]))
+    with pytest.raises(ValueError, match=r"xy_cov must hold symmetric"):
+        whitening_matrices(np.array([[[1.0, 0.5], [0.0, 1.0]]]))
+    with pytest.raises(ValueError, match=r"xy_cov must contain only finite"):
+        whitening_matrices(np.array([[[np.nan, 0.0], [0.0, 1.0]]]))
+
+
+def test_isotropic_covariances_give_the_same_run_as_the_default_noise():
+    """xy_cov = σ² I for every observation is the default isotropic model (to rounding), and (kσ)² I is the same
+    run as pixel_noise_sigma scaled by k: the covariances are used, and used as covariances."""
+    traj, imu, frames, cfg, state = simulation(seed=2, duration=3.0)
+    base = Msckf(cfg, state)
+    out_none = base.run(imu.t, imu.gyro, imu.accel, frames)
+    sig2 = cfg.feature_noise_sigma ** 2
+    iso = Msckf(cfg, state)
+    out_iso = iso.run(imu.t, imu.gyro, imu.accel, [(t, ids, xy, np.tile(sig2 * np.eye(2), (len(ids), 1, 1)))
+                                                    for t, ids, xy in frames])
+    for a, b in zip(out_none, out_iso):
+        np.testing.assert_allclose(b.p_IinG, a.p_IinG, atol=1e-9)
+        np.testing.assert_allclose(b.q_GtoI, a.q_GtoI, atol=1e-11)
+        np.testing.assert_allclose(b.P_imu, a.P_imu, rtol=1e-7, atol=1e-15)
+    assert base.rejections == iso.rejections and base.rejections["chi2"] > 0
+    k = 1.7
+    scaled = Msckf(dataclasses.replace(cfg, pixel_noise_sigma=k * cfg.pixel_noise_sigma), state)
+    out_scaled = scaled.run(imu.t, imu.gyro, imu.accel, frames)
+    cov_scaled = Msckf(cfg, state)
+    out_cov = cov_scaled.run(imu.t, imu.gyro, imu.accel, [(t, ids, xy, np.tile(k * k * sig2 * np.eye(2),
+                                                                                (len(ids), 1, 1)))
+                                                           for t, ids, xy in frames])
+    np.testing.assert_allclose(out_cov[-1].p_IinG, out_scaled[-1].p_IinG, atol=1e-9)
+    np.testing.assert_allclose(out_cov[-1].P_imu, out_scaled[-1].P_imu, rtol=1e-7, atol=1e-15)
+    assert not np.allclose(out_cov[-1].p_IinG, out_none[-1].p_IinG, atol=1e-6)  # the noise level matters
+
+
+def test_update_with_correlated_noise_equals_generalised_least_squares_with_the_feature_eliminated(rng):
+    """Independent truth: the information form of the update with each feature's position as a nuisance with a
+    flat prior: Λ = Σ_j H_x^T M_j H_x, b = Σ_j H_x^T M_j r, M = Σ^-1 - Σ^-1 H_f (H_f^T Σ^-1 H_f)^-1 H_f^T Σ^-1
+    (Σ block diagonal from the per-observation covariances); P_new = (P^-1 + Λ)^-1, dx = P_new b. No whitening,
+    no nullspace, no QR; the filter must agree."""
+    cfg, s = _window_state(rng)
+    cfg = dataclasses.replace(cfg, chi2_gating=False)
+    q_C, p_C = s.camera_poses
+    R_C = quat_to_rot(q_C)
+    points = np.column_stack([rng.uniform(-1, 1, 10), rng.uniform(-1, 1, 10), rng.uniform(3, 6, 10)])
+    uses, covs = [], []
+    for k, p_F in enumerate(points):
+        obs_cams = np.arange(6) if k % 2 == 0 else np.arange(2, 6)
+        p_FinC = np.einsum("mij,mj->mi", R_C[obs_cams], p_F - p_C[obs_cams])
+        cov = _random_covariances(rng, len(obs_cams), sigma=3 * SIGMA)
+        L = np.linalg.cholesky(cov)
+        xy = p_FinC[:, :2] / p_FinC[:, 2:] + np.einsum("mij,mj->mi", L, rng.normal(size=(len(obs_cams), 2)))
+        uses.append(_FeatureUse(obs_cams.astype(np.int64), xy, np.ones(len(obs_cams), dtype=bool),
+                                whitening_matrices(cov)))
+        covs.append(cov)
+    f = Msckf(cfg, s)
+    used = f._update(uses)
+    assert used.sum() >= 8  # no gate: only features the triangulation rejected are left out
+    tri = triangulate_inverse_depth_batch([(R_C[u.window_idx], p_C[u.window_idx], u.xy) for u in uses],
+                                          max_rms_residual=cfg.triangulation_max_reprojection_px / cfg.focal_length_px)
+    Lam, b = np.zeros((s.dim, s.dim)), np.zeros(s.dim)
+    np.testing.assert_array_equal(used, [res.success for res in tri])
+    for u, res, cov in zip(uses, tri, covs):
+        if not res.success:
+            continue
+        r, H_x, H_f = feature_jacobians(q_C[u.window_idx], p_C[u.window_idx], 15 + 6 * u.window_idx, res.p_FinG,
+                                        u.xy, s.dim)
+        Si = np.zeros((len(r), len(r)))
+        for i, c in enumerate(cov):
+            Si[2 * i:2 * i + 2, 2 * i:2 * i + 2] = np.linalg.inv(c)
+        SiHf = Si @ H_f
+        M = Si - SiHf @ np.linalg.solve(H_f.T @ SiHf, SiHf.T)
+        Lam += H_x.T @ M @ H_x
+        b += H_x.T @ M @ r
+    P_ref = np.linalg.inv(np.linalg.inv(s.P) + Lam)
+    dx = P_ref @ b
+    scale = np.sqrt(np.outer(np.diag(P_ref), np.diag(P_ref)))
+    np.testing.assert_allclose(f.state.P / scale, P_ref / scale, atol=1e-6)
+    np.testing.assert_allclose(state_difference(s.inject_error(dx), f.state) / np.sqrt(np.diag(P_ref)), 0.0,
+                               atol=1e-5)
+    assert np.abs(dx / np.sqrt(np.diag(P_ref))).max() > 0.1  # the update moved the state
 
 
 def test_apply_correction_equals_inject_error(rng):
@@ -413,6 +515,10 @@ def test_bad_input_raises_value_errors(rng):
         f.process_image(0.1, [1.5], [[0.0, 0.0]])
     with pytest.raises(ValueError, match=r"xy must contain only finite values"):
         f.process_image(0.1, [1], [[np.nan, 0.0]])
+    with pytest.raises(ValueError, match=r"xy_cov must have shape \(K, 2, 2\) = \(1, 2, 2\)"):
+        f.process_image(0.1, [1], [[0.0, 0.0]], np.eye(2))
+    with pytest.raises(ValueError, match=r"xy_cov must hold positive-definite"):
+        f.process_image(0.1, [1], [[0.0, 0.0]], np.zeros((1, 2, 2)))
     f.process_image(0.1, [1], [[0.0, 0.0]])
     with pytest.raises(ValueError, match=r"t must be >= the filter time 0.1"):
         f.process_image(0.05, [1], [[0.0, 0.0]])
