@@ -21,6 +21,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
+from evio_lib.geometry.homography import as_image_shape
+
 __all__ = [
     "repeatability",
     "corner_error",
@@ -64,19 +66,6 @@ def _as_homography(value: ArrayLike, name: str) -> NDArray[np.float64]:
     if scale == 0.0 or abs(np.linalg.det(H / scale)) < 1e-12:
         raise ValueError(f"{name} must be an invertible (3, 3) homography; got a singular matrix")
     return H
-
-
-def _as_shape(value: object, name: str) -> tuple[int, int]:
-    """Return an image shape (height, width) of positive ints; (H, W, C) is cut to (H, W)."""
-    try:
-        dims = tuple(value)  # type: ignore[arg-type]
-    except TypeError:
-        raise ValueError(f"{name} must be an image shape (height, width); got {value!r}") from None
-    if len(dims) not in (2, 3) or not all(
-        isinstance(d, Integral) and not isinstance(d, bool) and d > 0 for d in dims
-    ):
-        raise ValueError(f"{name} must be an image shape (height, width) of positive integers; got {value!r}")
-    return int(dims[0]), int(dims[1])
 
 
 def _as_eps(value: EpsArg) -> tuple[NDArray[np.float64], bool]:
@@ -204,8 +193,8 @@ def repeatability(
     pts1 = _as_points(kp1, "kp1")
     pts2 = _as_points(kp2, "kp2")
     H = _as_homography(H, "H")
-    shape1 = _as_shape(shape1, "shape1")
-    shape2 = _as_shape(shape2, "shape2")
+    shape1 = as_image_shape(shape1, "shape1")
+    shape2 = as_image_shape(shape2, "shape2")
     eps_values, scalar = _as_eps(eps)
     s1 = s2 = None
     if keep_k is not None:
@@ -255,7 +244,7 @@ def corner_error(H_est: ArrayLike | None, H_true: ArrayLike, shape: tuple[int, i
     5.0
     """
     H_true = _as_homography(H_true, "H_true")
-    shape = _as_shape(shape, "shape")
+    shape = as_image_shape(shape, "shape")
     if H_est is None:
         return math.inf
     H_est = np.asarray(H_est, dtype=np.float64)
@@ -487,7 +476,7 @@ def _descriptor_inputs(kp1, kp2, desc1, desc2, H, shape1, shape2, binary):  # ty
             f"desc1/desc2 must have one row per keypoint: kp1 has {len(pts1)} and kp2 {len(pts2)} rows, "
             f"the descriptors {distances.shape[0]} and {distances.shape[1]}"
         )
-    return pts1, pts2, distances, _as_homography(H, "H"), _as_shape(shape1, "shape1"), _as_shape(shape2, "shape2")
+    return pts1, pts2, distances, _as_homography(H, "H"), as_image_shape(shape1, "shape1"), as_image_shape(shape2, "shape2")
 
 
 def matching_score(

@@ -43,7 +43,7 @@ def _as_homography(value: ArrayLike, name: str = "H") -> NDArray[np.float64]:
     return H
 
 
-def _as_shape(value: object, name: str) -> tuple[int, int]:
+def as_image_shape(value: object, name: str) -> tuple[int, int]:
     """Return an image shape (height, width) of positive ints; (H, W, C) is cut to (H, W)."""
     try:
         dims = tuple(value)  # type: ignore[arg-type]
@@ -172,7 +172,7 @@ def warp_image(
     if img.dtype not in _IMAGE_DTYPES:
         raise ValueError(f"image must have dtype float32 (values in [0, 1]), float64 or uint8; got {img.dtype}")
     H = _as_homography(H)
-    out_h, out_w = _as_shape(img.shape if out_shape is None else out_shape, "out_shape")
+    out_h, out_w = as_image_shape(img.shape if out_shape is None else out_shape, "out_shape")
     if isinstance(border_value, bool) or not isinstance(border_value, Real) or not math.isfinite(border_value):
         raise ValueError(f"border_value must be a finite number; got {border_value!r}")
     if not isinstance(interpolation, Integral) or isinstance(interpolation, bool):
@@ -217,9 +217,9 @@ def valid_mask(
            [0, 0, 1, 1, 1, 1],
            [0, 0, 1, 1, 1, 1]])
     """
-    in_h, in_w = _as_shape(in_shape, "in_shape")
+    in_h, in_w = as_image_shape(in_shape, "in_shape")
     H = _as_homography(H)
-    out_h, out_w = (in_h, in_w) if out_shape is None else _as_shape(out_shape, "out_shape")
+    out_h, out_w = (in_h, in_w) if out_shape is None else as_image_shape(out_shape, "out_shape")
     if isinstance(erode, bool) or not isinstance(erode, Integral) or erode < 0:
         raise ValueError(f"erode must be a non-negative integer radius in pixels; got {erode!r}")
     source = _pixel_grid((out_h, out_w)) @ np.linalg.inv(H).T  # v = H^-1 u2h = u1h / lambda, lambda = (H u1h)_3
@@ -332,7 +332,7 @@ def sample_homography(
            [0., 1., 0.],
            [0., 0., 1.]])
     """
-    height, width = _as_shape(shape, "shape")
+    height, width = as_image_shape(shape, "shape")
     if isinstance(rng, (bool, np.bool_)) or not isinstance(rng, (np.random.Generator, Integral)):
         raise ValueError(f"rng must be a numpy.random.Generator or an int seed; got {type(rng).__name__}")
     rng = np.random.default_rng(rng) if isinstance(rng, Integral) else rng
