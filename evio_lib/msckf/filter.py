@@ -18,9 +18,13 @@ and thesis §3.3.6.1:
 7. ``_marginalize``: the chosen camera states leave the window (their rows and columns of P are dropped).
 
 An update (``_update``): all features are triangulated at once (inverse depth, ``triangulate_inverse_depth_batch``);
-for each, the residual and Jacobians of the observations used (Eqs. 41-48; OC-modified, Eqs. 85-86) are
+for each, the residual and Jacobians of the observations used (Eqs. 41-48; OC-modified by Eq. 86 when
+``oc_update="eq86"``) are
 whitened per observation (rows 2i, 2i+1 of r, H_x and H_f multiplied by W_i = L_i^-1, so the noise becomes N(0, I)),
-projected on the left nullspace of H_f (Eq. 50) and chi-square gated (95 %) with unit noise; the survivors are stacked, QR-compressed
+projected on the left nullspace of H_f (Eq. 50), OC-constrained as a whole (default ``oc_update="projected"``:
+H_o* = H_o (I - N (N^T N)^-1 N^T) with the observing cameras' first-estimate nullspace N, so H_o* N = 0; see
+``observability.constrain_projected_jacobian``) and chi-square gated (95 %) with unit noise; the survivors are
+stacked, QR-compressed
 (Eqs. 51-55) and applied in one Joseph-form Kalman update (Eqs. 56-58). Features are processed in batches of equal
 observation count, so the per-feature work is vectorised. Every dropped feature is counted in ``rejections`` with
 its reason; an update whose result is not finite is skipped (counted), so the state never holds NaN.
@@ -40,7 +44,12 @@ from numpy.typing import ArrayLike, NDArray
 from evio_lib.geometry.rotation import quat_from_rotvec, quat_multiply, quat_normalize, quat_to_rot
 from evio_lib.msckf.augmentation import augment_state
 from evio_lib.msckf.config import MsckfConfig
-from evio_lib.msckf.observability import constrain_camera_blocks, constrain_transition
+from evio_lib.msckf.observability import (
+    camera_nullspace,
+    constrain_camera_blocks,
+    constrain_projected_jacobian,
+    constrain_transition,
+)
 from evio_lib.msckf.propagation import propagate
 from evio_lib.msckf.state import (
     BA,
@@ -61,7 +70,12 @@ from evio_lib.msckf.state import (
 from evio_lib.msckf.triangulation import triangulate_inverse_depth_batch
 from evio_lib.msckf.update import chi_square_threshold, kalman_update, measurement_compress
 
-__all__ = ["FilterOutput", "Msckf", "apply_correction", "whitening_matrices"]
+__all__ = ["FilterOutput", "Msckf", "OC_UPDATE_MODES", "apply_correction", "whitening_matrices"]
+
+# Update side of the OC-EKF. "projected": the minimal change of each feature's nullspace-projected Jacobian with
+# H_o N_C = 0 (4 conditions). "eq86": the thesis's per-camera H_C u = 0 (2 per camera), which on aerial_like
+# (features at ~250 m) alters the position columns by 0.5-3.5 % and diverges on 4 of 10 seeds of 40 s.
+OC_UPDATE_MODES = ("projected", "eq86")
 
 
 def whitening_matrices(xy_cov: ArrayLike) -> NDArray[np.float64]:
@@ -183,6 +197,8 @@ class Msckf:
         config: every parameter (``MsckfConfig``).
         state: the initial state (e.g. ``initialization.initial_state_from_truth`` or ``initial_state_from_static``);
             it usually holds no camera poses.
+        oc_update: update side of the OC-EKF when ``config.observability_constrained`` (``OC_UPDATE_MODES``):
+            "projected" (default; constrain the nullspace-projected Jacobian, H_o N_C = 0) or "eq86" (thesis Eq. 86).
 
     Attributes:
         config: the configuration.
@@ -205,12 +221,15 @@ class Msckf:
     (0.05, array([0., 0., 0.]), 1, 2)
     """
 
-    def __init__(self, config: MsckfConfig, state: FilterState) -> None:
+    def __init__(self, config: MsckfConfig, state: FilterState, oc_update: str = "projected") -> None:
         if not isinstance(config, MsckfConfig):
             raise ValueError(f"config must be an MsckfConfig; got {type(config).__name__}")
         if not isinstance(state, FilterState):
             raise ValueError(f"state must be a FilterState; got {type(state).__name__}")
+        if oc_update not in OC_UPDATE_MODES:
+            raise ValueError(f"oc_update must be one of {OC_UPDATE_MODES}; got {oc_update!r}")
         self.config = config
+        self.oc_update = oc_update
         self._state = state
         self.rejections: Counter[str] = Counter()
         self.tracks: dict[int, list[tuple[int, NDArray[np.float64], NDArray[np.float64]]]] = {}
@@ -574,7 +593,7 @@ class Msckf:
         blocks[..., 0, 0], blocks[..., 0, 1], blocks[..., 0, 2] = xy_, -1.0 - x * x, y
         blocks[..., 1, 0], blocks[..., 1, 1], blocks[..., 1, 2] = 1.0 + y * y, -xy_, -x
         blocks[..., 3:] = -H_f
-        if R_null is not None:  # OC: H_C u = 0 with the first-estimate camera poses; H_f = -H_C[:, 3:6] (85-86)
+        if R_null is not None and self.oc_update == "eq86":  # OC: H_C u = 0, first-estimate poses (85-86)
             blocks, H_f = constrain_camera_blocks(
                 blocks, R_null[widx], p_null[widx], np.broadcast_to(p_F[:, None, :], (F, m, 3)), self._gravity
             )
@@ -592,6 +611,9 @@ class Msckf:
         H_o = A_T @ H_cam.reshape(F, 2 * m, m * CAMERA_DIM)
         r_o = np.einsum("fkr,fr->fk", A_T, r)
         cols = ((IMU_DIM + CAMERA_DIM * widx)[:, :, None] + np.arange(CAMERA_DIM)).reshape(F, m * CAMERA_DIM)
+        if R_null is not None and self.oc_update != "eq86":
+            N_C = camera_nullspace(R_null[widx], p_null[widx], self._gravity)  # (F, 6m, 4) first estimates
+            H_o = constrain_projected_jacobian(H_o, N_C)  # H_o* = H_o (I - N (N^T N)^-1 N^T): H_o* N_C = 0
         keep = front & np.all(np.isfinite(H_o), axis=(1, 2)) & np.all(np.isfinite(r_o), axis=1)
         if self.config.chi2_gating:
             # γ = r_o^T (H_o P H_o^T + I)^-1 r_o < χ²_0.95(2m - 3) (whitened: unit noise); H_o only touches ``cols``

@@ -54,6 +54,8 @@ __all__ = [
     "constrain_transition",
     "constrain_camera_blocks",
     "constrain_feature_jacobians",
+    "camera_nullspace",
+    "constrain_projected_jacobian",
 ]
 
 
@@ -286,3 +288,68 @@ def constrain_feature_jacobians(
     out = H_x.copy()
     out[rows[:, :, None], idx[:, None, :]] = blocks
     return out, H_f_blocks.reshape(2 * M, 3)
+
+
+def camera_nullspace(
+    R_GtoC_null: ArrayLike, p_CinG_null: ArrayLike, gravity_G: ArrayLike = (0.0, 0.0, -9.81)
+) -> NDArray[np.float64]:
+    """Return N_C (..., 6M, 4): the unobservable directions restricted to M cameras' [δθ_C, δp_C] blocks.
+
+    Args:
+        R_GtoC_null: (..., M, 3, 3) the cameras' first-estimate rotations G -> C.
+        p_CinG_null: (..., M, 3) their first-estimate centres in G.
+        gravity_G: (3,) gravity in G.
+
+    Camera i rows 6i..6i+6: [[0_3, R_GtoC g_G], [I_3, -[p_CinG x] g_G]] (thesis Eq. 80 for a camera pose).
+
+    >>> N = camera_nullspace(np.eye(3)[None], np.zeros((1, 3)))
+    >>> N.shape, (N[:, 3].round(2) + 0.0).tolist()
+    ((6, 4), [0.0, 0.0, -9.81, 0.0, 0.0, 0.0])
+    """
+    R = _finite(R_GtoC_null, "R_GtoC_null", (3, 3))
+    p = _finite(p_CinG_null, "p_CinG_null", (3,))
+    if R.ndim < 3 or R.shape[:-2] != p.shape[:-1]:
+        raise ValueError(f"R_GtoC_null (..., M, 3, 3) and p_CinG_null (..., M, 3) must match; got {R.shape}, {p.shape}")
+    g = _gravity(gravity_G)
+    N = np.zeros(p.shape[:-1] + (CAMERA_DIM, 4))
+    N[..., 3:, 0:3] = np.eye(3)  # global translation: δp_C = I
+    N[..., :3, 3] = R @ g  # yaw: δθ_C = R_GtoC g
+    N[..., 3:, 3] = -np.cross(p, g)  # δp_C = -[p_C x] g
+    return N.reshape(p.shape[:-2] + (CAMERA_DIM * p.shape[-2], 4))
+
+
+def constrain_projected_jacobian(
+    H_o: ArrayLike, N_C: ArrayLike, P_C: ArrayLike | None = None
+) -> NDArray[np.float64]:
+    """Return H_o* (..., k, 6M): a feature's projected Jacobian changed as little as possible so that H_o* N_C = 0.
+
+    Args:
+        H_o: (..., k, 6M) Jacobian after the left-nullspace projection (Eq. 50) w.r.t. the M observing cameras.
+        N_C: (..., 6M, 4) unobservable directions of those cameras (:func:`camera_nullspace`, first estimates).
+        P_C: (..., 6M, 6M) their prior covariance, or None.
+
+    An alternative to Eq. 86 that constrains the whole feature at once (4 conditions instead of 2 per camera;
+    the feature's own yaw direction is already gone with A^T H_f = 0). With P_C it minimises ||ΔH L||_F,
+    L L^T = P_C, i.e. the change of information relative to the prior (weak directions are changed least)::
+
+        H_o* = H_o - H_o N (N^T W N)^-1 N^T W,   W = P_C^-1 (or I without P_C)
+
+    >>> H = np.array([[1.0, 1.0]]); N = np.array([[1.0], [0.0]])
+    >>> constrain_projected_jacobian(H, N).tolist()
+    [[0.0, 1.0]]
+    """
+    H = _matrices(H_o, "H_o", "(..., k, 6M)")
+    N = _matrices(N_C, "N_C", "(..., 6M, 4)")
+    if N.shape[-2] != H.shape[-1]:
+        raise ValueError(f"N_C must have shape (..., {H.shape[-1]}, r) to match H_o; got {N.shape}")
+    if P_C is None:
+        WN = N
+    else:
+        P = _matrices(P_C, "P_C", "(..., 6M, 6M)")
+        if P.shape[-2:] != (H.shape[-1], H.shape[-1]):
+            raise ValueError(f"P_C must have shape (..., {H.shape[-1]}, {H.shape[-1]}); got {P.shape}")
+        WN = np.linalg.solve(P, N)  # W N = P^-1 N
+    M = np.swapaxes(N, -1, -2) @ WN  # N^T W N (r, r)
+    HN = H @ N
+    # ΔH = H N (N^T W N)^-1 (W N)^T
+    return H - np.linalg.solve(M, np.swapaxes(HN, -1, -2)).swapaxes(-1, -2) @ np.swapaxes(WN, -1, -2)

@@ -14,7 +14,7 @@ from evio_lib.geometry.rotation import quat_to_rot
 from evio_lib.msckf.config import MsckfConfig
 from evio_lib.msckf.filter import FilterOutput, Msckf, _FeatureUse, apply_correction, whitening_matrices
 from evio_lib.msckf.initialization import initial_state_from_truth
-from evio_lib.msckf.observability import constrain_feature_jacobians, constrain_transition
+from evio_lib.msckf.observability import constrain_feature_jacobians, constrain_transition, state_nullspace
 from evio_lib.msckf.propagation import propagate
 from evio_lib.msckf.augmentation import augment_state
 from evio_lib.msckf.state import FilterState, ImuState, state_difference
@@ -200,8 +200,8 @@ def _window_state(rng, n_cameras=6):
     return cfg, s
 
 
-@pytest.mark.parametrize("oc", [False, True])
-def test_one_update_equals_the_reference_pipeline_of_the_update_module(rng, oc):
+@pytest.mark.parametrize("oc, oc_update", [(False, "projected"), (True, "eq86"), (True, "projected")])
+def test_one_update_equals_the_reference_pipeline_of_the_update_module(rng, oc, oc_update):
     cfg, s = _window_state(rng)
     cfg = dataclasses.replace(cfg, observability_constrained=oc)
     if oc:  # first estimates different from the estimates, so that OC matters
@@ -223,8 +223,9 @@ def test_one_update_equals_the_reference_pipeline_of_the_update_module(rng, oc):
             involved[:] = False
             involved[[0, 2]] = True
         uses.append(_FeatureUse(obs_cams.astype(np.int64), xy, involved))
-    f = Msckf(cfg, s)
+    f = Msckf(cfg, s, oc_update=oc_update)
     used = f._update(uses)
+    N_ref = state_nullspace(s, cfg.gravity, first_estimates=True)  # (dim, 4) first-estimate nullspace
     # reference: triangulate, per-feature Jacobians, OC, nullspace, gate, stack, compress, Joseph update
     tri = triangulate_inverse_depth_batch([(R_C[u.window_idx], p_C[u.window_idx], u.xy) for u in uses],
                                           max_rms_residual=cfg.triangulation_max_reprojection_px / cfg.focal_length_px)
@@ -233,12 +234,17 @@ def test_one_update_equals_the_reference_pipeline_of_the_update_module(rng, oc):
         idx = u.window_idx[u.involved]
         cols = 15 + 6 * idx
         r, H_x, H_f = feature_jacobians(q_C[idx], p_C[idx], cols, res.p_FinG, u.xy[u.involved], s.dim)
-        if oc:
+        if oc and oc_update == "eq86":
             cams = list(s.cameras.values())
             H_x, H_f = constrain_feature_jacobians(
                 H_x, H_f, cols, np.array([cams[i].q_GtoC_null for i in idx]),
                 np.array([cams[i].p_CinG_null for i in idx]), res.p_FinG, cfg.gravity)
         H_o, r_o = nullspace_project(H_x, H_f, r)
+        if oc and oc_update == "projected":  # H_o* = H_o (I - N (N^T N)^-1 N^T) on the observing cameras' columns
+            cc = (cols[:, None] + np.arange(6)).reshape(-1)
+            N = N_ref[cc]
+            H_o[:, cc] = H_o[:, cc] @ (np.eye(len(cc)) - N @ np.linalg.solve(N.T @ N, N.T))
+            assert np.abs(H_o @ N_ref).max() < 1e-9 * np.abs(H_o).max()
         ok, _ = chi_square_gate(H_o, r_o, s.P, cfg.feature_noise_sigma**2)
         ref_used.append(bool(res.success and ok))
         if ref_used[-1]:
@@ -559,3 +565,9 @@ def test_long_tracks_each_observation_enters_at_most_one_update_with_its_own_cam
     assert n_checked[0] > 500  # the pruning path was exercised with many observations
     assert max(o.counters.get("prune_tried", 0) for o in outputs) > 10
     assert_finite(outputs)
+
+
+def test_unknown_oc_update_mode_is_rejected(rng):
+    cfg, s = _window_state(rng)
+    with pytest.raises(ValueError, match=r"oc_update must be one of \('projected', 'eq86'\); got 'frobenius'"):
+        Msckf(cfg, s, oc_update="frobenius")

@@ -10,7 +10,9 @@ from evio_lib.geometry.rotation import quat_from_rotvec, quat_multiply, quat_to_
 from evio_lib.msckf.augmentation import augment_state
 from evio_lib.msckf.config import MsckfConfig
 from evio_lib.msckf.observability import (
+    camera_nullspace,
     constrain_camera_blocks,
+    constrain_projected_jacobian,
     constrain_feature_jacobians,
     constrain_transition,
     imu_nullspace,
@@ -19,7 +21,7 @@ from evio_lib.msckf.observability import (
 )
 from evio_lib.msckf.propagation import propagate
 from evio_lib.msckf.state import CameraState, FilterState, ImuState, state_difference
-from evio_lib.msckf.update import feature_jacobians
+from evio_lib.msckf.update import feature_jacobians, nullspace_project
 from evio_lib.sim.rig import CameraImuExtrinsics
 
 G = np.array([0.0, 0.0, -9.81])
@@ -250,3 +252,65 @@ def test_bad_inputs_raise_value_errors(rng):
     with pytest.raises(ValueError, match=r"H_f must have shape \(4, 3\)"):
         constrain_feature_jacobians(np.zeros((4, 27)), np.zeros((2, 3)), [15, 21], np.stack([np.eye(3)] * 2),
                                     np.zeros((2, 3)), np.ones(3))
+
+
+# ---------------------------------------------------------------- projected (whole-feature) constraint
+
+
+def test_camera_nullspace_equals_the_camera_rows_of_the_state_nullspace(rng):
+    s, _ = moving_state(rng, n_cameras=3)
+    cams = list(s.cameras.values())
+    N_C = camera_nullspace(quat_to_rot(np.array([c.q_GtoC_null for c in cams])),
+                           np.array([c.p_CinG_null for c in cams]), G)
+    np.testing.assert_allclose(N_C, state_nullspace(s, G)[15:], atol=1e-12)
+
+
+@pytest.mark.parametrize("null_error", [0.0, 0.05])
+def test_projected_constraint_annihilates_the_nullspace_with_a_minimal_change(rng, null_error):
+    s, p_F, obs, cols = _window_and_feature(rng, null_error)
+    q_C, p_C = s.camera_poses
+    r, H_x, H_f = feature_jacobians(q_C, p_C, cols, p_F, obs, s.dim)
+    H_o, _ = nullspace_project(H_x, H_f, r)
+    cc = (cols[:, None] + np.arange(6)).reshape(-1)
+    N = state_nullspace(s, G, first_estimates=True)
+    cams = list(s.cameras.values())
+    N_C = camera_nullspace(quat_to_rot(np.array([c.q_GtoC_null for c in cams])),
+                           np.array([c.p_CinG_null for c in cams]), G)
+    H2 = constrain_projected_jacobian(H_o[:, cc], N_C)
+    scale = np.abs(H_o).max()
+    assert np.abs(H2 @ N[cc]).max() < 1e-12 * scale * 10
+    # minimal Frobenius change: the change lies in span(N) (rows of ΔH are combinations of N's columns)
+    dH = H_o[:, cc] - H2
+    coef = np.linalg.lstsq(N_C, dH.T, rcond=None)[0]
+    np.testing.assert_allclose(N_C @ coef, dH.T, atol=1e-12 * scale * 10)
+    plain = np.abs(H_o @ N).max()
+    if null_error:
+        assert plain > 1e-3 * scale  # plain projected Jacobian sees "yaw" once the first estimates differ
+        # it changes less than Eq. 86 does (4 conditions per feature instead of 2 per camera)
+        q_null, p_null = np.array([c.q_GtoC_null for c in cams]), np.array([c.p_CinG_null for c in cams])
+        H_x86, H_f86 = constrain_feature_jacobians(H_x, H_f, cols, q_null, p_null, p_F, G)
+        assert np.linalg.norm(H_x86 - H_x) > np.linalg.norm(dH)
+    else:  # translation is annihilated exactly already; yaw too when first estimates = estimates
+        assert plain < 1e-12 * scale * 10
+        np.testing.assert_allclose(H2, H_o[:, cc], atol=1e-12 * scale)
+
+
+def test_weighted_projected_constraint_changes_the_certain_columns(rng):
+    H = np.array([[1.0, 1.0]])
+    N = np.array([[1.0], [1.0]])
+    P = np.diag([1.0, 1e-4])  # column 1 is well known: a change there adds little information relative to P
+    H2 = constrain_projected_jacobian(H, N, P)
+    assert abs((H2 @ N).item()) < 1e-12
+    assert abs(H2[0, 0] - 1.0) < 1e-3 and abs(H2[0, 1] + 1.0) < 1e-3  # almost all change in column 1
+    np.testing.assert_allclose(constrain_projected_jacobian(H, N), [[0.0, 0.0]], atol=1e-15)
+
+
+def test_projected_constraint_bad_inputs(rng):
+    with pytest.raises(ValueError, match=r"N_C must have shape \(\.\.\., 12, r\)"):
+        constrain_projected_jacobian(np.zeros((3, 12)), np.zeros((6, 4)))
+    with pytest.raises(ValueError, match=r"P_C must have shape \(\.\.\., 12, 12\)"):
+        constrain_projected_jacobian(np.zeros((3, 12)), np.zeros((12, 4)), np.eye(6))
+    with pytest.raises(ValueError, match=r"R_GtoC_null \(\.\.\., M, 3, 3\) and p_CinG_null"):
+        camera_nullspace(np.stack([np.eye(3)] * 2), np.zeros((3, 3)))
+    with pytest.raises(ValueError, match=r"H_o must contain only finite"):
+        constrain_projected_jacobian(np.full((3, 6), np.nan), np.zeros((6, 4)))
