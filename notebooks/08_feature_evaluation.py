@@ -1,0 +1,536 @@
+# ---
+# jupyter:
+#   jupytext:
+#     formats: ipynb,py:percent
+#   kernelspec:
+#     display_name: Python 3
+#     language: python
+#     name: python3
+# ---
+
+# %% [markdown]
+# # 08 — Evaluating feature detectors: repeatability, homography estimation and the thesis's tables
+#
+# Lessons 05-07 built two families of front ends: classical detectors (Harris, FAST, SIFT, ORB, FAST-FREAK) and a
+# SuperPoint-style network trained from scratch. Which one should a visual-inertial odometry system use? Looking at
+# pictures of keypoints does not answer that. This lesson measures it the way the thesis does (§3.2.6, §4.3):
+#
+# 1. **repeatability** (Eqs. 15-16): does the detector fire on the same scene points in two views of the scene?
+# 2. **homography estimation correctness** (Eq. 17): do detector *and* descriptor together recover the geometric
+#    change between the views well enough that the image corners land within $\varepsilon$ pixels?
+# 3. two descriptor metrics the thesis lists as future work: the **matching score** and the nearest-neighbour
+#    **mean average precision**;
+# 4. **qualitative matches** in the style of the thesis's Appendix B;
+# 5. the **benchmark tables** in the form of Tables 2-5 for every available detector, plus a speed table.
+#
+# Every metric is first computed by hand on one image pair and checked against `evio_lib.features.evaluate`; the
+# tables then come from `evio_lib.features.benchmark`.
+#
+# **Data.** HPatches and the thesis's aerial recordings cannot be downloaded here. The library builds an
+# HPatches-style benchmark instead (`heldout_pairs`): images of the held-out TEST split of the project's image pool
+# (never seen in training), each paired with copies warped by random homographies (the *viewpoint* split) or
+# changed only photometrically (the *illumination* split, $H = I$). The event-frame split uses event-count
+# images of the simulator's aerial preset and warped copies, like the thesis's UAV set (§3.2.3). Anyone with the
+# real HPatches folder gets the official benchmark from the same code (`--dataset hpatches --hpatches-root DIR`).
+
+# %%
+import os
+import time
+
+import matplotlib.pyplot as plt
+import numpy as np
+from IPython.display import Markdown, display
+
+from evio_lib.events.array import event_count_image, events_between
+from evio_lib.features.base import available_detectors, create_detector
+from evio_lib.features.benchmark import (
+    BenchmarkSettings,
+    event_frame_pairs,
+    format_table,
+    heldout_pairs,
+    measure_speed,
+    run_benchmark,
+)
+from evio_lib.features.evaluate import (
+    corner_error,
+    estimate_homography,
+    homography_correctness,
+    match_descriptors,
+    matching_score,
+    mean_average_precision,
+    repeatability,
+)
+from evio_lib.features.hpatches import resize_pair
+from evio_lib.features.superpoint import shipped_weights
+from evio_lib.geometry.homography import warp_points
+from evio_lib.sim.presets import SimulationConfig, simulate_sequence
+
+FAST = os.environ.get("EVIO_FAST", "0") == "1"  # CI sets EVIO_FAST=1: a handful of pairs, three detectors
+rng = np.random.default_rng(8)
+SEED = 0  # seed of the held-out image pool and of every random change in the benchmark
+
+settings = BenchmarkSettings.thesis_hpatches()  # the thesis's settings (§3.2.6, last paragraph)
+print(settings)
+
+# %% [markdown]
+# ## 1. The benchmark pairs
+#
+# A benchmark sample is an `ImagePair`: image 1, image 2 and the homography $H$ that maps pixels of image 1 to
+# pixels of image 2, $\tilde{\mathbf x}_2 \sim H \tilde{\mathbf x}_1$. For a planar scene (or a camera that only
+# rotates) a homography describes the change of view exactly, so every metric below has a ground truth.
+
+# %%
+n_demo_images = 2 if FAST else 4
+demo_pairs = heldout_pairs(SEED, n_images=n_demo_images, pairs_per_image=1)
+view_pair = next(p for p in demo_pairs if p.split == "viewpoint")
+illum_pair = next(p for p in demo_pairs if p.split == "illumination")
+print(f"{len(demo_pairs)} pairs, image size {view_pair.image1.shape}")
+print("viewpoint H =\n", view_pair.H.round(3))
+
+fig, axes = plt.subplots(1, 4, figsize=(16, 3.4))
+for ax, img, title in zip(axes, (view_pair.image1, view_pair.image2, illum_pair.image1, illum_pair.image2),
+                          ("viewpoint: image 1", "viewpoint: image 2 (warped)", "illumination: image 1",
+                           "illumination: image 2 (H = I)")):
+    ax.imshow(img, cmap="gray", vmin=0, vmax=1)
+    ax.set_title(title)
+    ax.axis("off")
+plt.tight_layout()
+plt.show()
+assert np.allclose(illum_pair.H, np.eye(3))  # the illumination split changes only the photometry
+
+# %% [markdown]
+# ## 2. Repeatability (Eqs. 15-16)
+#
+# Detect $N_1$ points in image 1 and $N_2$ in image 2, keeping only points whose warp lands inside the other
+# image (the shared view). A point $\mathbf x_i$ of image 1 is **repeated** when some detection of image 2 lies
+# within $\varepsilon$ pixels of where $H$ sends it:
+#
+# $$\operatorname{Corr}(\mathbf x_i) = \Big(\min_{j} \lVert H\mathbf x_i - \mathbf x_j \rVert \le \varepsilon\Big),$$
+#
+# and symmetrically for the points $\mathbf x_j$ of image 2. Repeatability is the fraction of all points that are
+# repeated:
+#
+# $$\mathrm{Rep} = \frac{\sum_i \operatorname{Corr}(\mathbf x_i) + \sum_j \operatorname{Corr}(\mathbf x_j)}{N_1 + N_2}.$$
+#
+# It measures the detector alone — descriptors play no part. The thesis evaluates it at 240 x 320 with the best
+# 300 points and NMS radius 4. As in SuperPoint's evaluation code (whose numbers the thesis reports), both
+# distances are measured in image 2's frame. Here it is by hand for SIFT on the viewpoint pair.
+
+# %%
+small = resize_pair(view_pair, settings.repeatability_size)  # 240 x 320, H updated: H' = S2 H S1^-1
+rep_detector = create_detector("sift", max_keypoints=settings.repeatability_keypoints,
+                               nms_radius=settings.repeatability_nms)
+f1 = rep_detector.detect_and_describe(small.image1)
+f2 = rep_detector.detect_and_describe(small.image2)
+h, w = small.image2.shape
+
+
+def inside(points: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """Whether (x, y) lies on the pixel area [-0.5, W - 0.5) x [-0.5, H - 0.5)."""
+    return (points[:, 0] >= -0.5) & (points[:, 0] < shape[1] - 0.5) & (points[:, 1] >= -0.5) & (points[:, 1] < shape[0] - 0.5)
+
+
+warped1 = warp_points(small.H, f1.keypoints.astype(np.float64))  # H x_i (image 2 frame)
+back2 = warp_points(np.linalg.inv(small.H), f2.keypoints.astype(np.float64))  # H^-1 x_j (image 1 frame)
+a = warped1[inside(warped1, small.image2.shape)]  # the N1 points of image 1 in the shared view
+b = f2.keypoints[inside(back2, small.image1.shape)].astype(np.float64)  # the N2 points of image 2 in the shared view
+dist = np.linalg.norm(a[:, None, :] - b[None, :, :], axis=2)  # (N1, N2) pixel distances in image 2
+eps = np.array(settings.eps)
+corr1 = dist.min(axis=1)[:, None] <= eps  # Eq. 15 for the points of image 1
+corr2 = dist.min(axis=0)[:, None] <= eps  # ... and for the points of image 2
+rep_hand = (corr1.sum(axis=0) + corr2.sum(axis=0)) / (len(a) + len(b))  # Eq. 16
+
+rep_lib = repeatability(f1.keypoints, f2.keypoints, small.H, small.image1.shape, small.image2.shape, eps)
+print(f"N1 = {len(a)}, N2 = {len(b)} in the shared view")
+print("by hand :", rep_hand.round(3), "\nlibrary :", np.round(rep_lib, 3))
+assert np.allclose(rep_hand, rep_lib)
+
+# %% [markdown]
+# The figure shows image 2 with the detections of image 1 carried over by $H$: green where a detection of image 2
+# lies within $\varepsilon = 3$ px (repeated), red where none does.
+
+# %%
+rep3 = corr1[:, 1]
+fig, ax = plt.subplots(figsize=(7.5, 5.6))
+ax.imshow(small.image2, cmap="gray", vmin=0, vmax=1)
+ax.scatter(b[:, 0], b[:, 1], s=22, facecolors="none", edgecolors="tab:blue", label="detected in image 2")
+ax.scatter(a[rep3, 0], a[rep3, 1], s=8, c="tab:green", label="H x_i, repeated (eps = 3)")
+ax.scatter(a[~rep3, 0], a[~rep3, 1], s=8, c="tab:red", label="H x_i, not repeated")
+ax.set_title(f"SIFT repeatability on one viewpoint pair: {rep_lib[1]:.2f} at eps = 3 px")
+ax.legend(loc="lower right", fontsize=8)
+ax.axis("off")
+plt.tight_layout()
+plt.show()
+
+# %% [markdown]
+# ## 3. Homography estimation correctness (Eq. 17)
+#
+# Now detector and descriptor work together, at 480 x 640 with the best 1000 points and NMS 8 (§3.2.6):
+#
+# 1. match descriptors by **mutual nearest neighbour** (L2 for float descriptors, Hamming for binary ones);
+# 2. fit $\hat H$ to the matches with `cv2.findHomography` and RANSAC;
+# 3. warp the four image corners $\mathbf c_j$ with both $\hat H$ and the true $H$ and average their distances.
+#
+# A pair counts as correct when that mean corner error is at most $\varepsilon$, and the score of a data set of
+# $N$ pairs is
+#
+# $$\mathrm{Corr}_H = \frac{1}{N}\sum_{i=1}^{N}\Big(\frac14\sum_{j=1}^{4}\lVert \hat{\mathbf c}'_{ij} -
+# \mathbf c'_{ij}\rVert \le \varepsilon\Big).$$
+#
+# (Eq. 17 of the thesis writes the threshold inside the corner sum; SuperPoint's code, which the thesis used,
+# thresholds the mean, as here.)
+
+# %%
+large = resize_pair(view_pair, settings.homography_size)
+hom_detector = create_detector("sift", max_keypoints=settings.homography_keypoints, nms_radius=settings.homography_nms)
+g1 = hom_detector.detect_and_describe(large.image1)
+g2 = hom_detector.detect_and_describe(large.image2)
+matches = match_descriptors(g1.descriptors, g2.descriptors, binary=g1.binary, mutual=True)
+H_est, inliers = estimate_homography(g1.keypoints, g2.keypoints, matches)
+
+hh, ww = large.image1.shape
+corners = np.array([[0.0, 0.0], [ww - 1.0, 0.0], [0.0, hh - 1.0], [ww - 1.0, hh - 1.0]])
+c_true = warp_points(large.H, corners)  # c'_j = H c_j
+c_est = warp_points(H_est, corners)  # c^'_j = H_est c_j
+error_hand = np.linalg.norm(c_est - c_true, axis=1).mean()  # 1/4 sum_j ||c^'_j - c'_j||
+correct_hand = error_hand <= eps
+
+print(f"{len(g1.keypoints)} / {len(g2.keypoints)} keypoints, {len(matches)} mutual matches, {inliers.sum()} RANSAC inliers")
+print(f"mean corner error: by hand {error_hand:.3f} px, library {corner_error(H_est, large.H, large.image1.shape):.3f} px")
+print("correct at eps = 1, 3, 5:", correct_hand)
+assert np.isclose(error_hand, corner_error(H_est, large.H, large.image1.shape))
+assert (correct_hand == homography_correctness(H_est, large.H, large.image1.shape, eps)).all()
+
+# %%
+order = [0, 1, 3, 2, 0]  # walk the corners around the quadrilateral
+fig, ax = plt.subplots(figsize=(8, 6))
+ax.imshow(large.image2, cmap="gray", vmin=0, vmax=1)
+ax.plot(c_true[order, 0], c_true[order, 1], "g-", lw=3, label="corners warped by the true H")
+ax.plot(c_est[order, 0], c_est[order, 1], "m--", lw=2, label="corners warped by the estimated H")
+ax.set_xlim(min(c_true[:, 0].min(), -10) - 20, max(c_true[:, 0].max(), ww) + 20)
+ax.set_ylim(max(c_true[:, 1].max(), hh) + 20, min(c_true[:, 1].min(), -10) - 20)
+ax.set_title(f"image 1's corners in image 2: mean error {error_hand:.2f} px")
+ax.legend(loc="lower right", fontsize=8)
+plt.tight_layout()
+plt.show()
+
+# %% [markdown]
+# The corners of image 1 fall outside image 2 here, because image 2 shows a zoomed-in patch of image 1. That is
+# why Eq. 17 looks at the corners: they sit where an error in $\hat H$'s perspective part shows most, so a
+# homography that only fits the matched points in the middle of the image is not rewarded.
+#
+# ## 4. Descriptor metrics: matching score and mean average precision
+#
+# Homography correctness hides how good the descriptor is behind RANSAC, which tolerates many wrong matches. Two
+# metrics look at the matches directly (DeTone et al. 2018, §7.2; the thesis lists them as future work):
+#
+# * **matching score**: match every point in the shared view to its nearest-neighbour descriptor (no
+#   cross-check); the fraction of those matches that land within $\varepsilon$ of the truth, averaged over both
+#   directions;
+# * **NN mAP**: rank those matches by descriptor distance and take the area under the precision-recall curve —
+#   it rewards descriptors whose distances put correct matches first.
+#
+# A few lines reproduce the matching score for direction 1 → 2 and 2 → 1.
+
+# %%
+k1 = g1.keypoints.astype(np.float64)
+k2 = g2.keypoints.astype(np.float64)
+d = np.linalg.norm(g1.descriptors[:, None, :] - g2.descriptors[None, :, :], axis=2)  # (N1, N2) L2 distances
+w1 = warp_points(large.H, k1)
+q1 = inside(w1, large.image2.shape)  # queries of direction 1 -> 2
+ms12 = (np.linalg.norm(w1[q1] - k2[d[q1].argmin(axis=1)], axis=1)[:, None] <= eps).mean(axis=0)
+q2 = inside(warp_points(np.linalg.inv(large.H), k2), large.image1.shape)  # queries of direction 2 -> 1
+ms21 = (np.linalg.norm(k2[q2] - w1[d[:, q2].argmin(axis=0)], axis=1)[:, None] <= eps).mean(axis=0)
+ms_hand = (ms12 + ms21) / 2
+
+shape1, shape2 = large.image1.shape, large.image2.shape
+ms_lib = matching_score(g1.keypoints, g2.keypoints, g1.descriptors, g2.descriptors, large.H, shape1, shape2, eps)
+map_lib = mean_average_precision(g1.keypoints, g2.keypoints, g1.descriptors, g2.descriptors, large.H, shape1, shape2, eps)
+print("matching score by hand:", ms_hand.round(3), " library:", np.round(ms_lib, 3))
+print("NN mAP (library):      ", np.round(map_lib, 3))
+assert np.allclose(ms_hand, ms_lib, atol=1e-6)
+
+# %% [markdown]
+# ## 5. Qualitative matches (thesis Appendix B)
+#
+# The thesis shows matches of each method side by side. Below are the mutual nearest-neighbour matches of SIFT,
+# ORB and FAST-FREAK on a viewpoint pair and on an illumination pair, at the homography-task settings; a match is
+# green when the true $H$ puts it within 3 px of its partner, red otherwise. At most 150 matches are drawn per
+# panel (a random, seeded subset) to keep the picture readable; the counts in the titles are over all matches.
+
+
+# %%
+def draw_matches(ax: plt.Axes, pair, name: str, max_drawn: int = 150) -> tuple[int, int]:
+    """Draw the pair side by side with mutual-NN matches (green: within 3 px of the truth); return (correct, all)."""
+    det = create_detector(name, max_keypoints=settings.homography_keypoints, nms_radius=settings.homography_nms)
+    fa, fb = det.detect_and_describe(pair.image1), det.detect_and_describe(pair.image2)
+    m = match_descriptors(fa.descriptors, fb.descriptors, binary=fa.binary, mutual=True)
+    pa, pb = fa.keypoints[m[:, 0]].astype(np.float64), fb.keypoints[m[:, 1]].astype(np.float64)
+    good = np.linalg.norm(warp_points(pair.H, pa) - pb, axis=1) <= 3.0
+    offset = pair.image1.shape[1] + 10
+    canvas = np.ones((max(pair.image1.shape[0], pair.image2.shape[0]), offset + pair.image2.shape[1]), np.float32)
+    canvas[: pair.image1.shape[0], : pair.image1.shape[1]] = pair.image1
+    canvas[: pair.image2.shape[0], offset:] = pair.image2
+    ax.imshow(canvas, cmap="gray", vmin=0, vmax=1)
+    shown = rng.permutation(len(m))[:max_drawn]
+    for k in shown:
+        ax.plot([pa[k, 0], pb[k, 0] + offset], [pa[k, 1], pb[k, 1]], "-", lw=0.7,
+                color="tab:green" if good[k] else "tab:red")
+    ax.set_title(f"{name}: {good.sum()} of {len(m)} matches correct ({good.mean():.0%})", fontsize=9)
+    ax.axis("off")
+    return int(good.sum()), len(m)
+
+
+qualitative = {}
+fig, axes = plt.subplots(3, 2, figsize=(14, 9))
+for col, (split, pair) in enumerate((("viewpoint", view_pair), ("illumination", illum_pair))):
+    big = resize_pair(pair, settings.homography_size)
+    for row, name in enumerate(("sift", "orb", "fast_freak")):
+        qualitative[(split, name)] = draw_matches(axes[row, col], big, name)
+        if row == 0:
+            axes[row, col].set_title(f"{split.upper()} — " + axes[row, col].get_title(), fontsize=9)
+plt.tight_layout()
+plt.show()
+for (split, name), (good, total) in qualitative.items():
+    print(f"{split:12s} {name:10s}: {good:4d} correct of {total:4d} mutual matches")
+    assert 0 <= good <= total
+
+# %% [markdown]
+# Pure nearest-neighbour matching always produces some wrong matches (red); RANSAC has to reject them. On the
+# viewpoint pair SIFT's gradient-histogram descriptor gives the most matches and the largest fraction of correct
+# ones; the binary descriptors (ORB, FREAK, compared by Hamming distance) give fewer, as in the thesis's
+# Appendix B. On the illumination pair every correct match is a horizontal line (H = I): the geometry is trivial,
+# and all the difficulty lies in detecting the same points under a different tone curve, shading and exposure and
+# in describing them alike. The counts printed under the figure show how few mutual matches survive such a change.
+#
+# ## 6. The event-frame split
+#
+# The thesis's second data set was made of event frames from a UAV flight, each paired with a copy warped by a
+# small rotation and translation (§3.2.3). We build the same from the simulator's aerial preset: accumulate the
+# events of short windows into **event-count images** (lesson 03), scale them to [0, 1] and let `event_frame_pairs`
+# warp them. The thesis evaluated these at 240 x 320 with the best 100 points (repeatability) and 1000 points
+# (homography), NMS 4 throughout: `BenchmarkSettings.thesis_event_frames()`.
+
+# %%
+n_frames = 2 if FAST else 8
+window = 0.04  # s of events per frame
+start = time.perf_counter()
+sequence = simulate_sequence(SimulationConfig(preset="aerial_like", duration=window * n_frames + 0.01, seed=3,
+                                              with_frames=False))
+width, height = sequence.camera.width, sequence.camera.height
+frames = []
+for k in range(n_frames):
+    counts = event_count_image(events_between(sequence.events, k * window, (k + 1) * window), width, height)
+    scale = max(np.percentile(counts, 99), 1.0)  # a few hot pixels should not darken the whole frame
+    frames.append(np.clip(counts / scale, 0.0, 1.0).astype(np.float32))
+event_pairs = event_frame_pairs(frames, SEED, pairs_per_frame=1)
+print(f"{len(sequence.events)} events simulated in {time.perf_counter() - start:.1f} s -> {len(frames)} frames "
+      f"of {height} x {width}, {len(event_pairs)} pairs")
+
+fig, axes = plt.subplots(1, 3, figsize=(13, 3.4))
+for ax, img, title in zip(axes, (event_pairs[0].image1, event_pairs[0].image2, frames[-1]),
+                          ("event frame", "warped copy (image 2)", "another frame")):
+    ax.imshow(img, cmap="gray", vmin=0, vmax=1)
+    ax.set_title(title)
+    ax.axis("off")
+plt.tight_layout()
+plt.show()
+assert all(f.min() >= 0 and f.max() <= 1 and f.max() > 0 for f in frames)
+
+# %% [markdown]
+# ## 7. The benchmark: Tables 2-5
+#
+# `run_benchmark(detector, pairs, settings)` repeats sections 2 and 3 for every pair and averages per split. The
+# rows are every classical detector and — when trained weights are shipped in `evio_lib/weights/` — the
+# project's CNN (one row per shipped weights file).
+#
+# *Sizes.* The full benchmark (58 held-out images x 5 pairs x 2 splits = 580 pairs, like HPatches) takes about
+# 15 minutes on this machine and is run from the command line:
+#
+# ```
+# python -m evio_lib features-benchmark --out DIR
+# python -m evio_lib features-benchmark --dataset events --event-frames FRAMES.npy --out DIR
+# ```
+#
+# This notebook runs a subset (about a minute in full mode): 8 held-out images x 2 pairs per split (about 30
+# pairs once the stripe textures are left out; the exact count is printed below) and 8 event-frame pairs, all six
+# classical detectors; in fast mode (CI) 2 images x 1 pair per split and 2 event-frame pairs with three detectors.
+# With so few pairs a single pair moves a homography score by several hundredths; read the tables as trends, not
+# as final results.
+
+# %%
+classical = [n for n in available_detectors() if n != "superpoint" and not n.startswith("superpoint")]
+classical = ["harris", "fast", "sift"] if FAST else [n for n in classical if n in
+                                                     ("harris", "shi_tomasi", "fast", "sift", "orb", "fast_freak")]
+cnn = [(w, {"weights": w}) for w in shipped_weights()]  # one row per shipped weights file (evio_lib/weights/*.pt)
+if cnn:
+    print("CNN weights shipped:", [w for w, _ in cnn])
+else:
+    print("NOTE: no trained CNN weights are shipped yet (evio_lib/weights/superpoint.pt is missing), so the tables\n"
+          "below have NO CNN rows. They appear here automatically once the training chain has written the weights:\n"
+          "  python -m evio_lib features-train pretrained_detdesc_round2 --chain   (see notebook 07)")
+print("classical rows:", classical)
+
+n_images, per_image = (2, 1) if FAST else (8, 2)
+bench_pairs = heldout_pairs(SEED, n_images=n_images, pairs_per_image=per_image)
+print(f"held-out benchmark: {len(bench_pairs)} pairs "
+      f"({sum(p.split == 'viewpoint' for p in bench_pairs)} viewpoint, {sum(p.split == 'illumination' for p in bench_pairs)} illumination)")
+
+# %%
+event_settings = BenchmarkSettings.thesis_event_frames()
+rows, event_rows = [], []
+start = time.perf_counter()
+for name in classical + [w for w, _ in cnn]:
+    options = dict(cnn).get(name) if name not in classical else None
+    detector = "superpoint" if options else name
+    rows.append(run_benchmark(detector, bench_pairs, settings, name=name, detector_options=options))
+    event_rows.append(run_benchmark(detector, event_pairs, event_settings, name=name, detector_options=options))
+print(f"benchmark of {len(rows)} detectors on {len(bench_pairs) + len(event_pairs)} pairs: "
+      f"{time.perf_counter() - start:.1f} s")
+
+# %% [markdown]
+# **Table 2 — repeatability, HPatches-style held-out pairs** (240 x 320, best 300 points, NMS 4):
+
+# %%
+display(Markdown(format_table(rows, "repeatability")))
+
+# %% [markdown]
+# **Table 3 — repeatability, event frames** (240 x 320, best 100 points, NMS 4):
+
+# %%
+display(Markdown(format_table(event_rows, "repeatability")))
+
+# %% [markdown]
+# **Table 4 — homography estimation correctness, held-out pairs** (480 x 640, best 1000 points, NMS 8,
+# mutual nearest neighbours + RANSAC):
+
+# %%
+display(Markdown(format_table(rows, "homography")))
+
+# %% [markdown]
+# **Table 5 — homography estimation correctness, event frames** (240 x 320, best 1000 points, NMS 4):
+
+# %%
+display(Markdown(format_table(event_rows, "homography")))
+
+# %% [markdown]
+# The descriptor metrics of section 4 on the same detections (held-out pairs):
+
+# %%
+display(Markdown("**Matching score**\n\n" + format_table(rows, "matching_score")))
+display(Markdown("**Nearest-neighbour mAP**\n\n" + format_table(rows, "mAP")))
+
+# %% [markdown]
+# Two properties hold by construction and make a quick sanity check of the whole run: every metric is a fraction
+# in [0, 1], and both repeatability and homography correctness can only grow with $\varepsilon$ (a point within
+# 1 px is also within 3 px).
+
+# %%
+for row in rows + event_rows:
+    for metric in ("repeatability", "homography"):
+        for split, values in row[metric].items():
+            v = np.array([values[e] for e in settings.eps])
+            assert np.all((0 <= v) & (v <= 1)) and np.all(np.diff(v) >= 0), (row["detector"], metric, split, v)
+print("all metrics in [0, 1] and non-decreasing in eps")
+
+# %% [markdown]
+# ## 8. Speed
+#
+# A VIO front end has to keep up with the camera. `measure_speed` times `detect_and_describe` (detection and
+# description together, one image at a time, after warm-up calls) at the DAVIS resolution 180 x 240 and at the
+# thesis's evaluation size 240 x 320. The issue's target for the CNN is at least 15 and 8 frames/s on this 2-core
+# CPU.
+
+# %%
+timing_images = [p.image1 for p in bench_pairs[: 2 if FAST else 4]]
+for row in rows:
+    name = row["detector"]
+    options = dict(cnn).get(name) if name not in classical else None
+    detector = "superpoint" if options else name
+    row["speed"] = {}
+    for shape in ((180, 240), (240, 320)):
+        row["speed"][f"{shape[0]}x{shape[1]}"] = measure_speed(detector, timing_images, shape,
+                                                               n_frames=5 if FAST else 20, detector_options=options)
+display(Markdown(format_table(rows, "speed")))
+
+# %% [markdown]
+# ## 9. How do the numbers compare with the thesis?
+#
+# The thesis's classical rows (Tables 2 and 4, HPatches) are printed next to ours below. Keep three differences in
+# mind before comparing:
+#
+# * **different images**: HPatches has real photographs of real planar scenes taken with real cameras; our pairs
+#   are synthetic warps of held-out images, so there is no parallax, no motion blur and no change of camera
+#   between the two images of a pair. The viewpoint homographies were tuned so that SIFT lands near its thesis
+#   row on homography estimation, which makes that row a calibration rather than a result;
+# * **illumination**: HPatches' illumination scenes contain real light changes; ours are a model of them (tone
+#   curve, shading, exposure, noise; `illumination_change`). Harsher or milder settings move every row;
+# * **few pairs**: this notebook runs a small subset, the full 580-pair benchmark comes from the command line.
+#
+# What to look for is the *ranking*, not the third decimal. In the thesis, Harris and FAST are the most repeatable
+# at $\varepsilon = 3, 5$ (they fire precisely on corners), SIFT's blob centres are less repeatable but its
+# descriptor makes it the best classical method for homography estimation, and ORB is the weakest at it. The
+# cell below prints the thesis's classical rows next to ours and checks the one ranking that our data should
+# reproduce robustly: on the viewpoint split, SIFT estimates homographies at least as well as ORB. The thesis's
+# trained networks mainly win on the **illumination** split, where a descriptor learned under photometric
+# augmentation copes better with a changed tone curve — the claim to check once the CNN rows appear above.
+#
+# The event-frame split is easier than the held-out pairs (small rotations, the same frame on both sides, no
+# added noise), so its homography scores are close to 1 for most methods, as in the thesis's Table 5 at
+# $\varepsilon = 3, 5$.
+
+# %%
+thesis = {  # Table 2 (repeatability, HPatches) and Table 4 (homography estimation, HPatches); eps = 1, 3, 5
+    ("repeatability", "fast"): ([0.294, 0.630, 0.786], [0.363, 0.574, 0.716]),
+    ("repeatability", "harris"): ([0.312, 0.758, 0.868], [0.372, 0.627, 0.752]),
+    ("repeatability", "sift"): ([0.260, 0.486, 0.685], [0.278, 0.434, 0.595]),
+    ("homography", "fast_freak"): ([0.288, 0.590, 0.712], [0.551, 0.758, 0.789]),
+    ("homography", "orb"): ([0.061, 0.386, 0.536], [0.232, 0.530, 0.593]),
+    ("homography", "sift"): ([0.464, 0.769, 0.831], [0.540, 0.779, 0.825]),
+}
+by_name = {row["detector"]: row for row in rows}
+lines = ["| metric | detector | split | thesis ε = 1 / 3 / 5 | this run ε = 1 / 3 / 5 |", "|---|---|---|---|---|"]
+for (metric, name), (view, illum) in thesis.items():
+    if name not in by_name:
+        continue
+    for split, ref in (("viewpoint", view), ("illumination", illum)):
+        ours = [by_name[name][metric][split][e] for e in settings.eps]
+        lines.append(f"| {metric} | {name} | {split} | {' / '.join(f'{v:.3f}' for v in ref)} | "
+                     f"{' / '.join(f'{v:.3f}' for v in ours)} |")
+display(Markdown("\n".join(lines)))
+
+for metric, split in (("repeatability", "viewpoint"), ("repeatability", "illumination"),
+                      ("homography", "viewpoint"), ("homography", "illumination")):
+    best = max(rows, key=lambda r: r[metric][split][3.0])
+    print(f"best {metric:13s} on {split:12s} at eps = 3: {best['detector']} ({best[metric][split][3.0]:.3f})")
+if "sift" in by_name and "orb" in by_name:
+    assert by_name["sift"]["homography"]["viewpoint"][3.0] >= by_name["orb"]["homography"]["viewpoint"][3.0]
+
+# %% [markdown]
+# ## Summary
+#
+# * **Repeatability** (Eqs. 15-16) asks whether the detector finds the same scene points again: carry each point
+#   into the other image with the true $H$ and count those with a detection within $\varepsilon$, over both images.
+#   It ignores descriptors.
+# * **Homography estimation correctness** (Eq. 17) tests the whole chain — detector, descriptor, mutual
+#   nearest-neighbour matching, RANSAC — through the mean distance of the four warped image corners.
+# * **Matching score** and **NN mAP** look at the descriptor matches before RANSAC hides the wrong ones.
+# * Every metric was computed by hand on one pair and agrees with `evio_lib.features.evaluate`.
+# * `evio_lib.features.benchmark` turns these into tables shaped like the thesis's Tables 2-5 (held-out
+#   viewpoint/illumination pairs and simulated event frames), plus a speed table; the full 580-pair run is
+#   `python -m evio_lib features-benchmark --out DIR`. The CNN rows appear once trained weights are shipped.
+#
+# ## Exercises
+#
+# 1. Compute repeatability with the second term of Eq. 16 measured in image 1's frame ($H^{-1}\mathbf x_j$ against
+#    $\mathbf x_i$), as the thesis writes it. On which pairs does it differ from the library's value, and why does
+#    a zoom make the difference?
+# 2. Replace mutual nearest-neighbour matching by Lowe's ratio test (keep a match when the best distance is below
+#    0.8 times the second best) and rerun the homography table for SIFT and ORB. Which metric changes most?
+# 3. Run `illumination_pairs` with `strength=0.5` and `strength=1.5`. How quickly do the classical detectors
+#    degrade, and which one degrades least?
+# 4. Time `measure_speed` for SIFT at 480 x 640 and compare with 240 x 320. Is the cost proportional to the
+#    number of pixels?
+# 5. Once the CNN weights exist: does the shipped network meet the issue's targets (at least SIFT's homography
+#    correctness at $\varepsilon = 3$ on the viewpoint split, better than every classical method on the
+#    illumination split)?
