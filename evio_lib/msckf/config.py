@@ -60,6 +60,8 @@ class MsckfConfig:
         chi2_gating, chi2_probability: per-feature chi-square (Mahalanobis) gating and its probability [0.95].
         triangulation_*: inverse-depth Gauss-Newton settings and the checks that reject bad features.
         observability_constrained: OC-EKF on/off (thesis §3.3.8) [True].
+        oc_update: update side of the OC-EKF: "projected" (H_o (I - N (N^T N)^-1 N^T) after the nullspace
+            projection) or "eq86" (the thesis's per-camera change of H_C) ["projected"].
         imu_only: propagate only, never update (thesis Table 6 baseline) [False].
         static_init_duration: length of the stationary IMU window used by the static initialisation [1.0 s].
 
@@ -106,6 +108,8 @@ class MsckfConfig:
     triangulation_max_reprojection_px: float = _param(5.0, "px", "reject if the RMS reprojection error exceeds")
     # filter variants and modes
     observability_constrained: bool = _param(True, "", "observability-constrained EKF (thesis §3.3.8)")
+    oc_update: str = _param("projected", "", "update-side OC: 'projected' (on the projected feature Jacobian) or "
+                                             "'eq86' (the thesis's per-camera form)")
     imu_only: bool = _param(False, "", "propagate only, no visual updates")
     static_init_duration: float = _param(1.0, "s", "stationary IMU window of the static initialisation")
 
@@ -145,6 +149,8 @@ class MsckfConfig:
                 "triangulation_min_depth must be < triangulation_max_depth; "
                 f"got {self.triangulation_min_depth} >= {self.triangulation_max_depth}"
             )
+        if self.oc_update not in ("projected", "eq86"):
+            raise ValueError(f"oc_update must be 'projected' or 'eq86'; got {self.oc_update!r}")
         for name in _BOOLEAN:
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ValueError(f"{name} must be True or False; got {getattr(self, name)!r}")

@@ -566,6 +566,9 @@ def add_vio_sim_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--noise-model", choices=list(NOISE_MODELS), default="per_observation",
                         help="feature noise model of the filter (default per_observation: each observation's own "
                              "covariance from the undistortion Jacobian)")
+    parser.add_argument("--oc-update", choices=["projected", "eq86"], default="projected",
+                        help="update side of the OC-EKF: constraint on the projected feature Jacobian (default) or the "
+                             "thesis's Eq. 86")
     parser.add_argument("--imu-only", action="store_true", help="propagate only (no visual updates)")
     parser.add_argument("--no-baselines", action="store_true", help="skip the IMU-only baseline rows")
     parser.add_argument("--out", type=Path, default=None,
@@ -576,7 +579,8 @@ def main_vio_sim(args: argparse.Namespace) -> int:
     """Run the experiment for parsed ``vio-sim`` arguments, print the report; return the exit code (0)."""
     config = VioSimConfig(preset=args.preset, duration=args.duration, seed=args.seed, features=args.features,
                           oc=not args.no_oc, imu_only=args.imu_only, pixel_noise_px=args.pixel_noise,
-                          noise_model=getattr(args, "noise_model", "per_observation"))
+                          noise_model=getattr(args, "noise_model", "per_observation"),
+                          msckf_overrides=(("oc_update", getattr(args, "oc_update", "projected")),))
     result = run_vio_sim_config(config, baselines=not args.no_baselines, out_dir=args.out)
     print(result.report())
     if args.out is not None:

@@ -198,7 +198,8 @@ class Msckf:
         state: the initial state (e.g. ``initialization.initial_state_from_truth`` or ``initial_state_from_static``);
             it usually holds no camera poses.
         oc_update: update side of the OC-EKF when ``config.observability_constrained`` (``OC_UPDATE_MODES``):
-            "projected" (default; constrain the nullspace-projected Jacobian, H_o N_C = 0) or "eq86" (thesis Eq. 86).
+            "projected" (constrain the nullspace-projected Jacobian, H_o N_C = 0) or "eq86" (thesis Eq. 86);
+            None (default) takes ``config.oc_update``.
 
     Attributes:
         config: the configuration.
@@ -221,11 +222,13 @@ class Msckf:
     (0.05, array([0., 0., 0.]), 1, 2)
     """
 
-    def __init__(self, config: MsckfConfig, state: FilterState, oc_update: str = "projected") -> None:
+    def __init__(self, config: MsckfConfig, state: FilterState, oc_update: str | None = None) -> None:
         if not isinstance(config, MsckfConfig):
             raise ValueError(f"config must be an MsckfConfig; got {type(config).__name__}")
         if not isinstance(state, FilterState):
             raise ValueError(f"state must be a FilterState; got {type(state).__name__}")
+        if oc_update is None:
+            oc_update = config.oc_update
         if oc_update not in OC_UPDATE_MODES:
             raise ValueError(f"oc_update must be one of {OC_UPDATE_MODES}; got {oc_update!r}")
         self.config = config

@@ -110,3 +110,18 @@ def test_with_imu_noise_copies_the_simulator_densities():
     assert MsckfConfig().with_imu_noise(noise, include_bias_sigmas=False).init_sigma_gyro_bias == 0.03
     with pytest.raises(ValueError, match="noise must have attributes"):
         MsckfConfig().with_imu_noise(object())
+
+
+def test_oc_update_mode_is_a_validated_config_field_that_the_filter_follows():
+    from evio_lib.msckf.filter import Msckf
+    from evio_lib.msckf.state import FilterState, ImuState
+
+    assert MsckfConfig().oc_update == "projected"
+    with pytest.raises(ValueError, match="oc_update must be 'projected' or 'eq86'"):
+        MsckfConfig(oc_update="hesch")
+    config = MsckfConfig(oc_update="eq86")
+    assert MsckfConfig.from_dict(config.to_dict()).oc_update == "eq86"
+    imu = ImuState.from_pose(np.eye(3), np.zeros(3), np.zeros(3), timestamp=0.0)
+    state = FilterState.initial(imu, np.eye(3), np.zeros(3), config.initial_imu_covariance())
+    assert Msckf(config, state).oc_update == "eq86"
+    assert Msckf(config, state, oc_update="projected").oc_update == "projected"  # an explicit argument wins
