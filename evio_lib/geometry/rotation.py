@@ -55,8 +55,11 @@ _ROT_TOL = 1e-6  # tolerance on det(R) - 1 and R R^T - I for rot_to_quat / so3_l
 _SMALL_ANGLE = 1e-6  # below this |qv| the rotation-vector formulas switch to their Taylor series
 
 
-def _as_array(x: ArrayLike, name: str, tail: tuple[int, ...]) -> NDArray[np.float64]:
-    """Return ``x`` as a float64 array whose trailing shape is ``tail``; raise ValueError otherwise or if not finite."""
+def as_float_array(x: ArrayLike, name: str, tail: tuple[int, ...]) -> NDArray[np.float64]:
+    """Return ``x`` as a float64 array whose trailing shape is ``tail``; raise ValueError otherwise or if not finite.
+
+    The shared input check of the rotation and filter code: the message names ``name`` and the expected (..., tail).
+    """
     expected = "(..., " + ", ".join(map(str, tail)) + ")"
     try:
         arr = np.asarray(x, dtype=np.float64)
@@ -65,7 +68,7 @@ def _as_array(x: ArrayLike, name: str, tail: tuple[int, ...]) -> NDArray[np.floa
     if arr.ndim < len(tail) or arr.shape[arr.ndim - len(tail):] != tail:
         raise ValueError(f"{name} must have shape {expected}; got {arr.shape}")
     if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must contain only finite values (no NaN/inf); got non-finite entries")
+        raise ValueError(f"{name} must contain only finite values (no NaN/inf)")
     return arr
 
 
@@ -82,7 +85,7 @@ def skew(v: ArrayLike) -> NDArray[np.float64]:
            [ 3.,  0., -1.],
            [-2.,  1.,  0.]])
     """
-    return skew_unchecked(_as_array(v, "v", (3,)))
+    return skew_unchecked(as_float_array(v, "v", (3,)))
 
 
 def skew_unchecked(v: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -114,7 +117,7 @@ def quat_normalize(q: ArrayLike) -> NDArray[np.float64]:
     >>> quat_normalize([1.0, 1.0, 1.0, -1.0])
     array([-0.5, -0.5, -0.5,  0.5])
     """
-    q = _as_array(q, "q", (4,))
+    q = as_float_array(q, "q", (4,))
     norm = np.linalg.norm(q, axis=-1, keepdims=True)
     if np.any(norm < 1e-12):
         raise ValueError(f"q must have a non-zero norm; got norm {float(norm.min()):.3g}")
@@ -137,8 +140,8 @@ def quat_multiply(q: ArrayLike, p: ArrayLike) -> NDArray[np.float64]:
     >>> np.round(quat_multiply(q_z90, q_z90), 3)      # 90 deg twice = 180 deg about z
     array([0., 0., 1., 0.])
     """
-    q = _as_array(q, "q", (4,))
-    p = _as_array(p, "p", (4,))
+    q = as_float_array(q, "q", (4,))
+    p = as_float_array(p, "p", (4,))
     qv, qw = q[..., :3], q[..., 3:4]
     pv, pw = p[..., :3], p[..., 3:4]
     # vector = qw pv + pw qv - qv x pv ;  scalar = qw pw - qv . pv
@@ -156,7 +159,7 @@ def quat_inverse(q: ArrayLike) -> NDArray[np.float64]:
     >>> quat_inverse([0.48, 0.0, 0.36, 0.8]) + 0.0
     array([-0.48,  0.  , -0.36,  0.8 ])
     """
-    q = _as_array(q, "q", (4,))
+    q = as_float_array(q, "q", (4,))
     norm2 = np.sum(q * q, axis=-1, keepdims=True)
     if np.any(norm2 < 1e-24):
         raise ValueError(f"q must have a non-zero norm; got norm {float(np.sqrt(norm2.min())):.3g}")
@@ -197,7 +200,7 @@ def quat_to_rot(q: ArrayLike) -> NDArray[np.float64]:
 
 def _check_rotation(R: ArrayLike, name: str) -> NDArray[np.float64]:
     """Return R as float64 (..., 3, 3) after checking it is a rotation (det = 1, R R^T = I within 1e-6)."""
-    R = _as_array(R, name, (3, 3))
+    R = as_float_array(R, name, (3, 3))
     orth_err = np.abs(R @ np.swapaxes(R, -1, -2) - np.eye(3)).max(axis=(-2, -1)) if R.size else np.zeros(0)
     if np.any(orth_err > _ROT_TOL):
         raise ValueError(
@@ -263,7 +266,7 @@ def quat_from_rotvec(theta: ArrayLike) -> NDArray[np.float64]:
     >>> np.round(quat_from_rotvec([0.0, 0.0, np.pi]), 3)
     array([0., 0., 1., 0.])
     """
-    theta = _as_array(theta, "theta", (3,))
+    theta = as_float_array(theta, "theta", (3,))
     angle = np.linalg.norm(theta, axis=-1, keepdims=True)
     # sin(|θ|/2) / |θ| = 0.5 * sinc(|θ| / (2π)) with numpy's normalised sinc (exact at 0)
     half_sinc = 0.5 * np.sinc(angle / (2.0 * np.pi))
@@ -304,7 +307,7 @@ def small_angle_quat(dtheta: ArrayLike) -> NDArray[np.float64]:
     >>> small_angle_quat([0.0, 0.0, 0.0])
     array([0., 0., 0., 1.])
     """
-    dtheta = _as_array(dtheta, "dtheta", (3,))
+    dtheta = as_float_array(dtheta, "dtheta", (3,))
     dq = np.concatenate([0.5 * dtheta, np.ones(dtheta.shape[:-1] + (1,))], axis=-1)  # [δθ/2, 1]
     return dq / np.linalg.norm(dq, axis=-1, keepdims=True)
 
@@ -324,7 +327,7 @@ def so3_exp(phi: ArrayLike) -> NDArray[np.float64]:
            [ 1.,  0.,  0.],
            [ 0.,  0.,  1.]])
     """
-    phi = _as_array(phi, "phi", (3,))
+    phi = as_float_array(phi, "phi", (3,))
     angle = np.linalg.norm(phi, axis=-1)
     a = np.sinc(angle / np.pi)  # sin(θ)/θ
     b = 0.5 * np.sinc(angle / (2.0 * np.pi)) ** 2  # (1 - cos θ)/θ^2 = ½ (sin(θ/2)/(θ/2))^2
@@ -366,7 +369,7 @@ def omega_matrix(w: ArrayLike) -> NDArray[np.float64]:
            [ 2., -1.,  0.,  3.],
            [-1., -2., -3.,  0.]])
     """
-    w = _as_array(w, "w", (3,))
+    w = as_float_array(w, "w", (3,))
     out = np.zeros(w.shape[:-1] + (4, 4), dtype=np.float64)
     out[..., :3, :3] = skew(-w)  # -[ω x] = [(-ω) x]
     out[..., :3, 3] = w
@@ -391,7 +394,7 @@ def hamilton_to_jpl(q_xyzw: ArrayLike) -> NDArray[np.float64]:
            [ 1.,  0.,  0.],
            [ 0.,  0.,  1.]])
     """
-    q = _as_array(q_xyzw, "q_xyzw", (4,))
+    q = as_float_array(q_xyzw, "q_xyzw", (4,))
     return np.concatenate([-q[..., :3], q[..., 3:4]], axis=-1)
 
 
@@ -405,5 +408,5 @@ def jpl_to_hamilton(q: ArrayLike) -> NDArray[np.float64]:
     >>> jpl_to_hamilton([0.48, 0.0, -0.36, 0.8]) + 0.0
     array([-0.48,  0.  ,  0.36,  0.8 ])
     """
-    q = _as_array(q, "q", (4,))
+    q = as_float_array(q, "q", (4,))
     return np.concatenate([-q[..., :3], q[..., 3:4]], axis=-1)

@@ -43,7 +43,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from evio_lib.geometry.rotation import quat_to_rot, skew_unchecked
+from evio_lib.geometry.rotation import as_float_array, quat_to_rot
 from evio_lib.msckf.propagation import PropagationSteps
 from evio_lib.msckf.state import CAMERA_DIM, IMU_DIM, POS, THETA, VEL, FilterState
 
@@ -57,20 +57,6 @@ __all__ = [
     "camera_nullspace",
     "constrain_projected_jacobian",
 ]
-
-
-def _finite(x: ArrayLike, name: str, tail: tuple[int, ...]) -> NDArray[np.float64]:
-    """Return x as float64 with trailing shape ``tail`` and finite entries; raise ValueError naming ``name``."""
-    expected = "(..., " + ", ".join(map(str, tail)) + ")"
-    try:
-        arr = np.asarray(x, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be a numeric array of shape {expected}; got {x!r}") from exc
-    if arr.ndim < len(tail) or arr.shape[arr.ndim - len(tail):] != tail:
-        raise ValueError(f"{name} must have shape {expected}; got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must contain only finite values (no NaN/inf)")
-    return arr
 
 
 def _matrices(x: ArrayLike, name: str, expected: str) -> NDArray[np.float64]:
@@ -87,7 +73,7 @@ def _matrices(x: ArrayLike, name: str, expected: str) -> NDArray[np.float64]:
 
 
 def _gravity(gravity_G: ArrayLike) -> NDArray[np.float64]:
-    g = _finite(gravity_G, "gravity_G", (3,))
+    g = as_float_array(gravity_G, "gravity_G", (3,))
     if g.shape != (3,) or not np.any(g != 0.0):
         raise ValueError(f"gravity_G must be a non-zero vector of shape (3,), e.g. (0, 0, -9.81); got {g}")
     return g
@@ -108,13 +94,13 @@ def least_squares_constraint(A: ArrayLike, u: ArrayLike, w: ArrayLike | None = N
     """
     A = _matrices(A, "A", "(..., m, n)")
     m, n = A.shape[-2:]
-    u = _finite(u, "u", (n,))
+    u = as_float_array(u, "u", (n,))
     uu = np.einsum("...i,...i->...", u, u)
     if np.any(uu <= 0.0):
         raise ValueError("u must be non-zero (u^T u > 0)")
     Au = np.einsum("...ij,...j->...i", A, u)
     if w is not None:
-        Au = Au - _finite(w, "w", (m,))
+        Au = Au - as_float_array(w, "w", (m,))
     # A* = A - (A u - w) u^T / (u^T u)
     return A - (Au / uu[..., None])[..., :, None] * u[..., None, :]
 
@@ -135,9 +121,9 @@ def imu_nullspace(
     >>> (N[:, 3].round(2) + 0.0).tolist()
     [0.0, 0.0, -9.81, 0.0, 0.0, 0.0, 0.0, -9.81, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
     """
-    q = _finite(q_GtoI, "q_GtoI", (4,))
-    v = _finite(v_IinG, "v_IinG", (3,))
-    p = _finite(p_IinG, "p_IinG", (3,))
+    q = as_float_array(q_GtoI, "q_GtoI", (4,))
+    v = as_float_array(v_IinG, "v_IinG", (3,))
+    p = as_float_array(p_IinG, "p_IinG", (3,))
     g = _gravity(gravity_G)
     batch = np.broadcast_shapes(q.shape[:-1], v.shape[:-1], p.shape[:-1])
     N = np.zeros(batch + (IMU_DIM, 4))
@@ -227,10 +213,10 @@ def constrain_camera_blocks(
 
     u = [R_GtoC,null g; [(p_FinG - p_CinG,null) x] g]; H_C* = H_C - H_C u (u^T u)^-1 u^T; H_f* = -H_C*[:, 3:6].
     """
-    A = _finite(H_C, "H_C", (2, CAMERA_DIM))
-    R = _finite(R_GtoC_null, "R_GtoC_null", (3, 3))
-    p_C = _finite(p_CinG_null, "p_CinG_null", (3,))
-    p_F = _finite(p_FinG, "p_FinG", (3,))
+    A = as_float_array(H_C, "H_C", (2, CAMERA_DIM))
+    R = as_float_array(R_GtoC_null, "R_GtoC_null", (3, 3))
+    p_C = as_float_array(p_CinG_null, "p_CinG_null", (3,))
+    p_F = as_float_array(p_FinG, "p_FinG", (3,))
     g = _gravity(gravity_G)
     batch = A.shape[:-2]
     u = np.empty(batch + (CAMERA_DIM,))
@@ -264,7 +250,7 @@ def constrain_feature_jacobians(
     if H_x.ndim != 2 or H_x.shape[0] % 2:
         raise ValueError(f"H_x must have shape (2M, n); got {H_x.shape}")
     M, n = H_x.shape[0] // 2, H_x.shape[1]
-    _finite(H_f, "H_f", (3,))
+    as_float_array(H_f, "H_f", (3,))
     if np.shape(H_f) != (2 * M, 3):
         raise ValueError(f"H_f must have shape ({2 * M}, 3); got {np.shape(H_f)}")
     cols = np.asarray(cam_columns)
@@ -272,13 +258,13 @@ def constrain_feature_jacobians(
         raise ValueError(f"cam_columns must be ({M},) integers with 0 <= column <= n - 6 = {n - 6}; got {cols!r}")
     R = np.asarray(R_GtoC_null, dtype=np.float64)
     if R.ndim == 2 and R.shape[-1] == 4:
-        R = quat_to_rot(_finite(R, "R_GtoC_null", (4,)))
+        R = quat_to_rot(as_float_array(R, "R_GtoC_null", (4,)))
     if R.shape != (M, 3, 3):
         raise ValueError(f"R_GtoC_null must have shape ({M}, 3, 3) or ({M}, 4); got {np.shape(R_GtoC_null)}")
-    p_C = _finite(p_CinG_null, "p_CinG_null", (3,))
+    p_C = as_float_array(p_CinG_null, "p_CinG_null", (3,))
     if p_C.shape != (M, 3):
         raise ValueError(f"p_CinG_null must have shape ({M}, 3); got {p_C.shape}")
-    p_F = _finite(p_FinG, "p_FinG", (3,))
+    p_F = as_float_array(p_FinG, "p_FinG", (3,))
     if p_F.shape != (3,):
         raise ValueError(f"p_FinG must have shape (3,); got {p_F.shape}")
     idx = cols[:, None] + np.arange(CAMERA_DIM)  # (M, 6) column indices of each camera block
@@ -306,8 +292,8 @@ def camera_nullspace(
     >>> N.shape, (N[:, 3].round(2) + 0.0).tolist()
     ((6, 4), [0.0, 0.0, -9.81, 0.0, 0.0, 0.0])
     """
-    R = _finite(R_GtoC_null, "R_GtoC_null", (3, 3))
-    p = _finite(p_CinG_null, "p_CinG_null", (3,))
+    R = as_float_array(R_GtoC_null, "R_GtoC_null", (3, 3))
+    p = as_float_array(p_CinG_null, "p_CinG_null", (3,))
     if R.ndim < 3 or R.shape[:-2] != p.shape[:-1]:
         raise ValueError(f"R_GtoC_null (..., M, 3, 3) and p_CinG_null (..., M, 3) must match; got {R.shape}, {p.shape}")
     g = _gravity(gravity_G)

@@ -48,7 +48,7 @@ from typing import Callable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from evio_lib.geometry.rotation import skew, skew_unchecked
+from evio_lib.geometry.rotation import as_float_array, skew, skew_unchecked
 from evio_lib.msckf.config import MsckfConfig
 from evio_lib.msckf.state import (
     BA,
@@ -122,20 +122,6 @@ TransitionHook = Callable[[NDArray[np.float64], PropagationSteps], NDArray[np.fl
 
 
 # ------------------------------------------------------------------------------------------------------ input checks
-def _array(x: ArrayLike, name: str, tail: tuple[int, ...]) -> NDArray[np.float64]:
-    """Return x as float64 with trailing shape ``tail`` and finite entries; raise ValueError naming ``name``."""
-    try:
-        arr = np.asarray(x, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        shape = "(..., " + ", ".join(map(str, tail)) + ")"
-        raise ValueError(f"{name} must be a numeric array of shape {shape}; got {x!r}") from exc
-    if arr.ndim < len(tail) or arr.shape[arr.ndim - len(tail):] != tail:
-        raise ValueError(f"{name} must have shape (..., {', '.join(map(str, tail))}); got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must contain only finite values (no NaN/inf)")
-    return arr
-
-
 def _check_noise_psd(noise_psd: ArrayLike) -> NDArray[np.float64]:
     q = np.asarray(noise_psd, dtype=np.float64)
     if q.shape != (12,) or not np.all(np.isfinite(q)) or np.any(q < 0):
@@ -168,9 +154,9 @@ def error_state_jacobians(
            [0., 1., 0.],
            [0., 0., 1.]]), (15, 12))
     """
-    R = _array(R_ItoG, "R_ItoG", (3, 3))
-    w = _array(w_hat, "w_hat", (3,))
-    a = _array(a_hat, "a_hat", (3,))
+    R = as_float_array(R_ItoG, "R_ItoG", (3, 3))
+    w = as_float_array(w_hat, "w_hat", (3,))
+    a = as_float_array(a_hat, "a_hat", (3,))
     if R.shape != (3, 3) or w.shape != (3,) or a.shape != (3,):
         raise ValueError(
             f"R_ItoG, w_hat, a_hat must have shapes (3, 3), (3,), (3,); got {R.shape}, {w.shape}, {a.shape}"
@@ -292,9 +278,9 @@ def _frozen_inputs(
     R_ItoG: ArrayLike, w_hat: ArrayLike, a_hat: ArrayLike, dt: ArrayLike
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], tuple[int, ...]]:
     """Validate and flatten the inputs of transition_matrix / discrete_noise_covariance to (n, ...) batches."""
-    R = _array(R_ItoG, "R_ItoG", (3, 3))
-    w = _array(w_hat, "w_hat", (3,))
-    a = _array(a_hat, "a_hat", (3,))
+    R = as_float_array(R_ItoG, "R_ItoG", (3, 3))
+    w = as_float_array(w_hat, "w_hat", (3,))
+    a = as_float_array(a_hat, "a_hat", (3,))
     h = np.asarray(dt, dtype=np.float64)
     batch = R.shape[:-2]
     if w.shape[:-1] != batch or a.shape[:-1] != batch or h.shape != batch:
@@ -362,8 +348,8 @@ def propagate_covariance(P: ArrayLike, Phi: ArrayLike, Q_d: ArrayLike) -> NDArra
         raise ValueError(f"P must have shape (15 + 6N, 15 + 6N); got {P.shape}")
     if not np.all(np.isfinite(P)):
         raise ValueError("P must contain only finite values (no NaN/inf)")
-    Phi = _array(Phi, "Phi", (IMU_DIM, IMU_DIM))
-    Q_d = _array(Q_d, "Q_d", (IMU_DIM, IMU_DIM))
+    Phi = as_float_array(Phi, "Phi", (IMU_DIM, IMU_DIM))
+    Q_d = as_float_array(Q_d, "Q_d", (IMU_DIM, IMU_DIM))
     if Phi.shape != (IMU_DIM, IMU_DIM) or Q_d.shape != (IMU_DIM, IMU_DIM):
         raise ValueError(f"Phi and Q_d must have shape (15, 15); got {Phi.shape} and {Q_d.shape}")
     out = P.copy()
@@ -467,11 +453,11 @@ def integrate_imu(
         raise ValueError(f"t must have shape (K + 1,), K + 1 >= 2, finite and strictly increasing; got shape {t.shape}")
     if abs(t[0] - imu.timestamp) > 1e-12:
         raise ValueError(f"t[0] must equal imu.timestamp = {imu.timestamp!r}; got {t[0]!r}")
-    gyro = _array(gyro, "gyro", (3,))
-    accel = _array(accel, "accel", (3,))
+    gyro = as_float_array(gyro, "gyro", (3,))
+    accel = as_float_array(accel, "accel", (3,))
     if gyro.shape != (t.shape[0], 3) or accel.shape != (t.shape[0], 3):
         raise ValueError(f"gyro and accel must have shape ({t.shape[0]}, 3); got {gyro.shape} and {accel.shape}")
-    g = _array(gravity_G, "gravity_G", (3,))
+    g = as_float_array(gravity_G, "gravity_G", (3,))
     q, v, p, *_ = _integrate(imu.q_GtoI, imu.v_IinG, imu.p_IinG, t, gyro - imu.b_g, accel - imu.b_a, g)
     return q, v, p
 
