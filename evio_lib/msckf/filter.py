@@ -9,8 +9,9 @@ and thesis §3.3.6.1:
    is the whitening matrix L^-1 of the observation's noise covariance Σ = L L^T (``xy_cov``; default σ² I).
 4. ``_collect_lost_features``: tracks not observed in this image have ended; those with >= ``min_track_length``
    observations are used with all their observations, shorter ones are dropped.
-5. ``_select_cameras_to_remove`` / ``_collect_pruned_features``: when the window exceeds N_max, two states are
-   chosen by S-MSCKF's two-way keyframe rule (or the oldest third with ``marginalize_third``); the features
+5. ``_select_cameras_to_remove`` / ``_collect_pruned_features``: when the window exceeds N_max, the oldest third
+   goes (``marginalize_third``, the default, as in Mourikis & Roumeliotis 2007) or two states chosen by S-MSCKF's
+   two-way keyframe rule; the features
    observed at >= 2 of them are used with those observations, which are then deleted from the tracks.
 6. ``_update``: the features of 4 and 5 enter ONE stacked, compressed update. (msckf_vio applies two updates in a
    row; the two sets use disjoint observations, so stacking them changes only the linearisation point of the
@@ -23,8 +24,10 @@ for each, the residual and Jacobians of the observations used (Eqs. 41-48; OC-mo
 whitened per observation (rows 2i, 2i+1 of r, H_x and H_f multiplied by W_i = L_i^-1, so the noise becomes N(0, I)),
 projected on the left nullspace of H_f (Eq. 50), OC-constrained as a whole (default ``oc_update="projected"``:
 H_o* = H_o (I - N (N^T N)^-1 N^T) with the observing cameras' first-estimate nullspace N, so H_o* N = 0; see
-``observability.constrain_projected_jacobian``) and chi-square gated (95 %) with unit noise; the survivors are
-stacked, QR-compressed
+``observability.constrain_projected_jacobian``) and chi-square gated (``chi2_probability``, 95 %) with unit noise on
+ALL the feature's observations in the window (a pruned feature's update rows come from the removed states only, but
+the gate sees the whole track: more degrees of freedom, more power against moving points, less bias on the kept
+residuals, ``update.gating_mean_shrink``); the survivors are stacked, QR-compressed
 (Eqs. 51-55) and applied in one Joseph-form Kalman update (Eqs. 56-58). Features are processed in batches of equal
 observation count, so the per-feature work is vectorised. Every dropped feature is counted in ``rejections`` with
 its reason; an update whose result is not finite is skipped (counted), so the state never holds NaN.
@@ -518,7 +521,12 @@ class Msckf:
         return {cid: i for i, cid in enumerate(self._state.camera_ids)}
 
     def _update(self, uses: list[_FeatureUse]) -> NDArray[np.bool_]:
-        """Triangulate, build, gate, stack and apply ONE compressed EKF update; return which of ``uses`` were used."""
+        """Triangulate, gate, build, stack and apply ONE compressed EKF update; return which of ``uses`` were used.
+
+        Gating tests each feature on ALL its observations in the window (dof 2M - 3), also when only some of them
+        (a prune's) give the update's rows: a moving point shows over its whole track, and a gate with more
+        degrees of freedom biases the kept residuals less (``update.gating_mean_shrink``).
+        """
         used = np.zeros(len(uses), dtype=bool)
         if not uses:
             return used
@@ -528,12 +536,14 @@ class Msckf:
         results = triangulate_inverse_depth_batch(
             [(R_C[u.window_idx], p_C[u.window_idx], u.xy) for u in uses], **self._tri_settings
         )
-        groups: dict[int, list[tuple[int, _FeatureUse, NDArray[np.float64]]]] = {}
+        ok: list[tuple[int, _FeatureUse, NDArray[np.float64]]] = []
         for k, (u, res) in enumerate(zip(uses, results)):
             if not res.success:
                 self.rejections[res.reason] += 1
-                continue
-            groups.setdefault(int(np.count_nonzero(u.involved)), []).append((k, u, res.p_FinG))
+            elif np.count_nonzero(u.involved) < 2:  # 2 rows cannot survive the 3-column nullspace projection
+                self.rejections["too_few_observations"] += 1
+            else:
+                ok.append((k, u, res.p_FinG))
         if self.config.observability_constrained:
             cams = state.cameras.values()
             R_null = quat_to_rot(np.array([c.q_GtoC_null for c in cams]))
@@ -541,42 +551,70 @@ class Msckf:
         else:
             R_null = p_null = None
 
+        # gate on whole tracks, grouped by their length M; the projections of fully used tracks (ended tracks)
+        # are the update's rows as they are
+        gating = self.config.chi2_gating
+        by_length: dict[int, list[tuple[int, _FeatureUse, NDArray[np.float64]]]] = {}
+        for item in ok:
+            if gating or item[1].involved.all():
+                by_length.setdefault(item[1].xy.shape[0], []).append(item)
+        passed = dict.fromkeys((k for k, _, _ in ok), True)
+        done: set[int] = set()
         H_parts, r_parts, col_parts = [], [], []
-        for m, items in groups.items():
-            if m < 2:  # 2 rows cannot survive the 3-column nullspace projection
-                self.rejections["too_few_observations"] += len(items)
-                continue
-            keep, H_o, r_o, cols = self._project_group(m, [(u, p) for _, u, p in items], R_C, p_C, R_null, p_null,
-                                                       state.P)
+        for M, items in by_length.items():
+            keep, H_o, r_o, cols = self._project(M, [(np.ones(M, dtype=bool), u, p) for _, u, p in items],
+                                                 R_C, p_C, R_null, p_null)
+            if gating:
+                gamma = self._mahalanobis(H_o, r_o, cols, state.P)
+                good = gamma < chi_square_threshold(2 * M - 3, self.config.chi2_probability)
+                self.rejections["chi2"] += int(np.count_nonzero(keep & ~good))
+                keep &= good
+            ks = np.array([k for k, _, _ in items])
+            passed.update(zip(ks.tolist(), keep.tolist()))
+            whole = np.array([u.involved.all() for _, u, _ in items])
+            done.update(ks[whole].tolist())
+            take = keep & whole
+            if np.any(take):
+                used[ks[take]] = True
+                H_parts.append(H_o[take])
+                r_parts.append(r_o[take])
+                col_parts.append(cols[take])
+        groups: dict[int, list[tuple[int, _FeatureUse, NDArray[np.float64]]]] = {}
+        for k, u, p in ok:
+            if passed[k] and k not in done:
+                groups.setdefault(int(np.count_nonzero(u.involved)), []).append((k, u, p))
+        for m, items in groups.items():  # pruned tracks: rows from the observations at the removed states only
+            keep, H_o, r_o, cols = self._project(m, [(u.involved, u, p) for _, u, p in items], R_C, p_C, R_null,
+                                                 p_null)
             used[np.array([k for k, _, _ in items])[keep]] = True
-            H_parts.append(H_o)
-            r_parts.append(r_o)
-            col_parts.append(cols)
+            H_parts.append(H_o[keep])
+            r_parts.append(r_o[keep])
+            col_parts.append(cols[keep])
         if not np.any(used) or not self._apply_update(H_parts, r_parts, col_parts):
             used[:] = False
         return used
 
-    def _project_group(
+    def _project(
         self,
         m: int,
-        items: list[tuple[_FeatureUse, NDArray[np.float64]]],
+        items: list[tuple[NDArray[np.bool_], _FeatureUse, NDArray[np.float64]]],
         R_C: NDArray[np.float64],
         p_C: NDArray[np.float64],
         R_null: NDArray[np.float64] | None,
         p_null: NDArray[np.float64] | None,
-        P: NDArray[np.float64],
     ) -> tuple[NDArray[np.bool_], NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
-        """Return (keep (F,), H_o, r_o, cols) for F features with m observations used: the gated ones' projected
-        Jacobians H_o (F', 2m-3, 6m) and residuals r_o (F', 2m-3), and their camera columns cols (F', 6m).
+        """Return (keep (F,), H_o, r_o, cols) for F features with m observations selected by each item's mask:
+        the projected Jacobians H_o (F, 2m-3, 6m), residuals r_o (F, 2m-3) and camera columns cols (F, 6m);
+        keep is False where a depth or a value is not usable.
 
         Vectorised over the F features: residuals and Jacobians (Eqs. 41-48), OC modification (Eqs. 85-86),
-        nullspace projection (Eq. 50) and chi-square test. H_o holds only the observing cameras' columns ``cols``.
+        whitening and nullspace projection (Eq. 50). H_o holds only the observing cameras' columns ``cols``.
         """
-        widx = np.array([u.window_idx[u.involved] for u, _ in items])  # (F, m)
-        z = np.array([u.xy[u.involved] for u, _ in items])  # (F, m, 2)
-        W = np.array([np.broadcast_to(self._iso_whiten, (m, 2, 2)) if u.whiten is None else u.whiten[u.involved]
-                      for u, _ in items])  # (F, m, 2, 2) W_i = L_i^-1, Σ_i = L_i L_i^T
-        p_F = np.array([p for _, p in items])  # (F, 3)
+        widx = np.array([u.window_idx[sel] for sel, u, _ in items])  # (F, m)
+        z = np.array([u.xy[sel] for sel, u, _ in items])  # (F, m, 2)
+        W = np.array([np.broadcast_to(self._iso_whiten, (m, 2, 2)) if u.whiten is None else u.whiten[sel]
+                      for sel, u, _ in items])  # (F, m, 2, 2) W_i = L_i^-1, Σ_i = L_i L_i^T
+        p_F = np.array([p for _, _, p in items])  # (F, 3)
         F = widx.shape[0]
         R = R_C[widx]  # (F, m, 3, 3)
         p_FinC = np.einsum("fmij,fmj->fmi", R, p_F[:, None, :] - p_C[widx])  # R_GtoC (p_F - p_C)       (Eq. 42)
@@ -618,19 +656,22 @@ class Msckf:
             N_C = camera_nullspace(R_null[widx], p_null[widx], self._gravity)  # (F, 6m, 4) first estimates
             H_o = constrain_projected_jacobian(H_o, N_C)  # H_o* = H_o (I - N (N^T N)^-1 N^T): H_o* N_C = 0
         keep = front & np.all(np.isfinite(H_o), axis=(1, 2)) & np.all(np.isfinite(r_o), axis=1)
-        if self.config.chi2_gating:
-            # γ = r_o^T (H_o P H_o^T + I)^-1 r_o < χ²_0.95(2m - 3) (whitened: unit noise); H_o only touches ``cols``
-            P_sub = P[cols[:, :, None], cols[:, None, :]]
-            S = H_o @ P_sub @ np.swapaxes(H_o, 1, 2)
-            S[:, np.arange(2 * m - 3), np.arange(2 * m - 3)] += 1.0
-            try:
-                gamma = np.einsum("fk,fk->f", r_o, np.linalg.solve(S, r_o[:, :, None])[..., 0])
-            except np.linalg.LinAlgError:
-                gamma = np.full(F, np.inf)
-            passed = gamma < chi_square_threshold(2 * m - 3, self.config.chi2_probability)
-            self.rejections["chi2"] += int(np.count_nonzero(keep & ~passed))
-            keep &= passed
-        return keep, H_o[keep], r_o[keep], cols[keep]
+        return keep, H_o, r_o, cols
+
+    @staticmethod
+    def _mahalanobis(H_o: NDArray[np.float64], r_o: NDArray[np.float64], cols: NDArray[np.int64],
+                     P: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Return γ_f = r_o^T (H_o P H_o^T + I)^-1 r_o for each feature (whitened rows: unit noise; inf if singular).
+
+        H_o only touches the columns ``cols``, so only that block of P is read."""
+        k = H_o.shape[1]
+        P_sub = P[cols[:, :, None], cols[:, None, :]]
+        S = H_o @ P_sub @ np.swapaxes(H_o, 1, 2)
+        S[:, np.arange(k), np.arange(k)] += 1.0
+        try:
+            return np.einsum("fk,fk->f", r_o, np.linalg.solve(S, r_o[:, :, None])[..., 0])
+        except np.linalg.LinAlgError:
+            return np.full(H_o.shape[0], np.inf)
 
     def _apply_update(
         self, H_parts: list[NDArray[np.float64]], r_parts: list[NDArray[np.float64]],

@@ -35,20 +35,22 @@ def boxes_5s(tmp_path_factory):
 
 
 def test_short_boxes_run_beats_imu_only_by_a_large_factor(boxes_5s):
-    """5 s boxes_like, 60 tracks, 1 px noise, unknown biases. Measured (seed 1): MSCKF RMSE 0.145 m (3.6 % of 3.84 m); IMU-only
-    without bias correction 2.99 m, with bias correction 0.84 m."""
+    """5 s boxes_like, 60 tracks, 1 px noise, unknown biases. Rows: the MSCKF, IMU-only without and with bias
+    correction (the true initial biases), and the MSCKF started from those same biases (like for like)."""
     r, _ = boxes_5s
-    msckf, no_bias, with_bias = r.rows
+    msckf, no_bias, with_bias, msckf_bias = r.rows
     assert msckf["name"].startswith("MSCKF, OC on") and "no bias" in no_bias["name"] and "bias correction" in \
-        with_bias["name"]
+        with_bias["name"] and msckf_bias["name"] == "MSCKF, OC on (bias correction)"
     assert msckf["rmse_m"] < 0.15 and msckf["final_error_m"] < 0.25
     assert no_bias["rmse_m"] > 10 * msckf["rmse_m"] and no_bias["final_error_m"] > 20 * msckf["final_error_m"]
     assert with_bias["rmse_m"] > 2 * msckf["rmse_m"]
+    assert with_bias["rmse_m"] > 2 * msckf_bias["rmse_m"]
     assert msckf["percent_of_distance"] < 5.0 and msckf["distance_m"] > 1.0
-    for series in (r.nees_pose, r.nees_position, r.nees_attitude, r.nees_yaw, r.sigma):
+    for series in (r.nees_pose, r.nees_position, r.nees_attitude, r.nees_yaw, r.sigma, r.sigma_yaw):
         assert np.all(np.isfinite(series)) and np.all(series >= 0)
     assert np.mean(r.nees_pose) < 5 * 6  # not wildly overconfident
-    assert r.features_used.sum() > 500 and r.cpu_s > 0 and r.realtime_factor > 0
+    assert r.features_used.sum() > 200 and r.cpu_s > 0 and r.realtime_factor > 0
+    assert r.msckf_config.chi2_probability == 0.99  # the experiment's gate (exact tracks, no outliers)
     # the gyro bias is learnt from zero: its error is well below the prior spread (0.03 rad/s)
     assert np.linalg.norm(r.b_g_est[-1] - r.b_g_gt[-1]) < 0.01
     text = r.report()

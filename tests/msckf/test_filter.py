@@ -153,7 +153,7 @@ def test_boxes_run_is_far_more_accurate_than_imu_only_dead_reckoning(boxes_run):
     # biases are learnt: the gyro bias error shrinks well below its prior (0.03 rad/s per axis)
     imu = boxes_run["imu"]
     assert np.linalg.norm(out[-1].b_g - imu.bias_gyro[-1]) < 0.01
-    assert sum(o.n_features_used for o in out) > 2000
+    assert sum(o.n_features_used for o in out) > 600  # each feature enters once: when lost or pruned
 
 
 def test_window_never_exceeds_n_max_and_keeps_the_newest_state(boxes_run):
@@ -230,10 +230,11 @@ def test_one_update_equals_the_reference_pipeline_of_the_update_module(rng, oc, 
     tri = triangulate_inverse_depth_batch([(R_C[u.window_idx], p_C[u.window_idx], u.xy) for u in uses],
                                           max_rms_residual=cfg.triangulation_max_reprojection_px / cfg.focal_length_px)
     H_rows, r_rows, ref_used = [], [], []
-    for u, res in zip(uses, tri):
-        idx = u.window_idx[u.involved]
+
+    def projected(u, res, mask):
+        idx = u.window_idx[mask]
         cols = 15 + 6 * idx
-        r, H_x, H_f = feature_jacobians(q_C[idx], p_C[idx], cols, res.p_FinG, u.xy[u.involved], s.dim)
+        r, H_x, H_f = feature_jacobians(q_C[idx], p_C[idx], cols, res.p_FinG, u.xy[mask], s.dim)
         if oc and oc_update == "eq86":
             cams = list(s.cameras.values())
             H_x, H_f = constrain_feature_jacobians(
@@ -245,9 +246,14 @@ def test_one_update_equals_the_reference_pipeline_of_the_update_module(rng, oc, 
             N = N_ref[cc]
             H_o[:, cc] = H_o[:, cc] @ (np.eye(len(cc)) - N @ np.linalg.solve(N.T @ N, N.T))
             assert np.abs(H_o @ N_ref).max() < 1e-9 * np.abs(H_o).max()
-        ok, _ = chi_square_gate(H_o, r_o, s.P, cfg.feature_noise_sigma**2)
+        return H_o, r_o
+
+    for u, res in zip(uses, tri):
+        # the gate sees every observation of the track; the update's rows come from the involved ones
+        ok, _ = chi_square_gate(*projected(u, res, np.ones(len(u.xy), dtype=bool)), s.P, cfg.feature_noise_sigma**2)
         ref_used.append(bool(res.success and ok))
         if ref_used[-1]:
+            H_o, r_o = projected(u, res, u.involved)
             H_rows.append(H_o)
             r_rows.append(r_o)
     np.testing.assert_array_equal(used, ref_used)
@@ -423,17 +429,21 @@ def test_degenerate_input_never_gives_nan(rng):
     np.testing.assert_allclose(out[-1].P_imu, reference[-1].P_imu, rtol=1e-12)
     np.testing.assert_allclose(out[-1].p_IinG, reference[-1].p_IinG, atol=1e-12)
     # a static camera (no baseline): tracks stay at their pixels. Finite and bounded by default; features whose
-    # baseline is only the drift of the estimate pass the default 0.002 baseline ratio and bias the gyro estimate
-    # (~0.7 m drift in 3 s here), which a stricter ratio (0.02) prevents: the rig then stays put.
+    # baseline is only the drift of the estimate pass the default 0.002 baseline ratio and bias the estimate
+    # (measured: 0.7 m drift in 3 s with S-MSCKF's two-way pruning, 2.1 m with the default third), which a
+    # stricter ratio (0.02) mostly prevents: two-way pruning then uses no feature and the rig stays put (2 cm,
+    # the IMU's own drift); the third lets a feature through now and then (0.17-0.4 m). A zero-velocity update
+    # is the real cure.
     static_frames = [(tt, ids, xy_fixed + rng.normal(scale=SIGMA, size=(60, 2))) for tt in times]
-    for ratio, bound in ((cfg.triangulation_min_baseline_ratio, 2.0), (0.02, 0.05)):
-        f = Msckf(dataclasses.replace(cfg, triangulation_min_baseline_ratio=ratio), state)
+    for third, ratio, bound in ((False, cfg.triangulation_min_baseline_ratio, 2.0), (False, 0.02, 0.05),
+                                (True, cfg.triangulation_min_baseline_ratio, 3.0), (True, 0.02, 1.0)):
+        f = Msckf(dataclasses.replace(cfg, triangulation_min_baseline_ratio=ratio, marginalize_third=third), state)
         out = f.run(t, gyro, accel, static_frames)
         assert_finite(out)
         assert np.linalg.norm(out[-1].p_IinG) < bound and np.all(np.linalg.eigvalsh(out[-1].P_imu) > 0)
         assert max(o.counters["window"] for o in out) <= cfg.max_camera_states
     # every feature at one pixel while the rig moves and turns: nothing consistent, nothing breaks
-    traj, imu, frames, cfg2, state2 = simulation(seed=5, duration=2.0)
+    traj, imu, frames, cfg2, state2 = simulation(seed=5, duration=3.0)  # > N_max frames: the window prunes
     f = Msckf(cfg2, state2)
     out = f.run(imu.t, imu.gyro, imu.accel, [(tt, ids, np.zeros((60, 2))) for tt, _, _ in frames])
     assert_finite(out)
@@ -447,6 +457,7 @@ def test_keyframe_selection_keeps_the_oldest_state_when_the_camera_does_not_move
     ids = np.arange(30)
     xy = rng.uniform(-0.5, 0.5, (30, 2))
     frames = [(tt, ids, xy + rng.normal(scale=SIGMA, size=(30, 2))) for tt in times]
+    cfg = dataclasses.replace(cfg, marginalize_third=False)  # S-MSCKF's two-way rule
     f = Msckf(cfg, state)
     f.feed_imu(t, gyro, accel)
     for frame in frames:
@@ -465,7 +476,7 @@ def test_keyframe_selection_keeps_the_oldest_state_when_the_camera_does_not_move
 
 
 def test_keyframe_selection_removes_the_oldest_states_when_the_camera_moves_fast(rng):
-    cfg = MsckfConfig(max_camera_states=6)
+    cfg = MsckfConfig(max_camera_states=6, marginalize_third=False)  # S-MSCKF two-way rule
     state = initial_state_from_truth(0.0, np.eye(3), np.zeros(3), [20.0, 0.0, 0.0], EXT.R_CtoI, EXT.p_CinI, cfg)
     t = np.arange(0.0, 1.5, 0.001)
     gyro, accel = np.zeros((len(t), 3)), np.tile([0.0, 0.0, 9.81], (len(t), 1))

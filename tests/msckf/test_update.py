@@ -12,6 +12,7 @@ from evio_lib.msckf.update import (
     chi_square_gate,
     chi_square_threshold,
     feature_jacobians,
+    gating_mean_shrink,
     kalman_update,
     measurement_compress,
     nullspace_project,
@@ -196,6 +197,32 @@ def test_chi_square_gate_passes_95_percent_of_correct_features_and_rejects_outli
 
 def test_chi_square_gate_with_no_rows():
     assert chi_square_gate(np.zeros((0, 3)), np.zeros(0), np.eye(3), 1.0) == (False, 0.0)
+
+
+@pytest.mark.parametrize("dof, probability", [(1, 0.95), (1, 0.999), (3, 0.95), (10, 0.99)])
+def test_gating_mean_shrink_matches_monte_carlo(dof, probability):
+    """Residuals N(mu, I) kept by the gate have mean s mu (first order in mu); sampled with a fixed seed."""
+    gen = np.random.default_rng(7)
+    mu = np.zeros(dof)
+    mu[0] = 0.05
+    n = 1_000_000
+    r = gen.standard_normal((n, dof)) + mu
+    keep = np.einsum("ij,ij->i", r, r) < chi2.ppf(probability, dof)
+    # mean of the kept first component over mu, against the closed form; the antithetic copy -r cancels the
+    # O(1) sampling noise of the mean (E[n 1{.}] = 0 by symmetry)
+    m_plus = r[keep, 0].sum() / n
+    r2 = -(r - mu) + mu  # the mirrored noise, same mu
+    keep2 = np.einsum("ij,ij->i", r2, r2) < chi2.ppf(probability, dof)
+    m_minus = r2[keep2, 0].sum() / n
+    estimate = 0.5 * (m_plus + m_minus) / mu[0] / probability
+    assert estimate == pytest.approx(gating_mean_shrink(dof, probability), abs=0.02)
+
+
+def test_gating_mean_shrink_values():
+    assert gating_mean_shrink(1, 0.95) == pytest.approx(chi2.cdf(chi2.ppf(0.95, 1), 3) / 0.95)
+    assert gating_mean_shrink(1, 0.95) < 0.77 < 0.98 < gating_mean_shrink(1, 0.999) < 1.0
+    with pytest.raises(ValueError, match="dof"):
+        gating_mean_shrink(0)
 
 
 # ---------------------------------------------------------------- QR compression
