@@ -54,6 +54,7 @@ from evio_lib.msckf.update import (
     chi_square_gate,
     chi_square_threshold,
     feature_jacobians,
+    gating_mean_shrink,
     kalman_update,
     measurement_compress,
     nullspace_project,
@@ -320,6 +321,28 @@ assert abs(rate - 0.95) < (0.035 if FAST else 0.012)
 outlier = r_o + 20 * SIGMA * np.r_[1.0, -1.0, np.zeros(dof - 2)]  # one observation off by ~20 px
 print("a 20-pixel outlier passes?", chi_square_gate(H_o, outlier, P, SIGMA**2)[0])
 assert not chi_square_gate(H_o, outlier, P, SIGMA**2)[0]
+
+# %% [markdown]
+# **The price of a gate.** A gate also drops 5 % of the *correct* features, and not at random: the ones with the
+# largest residuals. When the state is off by $\delta x$, a correct residual is $r = \mu + n$ with $\mu = H\delta x$, and
+# the residuals that survive the gate point less far along $\mu$ than the whole population does: to first order
+# their mean is $s\,\mu$ with $s = F_{k+2}(c)/F_k(c)$ ($F_k$ the $\chi^2_k$ CDF, $c$ the threshold;
+# `gating_mean_shrink`). Each update then corrects only a fraction $s$ of the error it sees while $P$ shrinks as if
+# it had corrected all of it: the filter becomes overconfident. S-MSCKF's two-state prune gives 1-row features
+# ($k = 1$), where $s = 0.76$ at 95 %. The library therefore gates every feature on its whole track (larger $k$,
+# $s \approx 0.97$ for 20 observations) and the perfect-data-association experiment, which has no outliers, uses 0.99.
+
+# %%
+k_rows, mu = 1, 0.1  # one whitened residual row shifted by 0.1 sigma
+n_mc = 200_000 if FAST else 2_000_000
+r_mc = mu + rng.standard_normal((n_mc, k_rows))
+for prob in (0.95, 0.99, 0.999):
+    kept = np.einsum("ij,ij->i", r_mc, r_mc) < chi_square_threshold(k_rows, prob)
+    print(f"gate {prob}: mean of kept residuals / mu = {r_mc[kept, 0].mean() / mu:.3f}  "
+          f"(closed form {gating_mean_shrink(k_rows, prob):.3f})")
+kept = np.einsum("ij,ij->i", r_mc, r_mc) < chi_square_threshold(k_rows, 0.95)
+assert abs(r_mc[kept, 0].mean() / mu - gating_mean_shrink(k_rows, 0.95)) < (0.05 if FAST else 0.02)
+assert gating_mean_shrink(1, 0.95) < 0.8 < 0.98 < gating_mean_shrink(37, 0.99)
 
 # %% [markdown]
 # ## 8. The Kalman update in Joseph form (Eqs. 56-58)
