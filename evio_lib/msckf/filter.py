@@ -646,10 +646,9 @@ class Msckf:
         # left nullspace of H_f (2m, 3): the last 2m - 3 columns of its complete QR                       (Eq. 50)
         Q = np.linalg.qr(H_f.reshape(F, 2 * m, 3), mode="complete")[0]
         A_T = np.swapaxes(Q[:, :, 3:], 1, 2)  # (F, 2m - 3, 2m)
-        H_cam = np.zeros((F, m, 2, m, CAMERA_DIM))  # block diagonal: camera j's rows use camera j's columns
-        ar = np.arange(m)
-        H_cam[:, ar, :, ar, :] = np.moveaxis(blocks, 1, 0)
-        H_o = A_T @ H_cam.reshape(F, 2 * m, m * CAMERA_DIM)
+        # H_o = A^T blockdiag(H_C1 .. H_Cm): camera j's 6 columns get A^T's two columns 2j, 2j+1 times H_Cj
+        A_cam = np.swapaxes(A_T.reshape(F, 2 * m - 3, m, 2), 1, 2)  # (F, m, 2m - 3, 2)
+        H_o = np.swapaxes(A_cam @ blocks, 1, 2).reshape(F, 2 * m - 3, m * CAMERA_DIM)
         r_o = np.einsum("fkr,fr->fk", A_T, r)
         cols = ((IMU_DIM + CAMERA_DIM * widx)[:, :, None] + np.arange(CAMERA_DIM)).reshape(F, m * CAMERA_DIM)
         if R_null is not None and self.oc_update != "eq86":
