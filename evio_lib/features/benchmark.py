@@ -766,6 +766,9 @@ def add_benchmark_arguments(parser: argparse.ArgumentParser) -> argparse.Argumen
     parser.add_argument("--speed-frames", type=int, default=20, help="timed frames per resolution (default 20)")
     parser.add_argument("--out", type=Path, help="folder to write results.json and tables.md into")
     parser.add_argument("--fast", action="store_true", help="tiny run: 2 images, 1 pair each, 5 timed frames")
+    parser.add_argument("--weights", default=None,
+                        help="weights of the 'superpoint' detector: a shipped name (evio_lib/weights/NAME.pt) or a .pt "
+                             "path (default: the shipped default weights); the row is named after them")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
     return parser
 
@@ -869,15 +872,20 @@ def main_benchmark(args: argparse.Namespace | Sequence[str] | None = None) -> in
     print(f"{args.dataset} benchmark: {sum(counts.values())} pairs {counts}, settings {args.settings}, "
           f"detectors {names}")
     rows = []
+    weights = getattr(args, "weights", None)
     for detector_name in names:
+        options = {"weights": weights} if weights is not None and detector_name == "superpoint" else {}
+        row_name = Path(str(weights)).stem if options else None
         try:
-            row = run_benchmark(detector_name, pairs, settings, progress=not args.quiet)
+            row = run_benchmark(detector_name, pairs, settings, name=row_name, detector_options=options or None,
+                                progress=not args.quiet)
             for shape in shapes:
                 key = f"{shape[0]}x{shape[1]}"
                 row["speed"][key] = measure_speed(detector_name, timing_images, shape,
                                                   n_frames=5 if args.fast else args.speed_frames,
                                                   max_keypoints=settings.repeatability_keypoints,
-                                                  nms_radius=settings.repeatability_nms)
+                                                  nms_radius=settings.repeatability_nms,
+                                                  detector_options=options or None)
         except (ValueError, ImportError, FileNotFoundError, RuntimeError) as error:
             print(f"skipping {detector_name}: {error}", file=sys.stderr)
             continue

@@ -256,6 +256,21 @@ def test_main_benchmark_on_event_frames(tmp_path, camera, capsys):
     assert (out / "tables.md").read_text().count("| FAST |") == 5
 
 
+def test_main_benchmark_passes_weights_to_the_superpoint_detector(tmp_path, camera, capsys):
+    sp = pytest.importorskip("evio_lib.features.superpoint")
+    weights = sp.save_checkpoint(sp.build_model("narrow", seed=3), tmp_path / "tiny_net.pt")
+    frames = np.stack([camera[:120, :160], camera[120:, 160:]])
+    np.save(tmp_path / "frames.npy", frames)
+    out = tmp_path / "out"
+    code = main_benchmark(["--dataset", "events", "--event-frames", str(tmp_path / "frames.npy"), "--detectors",
+                           "superpoint", "--weights", str(weights), "--fast", "--quiet", "--speed-shapes", "64x80",
+                           "--out", str(out)])
+    assert code == 0
+    summary = json.loads((out / "results.json").read_text())
+    assert summary[0]["detector"] == "tiny_net" and "64x80" in summary[0]["speed"]
+    assert "| tiny_net |" in capsys.readouterr().out
+
+
 def test_main_benchmark_reports_bad_arguments(capsys):
     assert main_benchmark(["--dataset", "hpatches", "--quiet"]) == 2
     assert "--hpatches-root" in capsys.readouterr().err
