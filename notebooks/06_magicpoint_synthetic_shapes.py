@@ -306,9 +306,10 @@ plt.show()
 available = shipped_weights()
 print("shipped weights:", available or "none yet (train them with the chain of lesson 07)")
 if available:
-    shipped = SuperPointDetector(inference="fused", border=2)  # default shipped weights
+    name = "superpoint" if "superpoint" in available else available[0]  # the default model, else another one
+    shipped = SuperPointDetector(weights=name, inference="fused", border=2)
     exact, within, detections = evaluate(shipped, test_shapes)
-    print(f"shipped: precision {exact[0]:.3f} recall {exact[1]:.3f} | within 1 px {within[0]:.3f} / {within[1]:.3f}")
+    print(f"shipped ({name}): precision {exact[0]:.3f} recall {exact[1]:.3f} | within 1 px {within[0]:.3f} / {within[1]:.3f}")
     fig, axes = plt.subplots(1, 4, figsize=(16, 3.3))
     for col, ax in enumerate(axes):
         image, keypoint_map, _ = test_shapes[col]
