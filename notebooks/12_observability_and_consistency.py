@@ -241,8 +241,8 @@ plt.show()
 # means it is pessimistic.
 #
 # **What it took to reach the band** (`bench/msckf_monte_carlo.py`, 20 runs of 20 s, measured): the OC fix alone
-# was not it. With S-MSCKF's settings (window 20, two states pruned at a time, a 95 % gate on the rows used) the
-# average pose NEES was 177, and 37 even on a typical seed. Three things mattered, each measured on its own:
+# was not it. With S-MSCKF's settings (window 20, two states pruned at a time, a 95 % gate on the rows used) and a
+# 0.1 m/s initial velocity std the average pose NEES was 177, and 37 even on a typical seed. Three things mattered, each measured on its own:
 #
 # * **The gate's bias** (notebook 11, section 7): 1-row residuals gated at 95 % under-correct by 24 %. Gating
 #   each feature on its whole track and, for these outlier-free tracks, at 0.99: NEES 10.0 -> 7.35.
