@@ -196,7 +196,7 @@ class VioSimResult:
         b_g_est, b_a_est, b_g_gt, b_a_gt: (K, 3) bias estimates and true biases.
         sigma: (K, 15) standard deviations of the IMU error state.
         sigma_yaw: (K,) standard deviation of the IMU's heading (rotation about gravity), rad: sqrt(u^T P_θθ u)
-            with u = R_GtoI e_z (:func:`yaw_sigma`).
+            with u = R_GtoI e_z (from :func:`pose_nees`).
         nees_pose (6 DoF), nees_position (3), nees_attitude (3), nees_yaw (1): (K,) NEES series.
         rows: metric rows (trajectory_metrics.summarize, plus ate) of the filter and, with baselines, the IMU-only
             rows (no bias correction; bias correction = the true initial biases) and "MSCKF (bias correction)",
@@ -421,21 +421,10 @@ def initial_state(data: SimulatedData, msckf_config: MsckfConfig, rng: np.random
 KNOWN_BIAS_SIGMA = (0.002, 0.01)  # rad/s, m/s^2: prior std of "known" initial biases (a few % of the unknown ones)
 
 
-def yaw_sigma(q_est: NDArray[np.float64], P_imu: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Return (K,) std of the heading error δθ_G,z = u . δθ_I, u = R_GtoI e_z (see :func:`pose_nees`), rad.
-
-    >>> P = np.eye(15)[None] * 1e-4
-    >>> round(float(yaw_sigma(np.array([[0.0, 0.0, 0.0, 1.0]]), P)[0]), 6)
-    0.01
-    """
-    u = quat_to_rot(np.asarray(q_est, dtype=np.float64))[:, :, 2]
-    P = np.asarray(P_imu, dtype=np.float64)
-    return np.sqrt(np.einsum("ki,kij,kj->k", u, P[:, THETA, THETA], u))
-
-
 def pose_nees(q_est: NDArray[np.float64], p_est: NDArray[np.float64], q_gt: NDArray[np.float64],
               p_gt: NDArray[np.float64], P_imu: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
-    """Return NEES series (K,) of the IMU pose: 'pose' (6 DoF), 'position', 'attitude' (3) and 'yaw' (1).
+    """Return NEES series (K,) of the IMU pose: 'pose' (6 DoF), 'position', 'attitude' (3) and 'yaw' (1), and
+    'yaw_sigma' (K,), the std of the heading error δθ_G,z, rad.
 
     Args:
         q_est, q_gt: (K, 4) JPL q_GtoI estimate and truth; p_est, p_gt: (K, 3) positions in G, m.
@@ -468,7 +457,8 @@ def pose_nees(q_est: NDArray[np.float64], p_est: NDArray[np.float64], q_gt: NDAr
     u = R_GtoI[:, :, 2]  # δθ_G,z = e_z^T R_ItoG δθ_I = (R_ItoG^T e_z) . δθ_I
     yaw_err = np.einsum("ki,ki->k", u, dtheta)
     yaw_var = np.einsum("ki,kij,kj->k", u, P[:, THETA, THETA], u)
-    return {"pose": nees_pose, "position": nees_pos, "attitude": nees_att, "yaw": yaw_err**2 / yaw_var}
+    return {"pose": nees_pose, "position": nees_pos, "attitude": nees_att, "yaw": yaw_err**2 / yaw_var,
+            "yaw_sigma": np.sqrt(yaw_var)}
 
 
 def _run_filter(msckf_config: MsckfConfig, state: FilterState, data: SimulatedData, per_observation: bool = False
@@ -549,7 +539,7 @@ def run_vio_sim_config(config: VioSimConfig, baselines: bool = True, out_dir: st
         rows=rows, rejections=dict(f.rejections), features_used=np.array([o.n_features_used for o in outputs]),
         track_lengths=track_lengths(data.frames), cpu_s=cpu_s, wall_s=wall_s,
         realtime_factor=duration / cpu_s if cpu_s > 0 else float("inf"), yaw_error=yaw_err,
-        sigma_yaw=yaw_sigma(q_est, P_imu),
+        sigma_yaw=nees["yaw_sigma"],
     )
     if out_dir is not None:
         result.write_tum(out_dir)

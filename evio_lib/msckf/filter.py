@@ -559,7 +559,6 @@ class Msckf:
             if gating or item[1].involved.all():
                 by_length.setdefault(item[1].xy.shape[0], []).append(item)
         passed = dict.fromkeys((k for k, _, _ in ok), True)
-        done: set[int] = set()
         H_parts, r_parts, col_parts = [], [], []
         for M, items in by_length.items():
             keep, H_o, r_o, cols = self._project(M, [(np.ones(M, dtype=bool), u, p) for _, u, p in items],
@@ -571,9 +570,7 @@ class Msckf:
                 keep &= good
             ks = np.array([k for k, _, _ in items])
             passed.update(zip(ks.tolist(), keep.tolist()))
-            whole = np.array([u.involved.all() for _, u, _ in items])
-            done.update(ks[whole].tolist())
-            take = keep & whole
+            take = keep & np.array([u.involved.all() for _, u, _ in items])
             if np.any(take):
                 used[ks[take]] = True
                 H_parts.append(H_o[take])
@@ -581,7 +578,7 @@ class Msckf:
                 col_parts.append(cols[take])
         groups: dict[int, list[tuple[int, _FeatureUse, NDArray[np.float64]]]] = {}
         for k, u, p in ok:
-            if passed[k] and k not in done:
+            if passed[k] and not u.involved.all():  # whole tracks were used (or dropped) above
                 groups.setdefault(int(np.count_nonzero(u.involved)), []).append((k, u, p))
         for m, items in groups.items():  # pruned tracks: rows from the observations at the removed states only
             keep, H_o, r_o, cols = self._project(m, [(u.involved, u, p) for _, u, p in items], R_C, p_C, R_null,
