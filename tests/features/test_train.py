@@ -243,3 +243,18 @@ def test_cli_runs_a_variant_and_logs_the_command(tmp_path, capsys):
     assert "neither a config file" in capsys.readouterr().err
     with pytest.raises(ValueError, match="names must be a non-empty list"):
         tr.run_chain([])
+
+
+def test_sparse_labels_warn_and_dense_labels_do_not(capsys):
+    config = tr.load_config({"name": "d", "stage": "detector", "labels_from": "mp", **SMALL})  # 32 x 48 images
+    pixels = config.image_size[0] * config.image_size[1]
+    few = [np.zeros((0, 2)), np.zeros((1, 2)), np.zeros((1, 2))]  # median 1 point: 0.65 per 1000 px
+    with pytest.warns(RuntimeWarning, match=r"sparse: median 1 points per 32x48 image .* lower label_threshold"):
+        tr._check_label_density(few, config, "train", verbose=True)
+    assert "0.7 points per image (median 1, min 0, max 1)" in capsys.readouterr().err
+    enough = [np.zeros((int(np.ceil(tr.MIN_LABEL_DENSITY * pixels / 1000)), 2))] * 3
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        tr._check_label_density(enough, config, "train", verbose=False)
