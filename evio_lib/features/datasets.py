@@ -477,6 +477,9 @@ def render_view(source: ImageSource, rng: np.random.Generator | int, shape: tupl
     raise ValueError(f"source.kind must be photo, room, aerial, cards, texture or events; got {source.kind!r}")
 
 
+_RENDERED_KINDS = ("room", "aerial", "cards")  # sources drawn by the renderer (their size sets the scale)
+
+
 def random_crop(image: np.ndarray, size: tuple[int, int], rng: np.random.Generator | int,
                 max_upscale: float = _MAX_UPSCALE) -> np.ndarray:
     """Return a random crop of ``image`` rescaled to ``size`` (float32), same aspect ratio as the output.
@@ -526,7 +529,8 @@ def _allocate(total: int, shares: dict[str, float]) -> dict[str, int]:
 
 def image_pool(split: str, seed: int = 0, size: tuple[int, int] = (240, 320), n_images: int | None = None,
                event_frames: EventFrames | Sequence[EventFrames] | None = None, event_fraction: float = 0.2,
-               return_sources: bool = False, progress: bool = False) -> list[np.ndarray] | tuple[list, list[str]]:
+               return_sources: bool = False, progress: bool = False, render_zoom: float = 1.0
+               ) -> list[np.ndarray] | tuple[list, list[str]]:
     """Return the pool of ``split``: a list of float32 (H, W) images in [0, 1] (random crops of the split's sources).
 
     Images are shared among source kinds by :data:`POOL_MIX` (largest remainder) and round-robin among the
@@ -543,6 +547,12 @@ def image_pool(split: str, seed: int = 0, size: tuple[int, int] = (240, 320), n_
         event_fraction: share of event-frame images when ``event_frames`` is given, in [0, 1].
         return_sources: also return the source name of every image.
         progress: show a tqdm progress bar.
+        render_zoom: rendered scenes (room, aerial, cards) are drawn at ``render_zoom`` times the usual render size
+            before the random crop, so that crops show the scene at 1 to ``1.87 render_zoom`` times the pixels per
+            radian of a whole view at ``size`` (log-uniform) instead of 1 to 1.87. Training at 120 x 160 with
+            ``render_zoom=4`` covers the content scale of the benchmark's 480 x 640 test views. Photos, textures and
+            event frames ignore it (photos already span native to 4x downsampled crops; textures keep their pixel
+            scale). 1 (default) leaves the pool exactly as before.
 
     Reference: thesis §3.2.1-3.2.2.
 
@@ -558,6 +568,8 @@ def image_pool(split: str, seed: int = 0, size: tuple[int, int] = (240, 320), n_
         raise ValueError(f"n_images must be a non-negative int; got {n_images!r}")
     if isinstance(event_fraction, bool) or not isinstance(event_fraction, Real) or not 0.0 <= event_fraction <= 1.0:
         raise ValueError(f"event_fraction must be a number in [0, 1]; got {event_fraction!r}")
+    if isinstance(render_zoom, bool) or not isinstance(render_zoom, Real) or not 1.0 <= render_zoom <= 16.0:
+        raise ValueError(f"render_zoom must be a number in [1, 16]; got {render_zoom!r}")
     sources = list_sources(split, event_frames)
     by_kind: dict[str, list[ImageSource]] = {}
     for source in sources:
@@ -575,6 +587,7 @@ def image_pool(split: str, seed: int = 0, size: tuple[int, int] = (240, 320), n_
         offset = int(np.random.default_rng([seed, 5]).integers(len(members)))
         plan += [members[(t + offset) % len(members)] for t in range(count)]
     render_shape = (int(math.ceil(1.25 * height)), int(math.ceil(1.25 * width)))
+    zoomed_shape = (int(math.ceil(1.25 * render_zoom * height)), int(math.ceil(1.25 * render_zoom * width)))
     images: list[np.ndarray | None] = [None] * len(plan)
     order = sorted(range(len(plan)), key=lambda j: plan[j].name)  # one source at a time: scenes built once
     iterator: Any = order
@@ -585,7 +598,8 @@ def image_pool(split: str, seed: int = 0, size: tuple[int, int] = (240, 320), n_
     for j in iterator:  # loop over pool images
         rng = np.random.default_rng([seed, _SPLIT_CODES[split], j])
         for _ in range(8):  # redraw low-contrast crops (black borders of retina/hubble, blank walls)
-            crop = random_crop(render_view(plan[j], rng, render_shape), (height, width), rng)
+            shape = zoomed_shape if plan[j].kind in _RENDERED_KINDS else render_shape
+            crop = random_crop(render_view(plan[j], rng, shape), (height, width), rng)
             if float(crop.std()) >= _MIN_STD:
                 break
         images[j] = crop

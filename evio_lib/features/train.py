@@ -137,6 +137,8 @@ class TrainConfig:
         lambda_loss: weight lambda of the descriptor loss in Eq. 8.
         seed: seed of the initialisation, the data order, the augmentation and the label choice.
         pool_seed: seed of the real-image pool (crops, render poses) and of the label export's homographies.
+        render_zoom: rendered pool scenes are drawn this many times larger before the random crop (``datasets.image_pool``),
+            so training crops also show the content scale of the 480 x 640 benchmark views (1: off).
         n_train_images: training set size (synthetic images, or real pool images).
         n_val_images: validation set size.
         augment: photometric + homographic augmentation of the training images (thesis: on).
@@ -169,6 +171,7 @@ class TrainConfig:
     lambda_loss: float = 1.0
     seed: int = 0
     pool_seed: int = 0
+    render_zoom: float = 1.0
     n_train_images: int = 400
     n_val_images: int = 50
     augment: bool = True
@@ -220,6 +223,7 @@ class TrainConfig:
         _real("lambda_loss", self.lambda_loss, 0.0)
         _int("seed", self.seed, 0)
         _int("pool_seed", self.pool_seed, 0)
+        _real("render_zoom", self.render_zoom, 1.0)
         _int("n_train_images", self.n_train_images, 1)
         _int("n_val_images", self.n_val_images, 1)
         if self.n_train_images < self.batch_size:
@@ -472,11 +476,12 @@ def training_images(config: TrainConfig, split: str, progress: bool = False) -> 
         raise _bad("split", split, "'train' or 'val' (the test split is held out for the benchmark)")
     n = config.n_train_images if split == "train" else config.n_val_images
     events_key = json.dumps(config.event_frames, sort_keys=True)
-    key = (split, config.pool_seed, config.image_size, n, events_key, config.event_fraction)
+    key = (split, config.pool_seed, config.image_size, n, events_key, config.event_fraction, config.render_zoom)
     if key not in _POOL_CACHE:
         events = None if config.event_frames is None else load_event_frames(config.event_frames)
         _POOL_CACHE[key] = image_pool(split, config.pool_seed, config.image_size, n, event_frames=events,
-                                      event_fraction=config.event_fraction, progress=progress)
+                                      event_fraction=config.event_fraction, progress=progress,
+                                      render_zoom=config.render_zoom)
     return _POOL_CACHE[key]
 
 
@@ -769,9 +774,12 @@ def _train(config: TrainConfig, progress: bool, resume: bool) -> TrainResult:
     best_metrics: dict[str, float] | None = None
     if resume and last_path.is_file():
         checkpoint = load_checkpoint(last_path, map_location="cpu")
-        saved = checkpoint["metadata"].get("config", {})
-        changed = sorted(k for k in set(saved) | set(config.to_dict())
-                         if k not in _RESUME_FREE and saved.get(k) != config.to_dict().get(k))
+        # a field added after the checkpoint was written counts as its default value
+        defaults = {f.name: f.default for f in dataclasses.fields(TrainConfig) if f.default is not dataclasses.MISSING}
+        saved = {k: v for k, v in defaults.items() if k not in ("name", "stage")} | checkpoint["metadata"].get("config", {})
+        current = config.to_dict()
+        changed = sorted(k for k in set(saved) | set(current)
+                         if k not in _RESUME_FREE and saved.get(k) != current.get(k))
         if changed:
             raise ValueError(f"cannot resume {last_path}: the config differs in {changed}; only "
                              f"{sorted(_RESUME_FREE)} may change (or train without resume to start over)")

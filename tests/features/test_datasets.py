@@ -11,6 +11,7 @@ import torch
 from torch.utils.data import DataLoader
 
 import evio_lib.sim.scene as scene_module
+import evio_lib.features.datasets as datasets
 from evio_lib.features.augment import PairSample, Sample, keypoints_to_map
 from evio_lib.features.datasets import (
     DEFAULT_POOL_SIZE,
@@ -111,6 +112,31 @@ def test_pool_is_deterministic_and_from_its_split():
     # POOL_MIX["test"] = 0.3 / 0.25 / 0.3 / 0.15 of 10: 3, 2.5, 3, 1.5 -> the tied remainder goes to the first kind
     assert {k: kinds.count(k) for k in set(kinds)} == {"photo": 3, "aerial": 3, "cards": 3, "texture": 1}
     assert np.mean([p.std() > 0.04 for p in pool]) >= 0.9
+
+
+def test_render_zoom_magnifies_rendered_views_only(monkeypatch):
+    size = (48, 64)
+    plain, names = image_pool("test", seed=1, size=size, n_images=10, return_sources=True)
+    zoomed = image_pool("test", seed=1, size=size, n_images=10, render_zoom=4.0)
+    rendered = [n.split(":")[0] in ("aerial", "cards") for n in names]
+    for a, b, r in zip(plain, zoomed, rendered):
+        assert b.shape == size and b.dtype == np.float32
+        assert np.array_equal(a, b) != r  # photos and textures untouched, renders redrawn
+    # renders are drawn at render_zoom x 1.25 x size, the others at 1.25 x size
+    shapes = []
+    original = datasets.render_view
+
+    def spy(source, rng, shape=(300, 400)):
+        shapes.append((source.kind, tuple(shape)))
+        return original(source, rng, shape)
+
+    monkeypatch.setattr(datasets, "render_view", spy)
+    image_pool("test", seed=1, size=size, n_images=10, render_zoom=4.0)
+    assert {s for k, s in shapes if k in ("aerial", "cards")} == {(240, 320)}
+    assert {s for k, s in shapes if k not in ("aerial", "cards")} == {(60, 80)}
+    for bad in (0.5, True, float("nan"), 20):
+        with pytest.raises(ValueError, match=r"render_zoom must be a number in \[1, 16\]"):
+            image_pool("test", n_images=1, render_zoom=bad)
 
 
 def test_pool_arguments_are_checked():

@@ -258,3 +258,15 @@ def test_sparse_labels_warn_and_dense_labels_do_not(capsys):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         tr._check_label_density(enough, config, "train", verbose=False)
+
+
+def test_resume_accepts_a_checkpoint_written_before_a_config_field_existed(tmp_path):
+    config = tiny_magicpoint(tmp_path, max_steps=1, checkpoint_every=1)
+    first = tr.train(config, progress=False)
+    checkpoint = torch.load(first.last_path, map_location="cpu", weights_only=False)
+    del checkpoint["metadata"]["config"]["render_zoom"]  # as written by an older evio_lib
+    torch.save(checkpoint, first.last_path)
+    resumed = tr.train(tiny_magicpoint(tmp_path, max_steps=2), progress=False, resume=True)
+    assert resumed.resumed_from == 1 and resumed.steps == 2
+    with pytest.raises(ValueError, match=r"differs in \['render_zoom'\]"):  # a real change still refuses
+        tr.train(tiny_magicpoint(tmp_path, max_steps=3, render_zoom=2.0), progress=False, resume=True)
