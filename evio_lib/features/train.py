@@ -128,6 +128,7 @@ class TrainConfig:
             images (required for "detector" and "detdesc", unused for "magicpoint").
         n_homographies: homographies per image in the label export (thesis §3.2.5.2: 100).
         label_threshold: keypoint threshold of the exported heatmap (SuperPoint: 0.015).
+        label_max_keypoints: keep only the strongest this many label points per image (None: all above the threshold).
         image_size: (H, W) training image size, multiples of 8 (thesis: 120 x 160 shapes, 240 x 320 real).
         batch_size: images (or pairs) per step.
         epochs: passes over the training set; used when ``max_steps`` is None.
@@ -162,6 +163,7 @@ class TrainConfig:
     labels_from: str | None = None
     n_homographies: int = 100
     label_threshold: float = 0.015
+    label_max_keypoints: int | None = None
     image_size: tuple[int, int] = (120, 160)
     batch_size: int = 8
     epochs: int | None = None
@@ -206,6 +208,7 @@ class TrainConfig:
             raise ValueError(f"labels_from must name the variant that labels the real images for stage {self.stage!r}; got None")
         _int("n_homographies", self.n_homographies, 1)
         _real("label_threshold", self.label_threshold, 0.0, strict=True)
+        _int("label_max_keypoints", self.label_max_keypoints, 1, allow_none=True)
         try:
             size = tuple(int(v) for v in self.image_size)
         except (TypeError, ValueError):
@@ -540,6 +543,8 @@ def export_labels(
             images, heatmaps, name, rng=config.pool_seed, cache_dir=cache_dir, recompute=recompute,
             progress=progress, n_homographies=config.n_homographies, threshold=config.label_threshold,
         )
+        if config.label_max_keypoints is not None:  # labels are strongest first: the same as max_keypoints
+            labels[split] = [k[: config.label_max_keypoints] for k in labels[split]]
         _check_label_density(labels[split], config, split, progress)
     return labels
 

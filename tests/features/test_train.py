@@ -270,3 +270,18 @@ def test_resume_accepts_a_checkpoint_written_before_a_config_field_existed(tmp_p
     assert resumed.resumed_from == 1 and resumed.steps == 2
     with pytest.raises(ValueError, match=r"differs in \['render_zoom'\]"):  # a real change still refuses
         tr.train(tiny_magicpoint(tmp_path, max_steps=3, render_zoom=2.0), progress=False, resume=True)
+
+
+def test_label_max_keypoints_keeps_the_strongest_labels(tmp_path, label_cache, monkeypatch):
+    import evio_lib.features.datasets as datasets
+
+    tr.train(tiny_magicpoint(tmp_path, name="mp", max_steps=1), progress=False)
+    strongest_first = [np.arange(20, dtype=np.float32).reshape(10, 2), np.zeros((3, 2), np.float32)]
+    monkeypatch.setattr(datasets, "adaptation_labels", lambda images, *a, **k: strongest_first[: len(images)])
+    monkeypatch.setattr(tr, "training_images", lambda config, split, progress=False: [None, None])
+    common = {"name": "d", "stage": "detector", "labels_from": "mp", **SMALL, "checkpoint_dir": str(tmp_path)}
+    capped = tr.export_labels(tr.load_config({**common, "label_max_keypoints": 4}), progress=False)
+    assert [len(k) for k in capped["train"]] == [4, 3]
+    assert np.array_equal(capped["train"][0], strongest_first[0][:4])
+    full = tr.export_labels(tr.load_config(common), progress=False)
+    assert [len(k) for k in full["train"]] == [10, 3]
