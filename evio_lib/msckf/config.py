@@ -218,11 +218,9 @@ class MsckfConfig:
         >>> round(MsckfConfig().chi2_threshold(2), 3)   # 95 % quantile, 2 DoF
         5.991
         """
-        if isinstance(dof, bool) or not isinstance(dof, (int, np.integer)) or dof < 1:
-            raise ValueError(f"dof must be an integer >= 1; got {dof!r}")
-        from scipy.stats import chi2
+        from evio_lib.msckf.update import chi_square_threshold  # one quantile function (cached); update imports no config
 
-        return float(chi2.ppf(self.chi2_probability, int(dof)))
+        return chi_square_threshold(dof, self.chi2_probability)
 
     # ------------------------------------------------------------------ conversions
     def with_imu_noise(self, noise: Any, include_bias_sigmas: bool = True) -> "MsckfConfig":
