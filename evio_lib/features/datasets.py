@@ -597,8 +597,8 @@ def image_pool(split: str, seed: int = 0, size: tuple[int, int] = (240, 320), n_
         iterator = tqdm(order, desc=f"image pool ({split})", unit="img")
     for j in iterator:  # loop over pool images
         rng = np.random.default_rng([seed, _SPLIT_CODES[split], j])
+        shape = zoomed_shape if plan[j].kind in _RENDERED_KINDS else render_shape
         for _ in range(8):  # redraw low-contrast crops (black borders of retina/hubble, blank walls)
-            shape = zoomed_shape if plan[j].kind in _RENDERED_KINDS else render_shape
             crop = random_crop(render_view(plan[j], rng, shape), (height, width), rng)
             if float(crop.std()) >= _MIN_STD:
                 break

@@ -781,7 +781,7 @@ def _train(config: TrainConfig, progress: bool, resume: bool) -> TrainResult:
         checkpoint = load_checkpoint(last_path, map_location="cpu")
         # a field added after the checkpoint was written counts as its default value
         defaults = {f.name: f.default for f in dataclasses.fields(TrainConfig) if f.default is not dataclasses.MISSING}
-        saved = {k: v for k, v in defaults.items() if k not in ("name", "stage")} | checkpoint["metadata"].get("config", {})
+        saved = defaults | checkpoint["metadata"].get("config", {})
         current = config.to_dict()
         changed = sorted(k for k in set(saved) | set(current)
                          if k not in _RESUME_FREE and saved.get(k) != current.get(k))

@@ -15,6 +15,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from evio_lib.msckf.update import chi_square_threshold
+
 __all__ = ["MsckfConfig"]
 
 
@@ -218,8 +220,6 @@ class MsckfConfig:
         >>> round(MsckfConfig().chi2_threshold(2), 3)   # 95 % quantile, 2 DoF
         5.991
         """
-        from evio_lib.msckf.update import chi_square_threshold  # one quantile function (cached); update imports no config
-
         return chi_square_threshold(dof, self.chi2_probability)
 
     # ------------------------------------------------------------------ conversions

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -253,8 +254,6 @@ def test_sparse_labels_warn_and_dense_labels_do_not(capsys):
         tr._check_label_density(few, config, "train", verbose=True)
     assert "0.7 points per image (median 1, min 0, max 1)" in capsys.readouterr().err
     enough = [np.zeros((int(np.ceil(tr.MIN_LABEL_DENSITY * pixels / 1000)), 2))] * 3
-    import warnings
-
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         tr._check_label_density(enough, config, "train", verbose=False)
