@@ -43,7 +43,9 @@ from typing import Any, NamedTuple
 import cv2
 import numpy as np
 
-from evio_lib.geometry.homography import sample_homography, valid_mask, warp_image, warp_points
+from evio_lib.geometry.homography import (
+    crop_to_full_homography, sample_homography, valid_mask, warp_image, warp_points,
+)
 
 __all__ = [
     "PHOTOMETRIC_OPS",
@@ -458,6 +460,9 @@ class HomographicConfig:
         perspective, scaling, rotation, translation, n_scales, n_angles, scaling_amplitude,
         perspective_amplitude_x, perspective_amplitude_y, patch_ratio, max_angle, allow_artifacts,
         translation_overflow: passed to :func:`evio_lib.geometry.homography.sample_homography`.
+        fill_view: stretch the central crop onto the whole view (``crop_to_full_homography``), so the random
+            patch fills the warped image, zoomed about ``1 / patch_ratio`` (SuperPoint's convention, and that of the
+            benchmark's viewpoint split); False keeps the patch on the central crop (no zoom, scale 1 +/- amplitude).
         valid_border_margin: the valid mask is eroded by this radius (pixels) so that labels and detections next
             to the warped border (where the image is filled with 0) are ignored.
     """
@@ -475,17 +480,21 @@ class HomographicConfig:
     max_angle: float = 1.57
     allow_artifacts: bool = True
     translation_overflow: float = 0.0
+    fill_view: bool = False
     valid_border_margin: int = 3
 
     def __post_init__(self) -> None:
         margin = self.valid_border_margin
         if isinstance(margin, bool) or not isinstance(margin, Integral) or margin < 0:
             raise ValueError(f"valid_border_margin must be a non-negative int (pixels); got {margin!r}")
+        if not isinstance(self.fill_view, bool):
+            raise ValueError(f"fill_view must be true or false; got {self.fill_view!r}")
 
     def homography_kwargs(self) -> dict[str, Any]:
-        """Return the keyword arguments for ``sample_homography`` (every field but the margin)."""
+        """Return the keyword arguments for ``sample_homography`` (every field but the margin and fill_view)."""
         kwargs = dataclasses.asdict(self)
         kwargs.pop("valid_border_margin")
+        kwargs.pop("fill_view")
         return kwargs
 
     def sample(self, shape: tuple[int, int], rng: np.random.Generator | int) -> np.ndarray:
@@ -498,9 +507,12 @@ class HomographicConfig:
         gen = as_rng(rng)
         kwargs = self.homography_kwargs()
         error: ValueError | None = None
+        shape = tuple(shape)[:2]
+        fill = crop_to_full_homography(shape, self.patch_ratio) if self.fill_view else None
         for _ in range(100):
             try:
-                return sample_homography(tuple(shape)[:2], gen, **kwargs)
+                H = sample_homography(shape, gen, **kwargs)
+                return H if fill is None else (fill @ H) / (fill @ H)[2, 2]
             except ValueError as exc:  # empty translation range (or a bad parameter, raised below)
                 error = exc
         assert error is not None

@@ -52,7 +52,7 @@ from evio_lib.features.hpatches import (
     resize_image,
     resize_pair,
 )
-from evio_lib.geometry.homography import sample_homography, warp_image
+from evio_lib.geometry.homography import crop_to_full_homography, sample_homography, warp_image
 
 __all__ = [
     "BenchmarkSettings",
@@ -248,18 +248,6 @@ def illumination_change(image: np.ndarray, rng: np.random.Generator, strength: f
     return (np.round(np.clip(out, 0.0, 1.0) * 255.0) / 255.0).astype(np.float32)  # 8-bit camera
 
 
-def _crop_to_full(shape: tuple[int, int], patch_ratio: float) -> NDArray[np.float64]:
-    """Return the (3, 3) map A of the central crop (side ``patch_ratio``) of an image onto the whole image.
-
-    The crop spans ``m + r [0, 1]`` times the pixel-centre extent ``(W - 1, H - 1)`` with ``m = (1 - r) / 2``, so
-    ``x' = (x - m (W - 1)) / r`` (and the same for y).
-    """
-    height, width = shape
-    r = float(patch_ratio)
-    m = (1.0 - r) / 2.0
-    return np.array([[1.0 / r, 0.0, -m * (width - 1) / r], [0.0, 1.0 / r, -m * (height - 1) / r], [0.0, 0.0, 1.0]])
-
-
 def _warped_pairs(
     images: list[NDArray[np.float32]], seed: int, pairs_per_image: int, split: str, noise_std: float,
     homography_options: dict[str, Any], prefix: str,
@@ -269,7 +257,7 @@ def _warped_pairs(
     fill = not homography_options.get("allow_artifacts", False)
     pairs = []
     for i, image in enumerate(images):
-        A = _crop_to_full(image.shape, patch_ratio) if fill else np.eye(3)
+        A = crop_to_full_homography(image.shape, patch_ratio) if fill else np.eye(3)
         for k in range(pairs_per_image):
             rng = _pair_rng(seed, split, i, k)
             H = A @ sample_homography(image.shape, rng, **homography_options)  # original -> patch -> whole view

@@ -42,6 +42,8 @@ __all__ = [
     "detector_loss",
     "cell_correspondences",
     "descriptor_loss",
+    "DescriptorStats",
+    "descriptor_cell_stats",
     "LossTerms",
     "superpoint_loss",
 ]
@@ -235,6 +237,43 @@ def cell_correspondences(
     return ((dist < radius) & ahead).float()
 
 
+def _cell_pairs(
+    descriptors: torch.Tensor,
+    descriptors_warped: torch.Tensor,
+    homographies: torch.Tensor | np.ndarray,
+    valid_mask: torch.Tensor | None,
+    valid_mask_warped: torch.Tensor | None,
+    radius: float,
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Return (d^T d', S, pair weight), each (B, N1, N2): cosine of every cell pair, Eq. 10's correspondences and
+    1 where both cells are valid (all ones without masks)."""
+    for name, value in (("descriptors", descriptors), ("descriptors_warped", descriptors_warped)):
+        if not isinstance(value, torch.Tensor) or value.ndim != 4:
+            got = tuple(getattr(value, "shape", ())) or type(value).__name__
+            raise ValueError(f"{name} must be a (B, Dim, Hc, Wc) torch tensor; got {got}")
+    b, dim, hc, wc = descriptors.shape
+    if descriptors_warped.shape[:2] != (b, dim):
+        raise ValueError(
+            f"descriptors_warped must have shape (B, Dim, Hc', Wc') with (B, Dim) = ({b}, {dim}); "
+            f"got {tuple(descriptors_warped.shape)}"
+        )
+    hc2, wc2 = descriptors_warped.shape[2:]
+    h = _as_homographies(homographies, b, descriptors.device)
+    s = cell_correspondences(h, (hc, wc), (hc2, wc2), radius).to(descriptors.dtype)  # (B, N1, N2)
+    d1 = F.normalize(descriptors.flatten(2), p=2, dim=1)  # (B, Dim, N1), unit columns
+    d2 = F.normalize(descriptors_warped.flatten(2), p=2, dim=1)  # (B, Dim, N2)
+    dot = d1.transpose(1, 2) @ d2  # d^T d', (B, N1, N2)
+    pair_weight = torch.ones_like(dot)
+    if valid_mask is not None:
+        cells1 = _mask_cells(valid_mask, (b, hc, wc), "valid_mask").to(device=dot.device, dtype=dot.dtype)
+        pair_weight = pair_weight * cells1.flatten(1)[:, :, None]  # rows: cells of image 1
+    if valid_mask_warped is not None:
+        cells2 = _mask_cells(valid_mask_warped, (b, hc2, wc2), "valid_mask_warped")
+        cells2 = cells2.to(device=dot.device, dtype=dot.dtype)
+        pair_weight = pair_weight * cells2.flatten(1)[:, None, :]  # columns: cells of image 2
+    return dot, s, pair_weight
+
+
 def descriptor_loss(
     descriptors: torch.Tensor,
     descriptors_warped: torch.Tensor,
@@ -267,39 +306,61 @@ def descriptor_loss(
     >>> float(descriptor_loss(d, d.clone(), np.eye(3)))   # positives align (dot 1), negatives dot 0 < m_n
     0.0
     """
-    for name, value in (("descriptors", descriptors), ("descriptors_warped", descriptors_warped)):
-        if not isinstance(value, torch.Tensor) or value.ndim != 4:
-            got = tuple(getattr(value, "shape", ())) or type(value).__name__
-            raise ValueError(f"{name} must be a (B, Dim, Hc, Wc) torch tensor; got {got}")
-    b, dim, hc, wc = descriptors.shape
-    if descriptors_warped.shape[:2] != (b, dim):
-        raise ValueError(
-            f"descriptors_warped must have shape (B, Dim, Hc', Wc') with (B, Dim) = ({b}, {dim}); "
-            f"got {tuple(descriptors_warped.shape)}"
-        )
-    hc2, wc2 = descriptors_warped.shape[2:]
     margins = (("positive_margin", positive_margin), ("negative_margin", negative_margin), ("lambda_d", lambda_d))
     for name, value in margins:
         if isinstance(value, bool) or not isinstance(value, Real) or not math.isfinite(value):
             raise ValueError(f"{name} must be a finite number; got {value!r}")
     if lambda_d < 0:
         raise ValueError(f"lambda_d must be >= 0; got {lambda_d!r}")
-    h = _as_homographies(homographies, b, descriptors.device)
-    s = cell_correspondences(h, (hc, wc), (hc2, wc2), radius).to(descriptors.dtype)  # (B, N1, N2)
-    d1 = F.normalize(descriptors.flatten(2), p=2, dim=1)  # (B, Dim, N1), unit columns
-    d2 = F.normalize(descriptors_warped.flatten(2), p=2, dim=1)  # (B, Dim, N2)
-    dot = d1.transpose(1, 2) @ d2  # d^T d', (B, N1, N2)
+    dot, s, pair_weight = _cell_pairs(descriptors, descriptors_warped, homographies, valid_mask, valid_mask_warped,
+                                      radius)
     positive = lambda_d * s * torch.clamp(positive_margin - dot, min=0.0)  # lambda_d s max(0, m_p - d^T d')
     negative = (1.0 - s) * torch.clamp(dot - negative_margin, min=0.0)  # (1 - s) max(0, d^T d' - m_n)
-    pair_weight = torch.ones_like(dot)
-    if valid_mask is not None:
-        cells1 = _mask_cells(valid_mask, (b, hc, wc), "valid_mask").to(device=dot.device, dtype=dot.dtype)
-        pair_weight = pair_weight * cells1.flatten(1)[:, :, None]  # rows: cells of image 1
-    if valid_mask_warped is not None:
-        cells2 = _mask_cells(valid_mask_warped, (b, hc2, wc2), "valid_mask_warped")
-        cells2 = cells2.to(device=dot.device, dtype=dot.dtype)
-        pair_weight = pair_weight * cells2.flatten(1)[:, None, :]  # columns: cells of image 2
     return ((positive + negative) * pair_weight).sum() / pair_weight.sum().clamp_min(1.0)
+
+
+class DescriptorStats(NamedTuple):
+    """How well cell descriptors of a warped pair match (float scalars; NaN where nothing was counted)."""
+
+    positive_dot: float  #: mean d^T d' over corresponding valid cell pairs (s = 1); 1 is perfect
+    negative_dot: float  #: mean d^T d' over the other valid pairs (s = 0); the hinge wants it below m_n
+    nn_accuracy: float  #: fraction of image-1 cells with a valid correspondence whose nearest neighbour corresponds
+
+
+@torch.no_grad()
+def descriptor_cell_stats(
+    descriptors: torch.Tensor,
+    descriptors_warped: torch.Tensor,
+    homographies: torch.Tensor | np.ndarray,
+    *,
+    valid_mask: torch.Tensor | None = None,
+    valid_mask_warped: torch.Tensor | None = None,
+    radius: float = 8.0,
+) -> DescriptorStats:
+    """Return the mean cosine of corresponding and of other cell pairs, and nearest-neighbour cell retrieval.
+
+    The descriptor loss can fall while descriptors stay useless: with a large ``lambda_d`` the positives win and all
+    descriptors drift together (positive and negative dots both near 1), and the loss alone does not show it.
+    Retrieval does: for every valid image-1 cell that has a valid correspondence (s = 1, Eq. 10), the valid
+    image-2 cell of largest d^T d' must be one of its correspondences. Arguments as :func:`descriptor_loss`.
+
+    >>> d = torch.eye(4).reshape(1, 4, 2, 2)            # four orthogonal cell descriptors
+    >>> descriptor_cell_stats(d, d.clone(), np.eye(3))   # identity warp: each cell finds itself
+    DescriptorStats(positive_dot=1.0, negative_dot=0.0, nn_accuracy=1.0)
+    >>> descriptor_cell_stats(d, torch.ones(1, 4, 2, 2), np.eye(3)).nn_accuracy   # collapsed: ties, first cell wins
+    0.25
+    """
+    dot, s, weight = _cell_pairs(descriptors, descriptors_warped, homographies, valid_mask, valid_mask_warped, radius)
+    valid = weight > 0
+    positive, negative = (s > 0) & valid, (s == 0) & valid
+    nan = float("nan")
+    pos = float(dot[positive].mean()) if bool(positive.any()) else nan
+    neg = float(dot[negative].mean()) if bool(negative.any()) else nan
+    best = dot.masked_fill(~valid, -math.inf).argmax(dim=2)  # (B, N1) nearest valid image-2 cell
+    hit = torch.gather(s, 2, best[..., None])[..., 0] > 0
+    has = positive.any(dim=2)  # image-1 cells with a valid correspondence
+    accuracy = float(hit[has].float().mean()) if bool(has.any()) else nan
+    return DescriptorStats(pos, neg, accuracy)
 
 
 # ---------------------------------------------------------------------------------------------- total loss

@@ -51,7 +51,8 @@ import torch
 from torch.utils.data import DataLoader, Dataset, Subset
 
 from evio_lib.features.augment import PairSample
-from evio_lib.features.losses import detector_loss, superpoint_loss
+from evio_lib.features.augment import HOMOGRAPHIC_PAIR, HomographicConfig
+from evio_lib.features.losses import descriptor_cell_stats, detector_loss, superpoint_loss
 from evio_lib.features.metrics import detection_counts, keypoints_to_map
 from evio_lib.features.superpoint import (
     MODEL_CONFIGS,
@@ -140,6 +141,8 @@ class TrainConfig:
         pool_seed: seed of the real-image pool (crops, render poses) and of the label export's homographies.
         render_zoom: rendered pool scenes are drawn this many times larger before the random crop (``datasets.image_pool``),
             so training crops also show the content scale of the 480 x 640 benchmark views (1: off).
+        pair_homography: overrides of ``augment.HOMOGRAPHIC_PAIR``'s fields (a dict, e.g. ``{"fill_view": true,
+            "patch_ratio": 0.75}``) for the warped copy of DetDesc training pairs; None keeps its defaults.
         n_train_images: training set size (synthetic images, or real pool images).
         n_val_images: validation set size.
         augment: photometric + homographic augmentation of the training images (thesis: on).
@@ -174,6 +177,7 @@ class TrainConfig:
     seed: int = 0
     pool_seed: int = 0
     render_zoom: float = 1.0
+    pair_homography: dict[str, Any] | None = None
     n_train_images: int = 400
     n_val_images: int = 50
     augment: bool = True
@@ -227,6 +231,11 @@ class TrainConfig:
         _int("seed", self.seed, 0)
         _int("pool_seed", self.pool_seed, 0)
         _real("render_zoom", self.render_zoom, 1.0)
+        if self.pair_homography is not None:
+            if not isinstance(self.pair_homography, Mapping):
+                raise _bad("pair_homography", self.pair_homography, "null or a dict of HomographicConfig fields")
+            object.__setattr__(self, "pair_homography", dict(self.pair_homography))
+            self.pair_homographic()  # validates the fields and their values
         _int("n_train_images", self.n_train_images, 1)
         _int("n_val_images", self.n_val_images, 1)
         if self.n_train_images < self.batch_size:
@@ -282,6 +291,20 @@ class TrainConfig:
         """Return the folder of this variant's checkpoints: ``<checkpoint_dir>/<name>``."""
         root = Path(self.checkpoint_dir) if self.checkpoint_dir is not None else DEFAULT_CHECKPOINT_DIR
         return root / self.name
+
+    def pair_homographic(self) -> HomographicConfig:
+        """Return the homographies of the warped copy of DetDesc pairs (``HOMOGRAPHIC_PAIR`` + ``pair_homography``)."""
+        changes = self.pair_homography or {}
+        unknown = sorted(set(changes) - {f.name for f in dataclasses.fields(HomographicConfig)})
+        if unknown:
+            fields = [f.name for f in dataclasses.fields(HomographicConfig)]
+            raise ValueError(f"pair_homography has unknown field(s) {unknown}; expected some of {fields}")
+        try:
+            config = HOMOGRAPHIC_PAIR.replace(**changes)
+            config.sample(self.image_size, 0)  # sample_homography checks the values
+        except (TypeError, ValueError) as error:
+            raise ValueError(f"pair_homography {changes} is not a valid HomographicConfig: {error}") from None
+        return config
 
     def to_dict(self) -> dict[str, Any]:
         """Return the config as JSON-ready plain values (tuples become lists)."""
@@ -591,9 +614,9 @@ def _datasets(config: TrainConfig, progress: bool) -> tuple[Dataset, Dataset]:
     labels = export_labels(config, progress=progress)
     pairs = config.stage == "detdesc"
     train = RealImages(training_images(config, "train"), split="train", seed=config.seed, keypoints=labels["train"],
-                       augment=config.augment, pairs=pairs)
+                       augment=config.augment, pairs=pairs, pair_homographic=config.pair_homographic())
     val = RealImages(training_images(config, "val"), split="val", seed=config.seed, keypoints=labels["val"],
-                     augment=False, pairs=pairs)
+                     augment=False, pairs=pairs, pair_homographic=config.pair_homographic())
     return train, val
 
 
@@ -638,8 +661,13 @@ def build_training_model(config: TrainConfig) -> SuperPointNet:
 
 # ---------------------------------------------------------------------------------------------- losses and validation
 def _batch_loss(model: SuperPointNet, batch: Sequence[torch.Tensor], config: TrainConfig, generator: torch.Generator,
-                device: torch.device) -> tuple[torch.Tensor, dict[str, torch.Tensor], dict[str, torch.Tensor]]:
-    """Return (total loss, its terms, the network outputs of the first images) for one collated batch."""
+                device: torch.device, descriptor_stats: bool = False
+                ) -> tuple[torch.Tensor, dict[str, Any], dict[str, torch.Tensor]]:
+    """Return (total loss, its terms, the network outputs of the first images) for one collated batch.
+
+    With ``descriptor_stats`` (pairs with descriptors only) the terms also hold ``desc_positive_dot``,
+    ``desc_negative_dot`` and ``desc_nn_accuracy`` (:func:`~evio_lib.features.losses.descriptor_cell_stats`).
+    """
     tensors = [t.to(device) for t in batch]
     if isinstance(batch, PairSample):
         image, kmap, mask, wimage, wkmap, wmask, H = tensors
@@ -649,7 +677,12 @@ def _batch_loss(model: SuperPointNet, batch: Sequence[torch.Tensor], config: Tra
         out2 = {k: v[b:] for k, v in out.items()}
         terms = superpoint_loss(out1, out2, kmap, wkmap, H, generator=generator, valid_mask=mask,
                                 valid_mask_warped=wmask, lambda_loss=config.lambda_loss, lambda_d=config.lambda_d)
-        parts = {"detector": (terms.detector + terms.detector_warped) / 2, "descriptor": terms.descriptor}
+        parts: dict[str, Any] = {"detector": (terms.detector + terms.detector_warped) / 2,
+                                 "descriptor": terms.descriptor}
+        if descriptor_stats and "descriptors" in out:
+            stats = descriptor_cell_stats(out1["descriptors"], out2["descriptors"], H, valid_mask=mask,
+                                          valid_mask_warped=wmask)
+            parts.update({f"desc_{key}": value for key, value in stats._asdict().items()})
         return terms.total, parts, out1  # L = L_p(X, Y) + L_p(X', Y') + lambda L_d (Eq. 8)
     image, kmap, mask = tensors
     out = model(image)
@@ -665,13 +698,15 @@ def _validate(model: SuperPointNet, data: Dataset, config: TrainConfig, device: 
     generator = torch.Generator().manual_seed(_VAL_SEED)
     loader = DataLoader(data, batch_size=config.batch_size, shuffle=False, num_workers=0)
     sums: dict[str, float] = {}
-    n_batches = 0
+    counted: dict[str, int] = {}  # batches per term (a descriptor statistic is NaN when a batch has no pair)
     counts = np.zeros((2, 4), np.int64)  # tolerance 0 / 1 x (correct pred, pred, found labels, labels)
     for batch in loader:  # loop over validation batches
-        loss, parts, out = _batch_loss(model, batch, config, generator, device)
+        loss, parts, out = _batch_loss(model, batch, config, generator, device, descriptor_stats=True)
         for key, value in {"loss": loss, **parts}.items():
+            if key.startswith("desc_") and not math.isfinite(float(value)):
+                continue  # no valid corresponding cells in this batch
             sums[key] = sums.get(key, 0.0) + float(value)
-        n_batches += 1
+            counted[key] = counted.get(key, 0) + 1
         heat = logits_to_heatmap(out["logits"]).cpu()
         for i in range(heat.shape[0]):  # loop over images: NMS'd detections vs labels
             kp, _ = extract_keypoints(heat[i], _VAL_THRESHOLD, _VAL_NMS, border=0, max_keypoints=None)
@@ -680,7 +715,7 @@ def _validate(model: SuperPointNet, data: Dataset, config: TrainConfig, device: 
                 c = detection_counts(pred, batch[1][i].numpy(), valid_mask=batch[2][i].numpy(), tolerance=tol)
                 counts[row] += [int(c.correct_predictions[0]), int(c.predictions[0]), int(c.found_labels[0]), int(c.labels[0])]
     model.train(was_training)
-    result = {k: v / max(n_batches, 1) for k, v in sums.items()}
+    result = {k: v / counted[k] for k, v in sums.items()}
     for row, suffix in enumerate(("", "_1px")):
         correct, pred, found, labels = counts[row]
         result[f"precision{suffix}"] = float(correct / pred) if pred else 0.0  # Eq. 13

@@ -17,7 +17,9 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["homography_from_plane", "warp_points", "warp_image", "valid_mask", "sample_homography"]
+__all__ = [
+    "homography_from_plane", "warp_points", "warp_image", "valid_mask", "sample_homography", "crop_to_full_homography",
+]
 
 _ROT_TOL = 1e-6  # tolerance on R R^T = I, det R = 1 and ||n|| = 1
 _IMAGE_DTYPES = (np.dtype(np.uint8), np.dtype(np.float32), np.dtype(np.float64))
@@ -393,3 +395,23 @@ def sample_homography(
         patch = candidates[valid[rng.integers(len(valid))]]
 
     return _four_point_homography(patch, crop)  # original-image patch -> warped-image crop
+
+
+def crop_to_full_homography(shape: tuple[int, int], patch_ratio: float) -> NDArray[np.float64]:
+    """Return the (3, 3) map A of the central crop (side ``patch_ratio``) of an image onto the whole image.
+
+    The crop spans ``m + r [0, 1]`` times the pixel-centre extent ``(W - 1, H - 1)`` with ``m = (1 - r) / 2``, so
+    ``x' = (x - m (W - 1)) / r`` (and the same for y): a zoom by ``1 / r`` about the image centre.
+    ``A @ sample_homography(shape, rng, patch_ratio=r, ...)`` maps the random patch onto the whole view, which is
+    SuperPoint's convention (its patch fills the warped image).
+
+    >>> A = crop_to_full_homography((5, 9), 0.5)
+    >>> warp_points(A, [[2.0, 1.0], [6.0, 3.0], [4.0, 2.0]]).tolist()   # crop corners -> image corners, centre fixed
+    [[0.0, 0.0], [8.0, 4.0], [4.0, 2.0]]
+    """
+    height, width = int(shape[0]), int(shape[1])
+    r = float(patch_ratio)
+    if not 0.0 < r <= 1.0:
+        raise ValueError(f"patch_ratio must be in (0, 1]; got {patch_ratio!r}")
+    m = (1.0 - r) / 2.0
+    return np.array([[1.0 / r, 0.0, -m * (width - 1) / r], [0.0, 1.0 / r, -m * (height - 1) / r], [0.0, 0.0, 1.0]])

@@ -32,7 +32,7 @@ from evio_lib.features.augment import (
     random_contrast,
     to_torch_sample,
 )
-from evio_lib.geometry.homography import valid_mask, warp_image, warp_points
+from evio_lib.geometry.homography import crop_to_full_homography, valid_mask, warp_image, warp_points
 
 
 def smooth_image(rng: np.random.Generator, shape=(120, 160)) -> np.ndarray:
@@ -219,6 +219,24 @@ def test_homographic_augment_with_fixed_homography_and_bad_input():
         homographic_augment(img, np.zeros((3, 3)), 0)
     with pytest.raises(ValueError, match="valid_border_margin must be a non-negative int"):
         HomographicConfig(valid_border_margin=-1)
+
+
+
+def test_fill_view_stretches_the_patch_onto_the_whole_view():
+    shape = (120, 160)
+    plain = HOMOGRAPHIC_REAL.replace(allow_artifacts=False, patch_ratio=0.6)
+    filled = plain.replace(fill_view=True)
+    for seed in range(5):  # same generator draws: the filled homography is the crop-to-full map times the plain one
+        A = crop_to_full_homography(shape, 0.6)
+        expected = A @ plain.sample(shape, seed)
+        np.testing.assert_allclose(filled.sample(shape, seed), expected / expected[2, 2], atol=1e-12)
+        # without artifacts the patch lies inside image 1, so the whole warped view saw image 1
+        assert valid_mask(shape, filled.sample(shape, seed)).all()
+    # the zoom: the patch (about 0.6 of the image) fills the view, so areas grow by about 1 / 0.6 ** 2
+    zooms = [abs(np.linalg.det(filled.sample(shape, s)[:2, :2])) ** 0.5 for s in range(50)]
+    assert 1.35 < np.median(zooms) < 2.0
+    with pytest.raises(ValueError, match="fill_view must be true or false"):
+        HomographicConfig(fill_view=1)
 
 
 # ------------------------------------------------------------------------------------------------ label maps

@@ -192,6 +192,42 @@ def test_descriptor_loss_bad_input() -> None:
         losses.descriptor_loss(d, d, np.full((3, 3), np.nan))
 
 
+def test_descriptor_cell_stats_match_a_loop_over_cells(rng: np.random.Generator) -> None:
+    d1 = torch.from_numpy(rng.normal(size=(2, 8, 3, 4)).astype(np.float32))
+    d2 = d1 + 0.8 * torch.from_numpy(rng.normal(size=(2, 8, 3, 4)).astype(np.float32))  # noisy copies
+    H = np.array([[1.0, 0, 8.0], [0, 1.0, 0], [0, 0, 1.0]])  # one cell to the right
+    mask2 = torch.ones(2, 24, 32)
+    mask2[1, :8] = 0.0  # first cell row of image 2 invalid in the second pair
+    got = losses.descriptor_cell_stats(d1, d2.roll(1, dims=3), H, valid_mask_warped=mask2)
+    s = losses.cell_correspondences(H, (3, 4))[0].numpy() > 0  # (12, 12), same for both pairs
+    pos, neg, hits, total = [], [], 0, 0
+    for b in range(2):  # the reference: explicit loops over image pairs and cells
+        a = d1[b].flatten(1).numpy()
+        c = d2.roll(1, dims=3)[b].flatten(1).numpy()
+        a, c = a / np.linalg.norm(a, axis=0), c / np.linalg.norm(c, axis=0)
+        valid2 = np.ones(12, bool) if b == 0 else np.arange(12) >= 4
+        for i in range(12):
+            dots = a[:, i] @ c
+            for j in range(12):
+                if valid2[j]:
+                    (pos if s[i, j] else neg).append(dots[j])
+            if (s[i] & valid2).any():
+                total += 1
+                hits += bool(s[i, np.flatnonzero(valid2)[np.argmax(dots[valid2])]])
+    assert got.positive_dot == pytest.approx(np.mean(pos), abs=1e-5)
+    assert got.negative_dot == pytest.approx(np.mean(neg), abs=1e-5)
+    assert got.nn_accuracy == pytest.approx(hits / total)
+    assert 0.0 < got.nn_accuracy < 1.0  # the noise makes some cells miss: the check is not vacuous
+
+
+def test_descriptor_cell_stats_no_correspondence_is_nan() -> None:
+    d = _one_hot_descriptors(4, 1, 2)
+    far = np.array([[1.0, 0, 100.0], [0, 1.0, 0], [0, 0, 1.0]])  # everything leaves image 2
+    stats = losses.descriptor_cell_stats(d, d.clone(), far)
+    assert math.isnan(stats.positive_dot) and math.isnan(stats.nn_accuracy)
+    assert stats.negative_dot == pytest.approx(0.5)  # (1 + 0 + 0 + 1) / 4 over the four non-corresponding pairs
+
+
 # ---------------------------------------------------------------------------------------------- total loss
 def test_total_loss_combines_terms_and_gradients_flow(rng: np.random.Generator) -> None:
     net = build_model("narrow", seed=1).train()

@@ -105,6 +105,9 @@ def test_load_config_files_overrides_and_round_trip(tmp_path):
         ({"stage": "detector", "labels_from": "magicpoint", "event_frames": {"duration": 2}}, "event_frames must be"),
         ({"name": "a b"}, "name must be"),
         ({"augment": "yes"}, "augment must be true or false"),
+        ({"pair_homography": {"fill_veiw": True}}, r"pair_homography has unknown field\(s\) \['fill_veiw'\]"),
+        ({"pair_homography": {"patch_ratio": 2.0}}, "pair_homography .* patch_ratio must be"),
+        ({"pair_homography": [0.5]}, "pair_homography must be null or a dict"),
         ({"event_fraction": 1.5, "stage": "detector", "labels_from": "magicpoint"}, "event_fraction must be"),
     ],
 )
@@ -184,12 +187,18 @@ def test_each_stage_type_runs_two_steps(tmp_path, label_cache):
     det = tr.train(det_cfg, progress=False)
     assert det.steps == 2 and np.isfinite(det.train_loss).all()
     # detector + descriptor on warped pairs, "pre-trained" from the detector-only MagicPoint
-    dd_cfg = tr.load_config({"name": "dd", "stage": "detdesc", "init_from": "mp", **real})
+    dd_cfg = tr.load_config({"name": "dd", "stage": "detdesc", "init_from": "mp",
+                             "pair_homography": {"fill_view": True, "patch_ratio": 0.8}, **real})
+    train_data, val_data = tr._datasets(dd_cfg, progress=False)
+    assert train_data.pair_homographic == val_data.pair_homographic == dd_cfg.pair_homographic()
+    assert train_data.pair_homographic.fill_view and train_data.pair_homographic.patch_ratio == 0.8
     model = tr.build_training_model(dd_cfg)
     mp_state = load_checkpoint(mp.best_path)["state_dict"]
     assert torch.equal(model.state_dict()["encoder.0.conv.weight"], mp_state["encoder.0.conv.weight"])
     dd = tr.train(dd_cfg, progress=False)
-    assert dd.steps == 2 and set(dd.validation[-1]) >= {"loss", "detector", "descriptor", "precision", "recall"}
+    assert dd.steps == 2 and set(dd.validation[-1]) >= {"loss", "detector", "descriptor", "precision", "recall",
+                                                        "desc_positive_dot", "desc_negative_dot", "desc_nn_accuracy"}
+    assert 0.0 <= dd.validation[-1]["desc_nn_accuracy"] <= 1.0
     detector = SuperPointDetector(weights=dd.best_path, inference="fused", max_keypoints=20)
     features = detector.detect_and_describe(np.random.default_rng(0).random((40, 56)).astype(np.float32))
     assert features.descriptors.shape[1] == 16 and len(features) <= 20
