@@ -68,6 +68,7 @@ from evio_lib.features.superpoint import (
 
 __all__ = [
     "STAGES",
+    "SELECTION_METRICS",
     "CONFIG_DIR",
     "DEFAULT_CHECKPOINT_DIR",
     "TrainConfig",
@@ -87,6 +88,8 @@ __all__ = [
 ]
 
 STAGES = ("magicpoint", "detector", "detdesc")
+#: Validation quantities that ``TrainConfig.select_on`` may name, and whether larger is better.
+SELECTION_METRICS = {"loss": False, "desc_nn_accuracy": True}
 CONFIG_DIR = Path(__file__).resolve().parent / "configs"
 DEFAULT_CHECKPOINT_DIR = Path(__file__).resolve().parents[2] / "runs" / "features"  # git-ignored
 _VAL_THRESHOLD = 1.0 / 65.0  # detection threshold of the validation metrics (thesis §3.2.4)
@@ -156,6 +159,10 @@ class TrainConfig:
         checkpoint_dir: folder of the run folders (None: ``runs/features`` in the repository).
         checkpoint_every: write ``last.pt`` every this many steps (and at the end).
         val_every: validate every this many steps (and at the end).
+        select_on: which validation quantity picks ``best.pt``: "loss" (lowest Eq. 8 loss, the thesis's) or
+            "desc_nn_accuracy" (highest nearest-neighbour retrieval of corresponding cells; DetDesc stages).
+        snapshot_every: also keep the weights of every this many steps as ``step_NNNNNNN.pt`` (None: none), e.g. to
+            choose a checkpoint afterwards on the validation benchmark.
         description: one line for humans (the thesis's name of the variant).
     """
 
@@ -189,6 +196,8 @@ class TrainConfig:
     checkpoint_dir: str | None = None
     checkpoint_every: int = 100
     val_every: int = 250
+    select_on: str = "loss"
+    snapshot_every: int | None = None
     description: str = ""
 
     def __post_init__(self) -> None:
@@ -236,6 +245,9 @@ class TrainConfig:
                 raise _bad("pair_homography", self.pair_homography, "null or a dict of HomographicConfig fields")
             object.__setattr__(self, "pair_homography", dict(self.pair_homography))
             self.pair_homographic()  # validates the fields and their values
+        if self.select_on not in SELECTION_METRICS:
+            raise _bad("select_on", self.select_on, f"one of {sorted(SELECTION_METRICS)}")
+        _int("snapshot_every", self.snapshot_every, 1, allow_none=True)
         _int("n_train_images", self.n_train_images, 1)
         _int("n_val_images", self.n_val_images, 1)
         if self.n_train_images < self.batch_size:
@@ -723,10 +735,16 @@ def _validate(model: SuperPointNet, data: Dataset, config: TrainConfig, device: 
     return result
 
 
-def _is_better(metrics: Mapping[str, float], best: Mapping[str, float] | None) -> bool:
-    """Return True when ``metrics`` beats ``best``: lower validation loss, ties broken by precision + recall."""
+def _is_better(metrics: Mapping[str, float], best: Mapping[str, float] | None, select_on: str = "loss") -> bool:
+    """Return True when ``metrics`` beats ``best`` on ``select_on`` (lower loss, or higher descriptor retrieval);
+    ties (and a quantity the stage lacks, e.g. descriptor retrieval of a detector-only stage) go to the loss, then
+    to precision + recall."""
     if best is None:
         return True
+    if select_on != "loss" and select_on in metrics and select_on in best:
+        value, best_value = round(metrics[select_on], 6), round(best[select_on], 6)
+        if value != best_value:
+            return value > best_value if SELECTION_METRICS[select_on] else value < best_value
     loss, best_loss = round(metrics["loss"], 6), round(best["loss"], 6)
     if loss != best_loss:
         return loss < best_loss
@@ -775,7 +793,7 @@ def _restore_rng(state: Mapping[str, Any], device: torch.device) -> None:
 
 
 _RESUME_FREE = {"max_steps", "epochs", "device", "num_workers", "num_threads", "checkpoint_every", "val_every",
-                "checkpoint_dir", "description"}
+                "checkpoint_dir", "snapshot_every", "description"}
 
 
 def train(config: TrainConfig | str, progress: bool = True, *, resume: bool = False) -> TrainResult:
@@ -850,7 +868,7 @@ def _train(config: TrainConfig, progress: bool, resume: bool) -> TrainResult:
         nonlocal best_step, best_metrics
         metrics = _validate(model, val_data, config, device)
         validation.append({"step": step, **metrics})
-        if _is_better(metrics, best_metrics):
+        if _is_better(metrics, best_metrics, config.select_on):
             best_step, best_metrics = step, metrics
             save_checkpoint(model, best_path, {"variant": config.name, "stage": config.stage, "step": step,
                                                "validation": metrics, "config": config.to_dict(),
@@ -885,6 +903,10 @@ def _train(config: TrainConfig, progress: bool, resume: bool) -> TrainResult:
                 validate()
             if step % config.checkpoint_every == 0 or step == total:
                 save_last()
+            if config.snapshot_every is not None and step % config.snapshot_every == 0:
+                save_checkpoint(model, run_dir / f"step_{step:07d}.pt",
+                                {"variant": config.name, "stage": config.stage, "step": step,
+                                 "config": config.to_dict(), "description": config.description})
     if bar is not None:
         bar.close()
     if not last_path.is_file():  # nothing to train (total reached before this call) and no file yet

@@ -108,6 +108,8 @@ def test_load_config_files_overrides_and_round_trip(tmp_path):
         ({"pair_homography": {"fill_veiw": True}}, r"pair_homography has unknown field\(s\) \['fill_veiw'\]"),
         ({"pair_homography": {"patch_ratio": 2.0}}, "pair_homography .* patch_ratio must be"),
         ({"pair_homography": [0.5]}, "pair_homography must be null or a dict"),
+        ({"select_on": "precision"}, "select_on must be one of"),
+        ({"snapshot_every": 0}, "snapshot_every must be an int >= 1"),
         ({"event_fraction": 1.5, "stage": "detector", "labels_from": "magicpoint"}, "event_fraction must be"),
     ],
 )
@@ -148,6 +150,22 @@ def test_loss_decreases_on_a_fixed_batch(tmp_path):
     history = json.loads((cfg.run_dir / "history.json").read_text())
     assert history["train_loss"] == pytest.approx(result.train_loss)
 
+
+
+def test_snapshots_and_selection_on_descriptor_retrieval(tmp_path):
+    result = tr.train(tiny_magicpoint(tmp_path, max_steps=4, snapshot_every=2, val_every=2), progress=False)
+    snapshots = sorted(p.name for p in result.run_dir.glob("step_*.pt"))
+    assert snapshots == ["step_0000002.pt", "step_0000004.pt"]
+    last = load_checkpoint(result.run_dir / "step_0000004.pt")
+    for key, value in load_checkpoint(result.last_path)["state_dict"].items():
+        assert torch.equal(value, last["state_dict"][key]), key
+    # the selection rule: higher retrieval wins under select_on="desc_nn_accuracy", lower loss under "loss"
+    worse_loss_better_desc = {"loss": 2.0, "desc_nn_accuracy": 0.5, "precision": 0.1, "recall": 0.1}
+    best = {"loss": 1.0, "desc_nn_accuracy": 0.3, "precision": 0.1, "recall": 0.1}
+    assert tr._is_better(worse_loss_better_desc, best, "desc_nn_accuracy")
+    assert not tr._is_better(worse_loss_better_desc, best, "loss")
+    detector_only = {"loss": 0.5, "precision": 0.1, "recall": 0.1}  # no descriptor: falls back to the loss
+    assert tr._is_better(detector_only, {"loss": 0.6, "precision": 0.1, "recall": 0.1}, "desc_nn_accuracy")
 
 def test_training_is_deterministic_and_resume_is_bit_identical(tmp_path):
     # 3 steps per epoch with augmentation: the interrupted run crosses an epoch boundary after resuming
