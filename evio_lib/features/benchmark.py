@@ -337,6 +337,7 @@ def heldout_pairs(
     splits: Sequence[str] = ("viewpoint", "illumination"),
     size: tuple[int, int] = (480, 640),
     exclude_sources: Sequence[str] = ("texture:stripes",),
+    pool: str = "test",
 ) -> list[ImagePair]:
     """Return the built-in HPatches-style benchmark: viewpoint and illumination pairs of held-out images.
 
@@ -355,6 +356,8 @@ def heldout_pairs(
             480 x 640), so no task works on upsampled images.
         exclude_sources: pool images whose source name starts with one of these are left out (default: stripe
             textures, whose homography is ill-posed by the aperture problem: any shift along the stripes fits).
+        pool: the image pool's split: "test" (the benchmark) or "val" (the validation images, never trained on
+            either: the same benchmark on them chooses checkpoints without looking at the test split).
 
     Reference: thesis §3.2.3; Balntas et al., "HPatches", CVPR 2017.
     """
@@ -363,10 +366,12 @@ def heldout_pairs(
         raise ValueError(f"splits must name 'viewpoint' and/or 'illumination'; got {splits!r}")
     if n_images is not None:
         n_images = _check_count(n_images, "n_images")
+    if pool not in ("test", "val"):
+        raise ValueError(f"pool must be 'test' or 'val'; got {pool!r}")
     if images is None:
-        from evio_lib.features.datasets import image_pool  # the held-out pool (TEST split)
+        from evio_lib.features.datasets import image_pool  # the held-out pool (TEST split, or VAL)
 
-        images, sources = image_pool("test", int(seed), size=tuple(size), n_images=n_images, return_sources=True)
+        images, sources = image_pool(pool, int(seed), size=tuple(size), n_images=n_images, return_sources=True)
         excluded = tuple(exclude_sources)
         images = [img for img, source in zip(images, sources) if not (excluded and source.startswith(excluded))]
     imgs = _check_images(images, "images")[:n_images]

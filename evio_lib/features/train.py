@@ -80,6 +80,7 @@ __all__ = [
     "load_event_frames",
     "training_images",
     "export_labels",
+    "benchmark_snapshots",
     "build_training_model",
     "train",
     "run_chain",
@@ -918,6 +919,71 @@ def _train(config: TrainConfig, progress: bool, resume: bool) -> TrainResult:
                        best_metrics, train_loss, validation, time.perf_counter() - started, resumed_from)
 
 
+# ---------------------------------------------------------------------------------------------- checkpoint choice
+def benchmark_snapshots(
+    run: str | Path,
+    *,
+    n_images: int = 16,
+    pairs_per_image: int = 2,
+    seed: int = 0,
+    eps: float = 3.0,
+    progress: bool = True,
+) -> dict[str, Any]:
+    """Score every snapshot of a run on the validation benchmark and copy the best to ``best_benchmark.pt``.
+
+    The training validation measures 120 x 160 crops; what the network is for is the 480 x 640 benchmark. This
+    runs the benchmark's homography task (thesis settings: 480 x 640, best 1000 points, NMS 8, mutual nearest
+    neighbours, RANSAC) on ``heldout_pairs(pool="val")``: viewpoint and illumination pairs of validation images,
+    which training never fits and the test split never sees. Each ``step_*.pt`` (see
+    ``TrainConfig.snapshot_every``) and ``best.pt`` gets a score, the mean homography correctness at ``eps`` over
+    the two splits (ties: the mean matching score); the winner is copied to ``<run>/best_benchmark.pt`` and every
+    row is written to ``<run>/snapshot_benchmark.json``.
+
+    Args:
+        run: a run folder, or a variant name (its folder under ``runs/features``).
+        n_images: validation images (stripe textures left out, as in the test benchmark).
+        pairs_per_image: pairs per image and split.
+        seed: seed of the pool and of the pairs.
+        eps: correctness threshold in pixels.
+        progress: print one line per snapshot.
+
+    Returns:
+        ``{"rows": [{"file", "step", "score", "homography", "matching_score"}, ...], "best": file name,
+        "n_pairs": {split: n}}``.
+    """
+    import shutil
+
+    from evio_lib.features.benchmark import BenchmarkSettings, heldout_pairs, run_benchmark
+
+    run_dir = Path(run)
+    if not run_dir.is_dir():
+        run_dir = DEFAULT_CHECKPOINT_DIR / str(run)
+    files = sorted(run_dir.glob("step_*.pt"))
+    if not files:
+        raise FileNotFoundError(f"no step_*.pt snapshots in {run_dir}: train with snapshot_every set first")
+    files += [run_dir / _BEST] if (run_dir / _BEST).is_file() else []
+    _int("n_images", n_images, 1)
+    _int("pairs_per_image", pairs_per_image, 1)
+    settings = BenchmarkSettings(eps=(float(eps),), tasks=("homography",))
+    pairs = heldout_pairs(seed, n_images=n_images, pairs_per_image=pairs_per_image, pool="val")
+    rows = []
+    for path in files:  # loop over snapshots
+        result = run_benchmark("superpoint", pairs, settings, name=path.name, detector_options={"weights": path})
+        step = load_checkpoint(path)["metadata"].get("step")
+        homography = {split: float(v[float(eps)]) for split, v in result["homography"].items()}
+        matching = {split: float(v[float(eps)]) for split, v in result["matching_score"].items()}
+        rows.append({"file": path.name, "step": step, "score": float(np.mean(list(homography.values()))),
+                     "homography": homography, "matching_score": matching})
+        if progress:
+            print(f"{path.name:20s} step {step}: homography {homography}, matching score {matching}", flush=True)
+    best = max(rows, key=lambda r: (round(r["score"], 9), float(np.mean(list(r["matching_score"].values())))))
+    shutil.copyfile(run_dir / best["file"], run_dir / "best_benchmark.pt")
+    report = {"rows": rows, "best": best["file"], "eps": float(eps), "n_pairs": result["n_pairs"],
+              "pool": "val", "n_images": n_images, "pairs_per_image": pairs_per_image, "seed": seed}
+    (run_dir / "snapshot_benchmark.json").write_text(json.dumps(report, indent=1))
+    return report
+
+
 # ---------------------------------------------------------------------------------------------- chains and CLI
 def _command(name: str, overrides: Mapping[str, Any], resume: bool) -> str:
     """Return the command line that reproduces one training call."""
@@ -1021,6 +1087,9 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentPar
                         help="any other config field, VALUE in JSON (repeatable), e.g. --set n_homographies=20")
     parser.add_argument("--resume", action="store_true", help="continue from <out>/<variant>/last.pt")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
+    parser.add_argument("--select-snapshots", action="store_true", dest="select_snapshots",
+                        help="train nothing: score the variant's step_*.pt snapshots on the validation benchmark and "
+                             "copy the best to best_benchmark.pt")
     return parser
 
 
@@ -1034,6 +1103,16 @@ def main_train(args: argparse.Namespace | Sequence[str] | None = None) -> int:
             cfg = load_config(name)
             print(f"{name:36s} {cfg.stage:10s} {cfg.description}")
         return 0 if args.list else 2
+    if getattr(args, "select_snapshots", False):
+        root = Path(args.checkpoint_dir) if args.checkpoint_dir else DEFAULT_CHECKPOINT_DIR
+        try:
+            for name in args.variants:
+                report = benchmark_snapshots(root / name, progress=not args.quiet)
+                print(f"{name}: best on the validation benchmark {report['best']} -> {root / name / 'best_benchmark.pt'}")
+        except (ValueError, FileNotFoundError) as error:
+            print(f"error: {error}", file=sys.stderr)
+            return 2
+        return 0
     overrides = {k: getattr(args, k) for k in ("max_steps", "epochs", "batch_size", "image_size", "device", "seed",
                                                "num_workers", "num_threads", "checkpoint_dir")}
     overrides.update(dict(args.set))

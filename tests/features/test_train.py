@@ -205,7 +205,7 @@ def test_each_stage_type_runs_two_steps(tmp_path, label_cache):
     det = tr.train(det_cfg, progress=False)
     assert det.steps == 2 and np.isfinite(det.train_loss).all()
     # detector + descriptor on warped pairs, "pre-trained" from the detector-only MagicPoint
-    dd_cfg = tr.load_config({"name": "dd", "stage": "detdesc", "init_from": "mp",
+    dd_cfg = tr.load_config({"name": "dd", "stage": "detdesc", "init_from": "mp", "snapshot_every": 1,
                              "pair_homography": {"fill_view": True, "patch_ratio": 0.8}, **real})
     train_data, val_data = tr._datasets(dd_cfg, progress=False)
     assert train_data.pair_homographic == val_data.pair_homographic == dd_cfg.pair_homographic()
@@ -217,6 +217,15 @@ def test_each_stage_type_runs_two_steps(tmp_path, label_cache):
     assert dd.steps == 2 and set(dd.validation[-1]) >= {"loss", "detector", "descriptor", "precision", "recall",
                                                         "desc_positive_dot", "desc_negative_dot", "desc_nn_accuracy"}
     assert 0.0 <= dd.validation[-1]["desc_nn_accuracy"] <= 1.0
+    # choosing among the snapshots on the validation benchmark (one val image, one pair per split)
+    report = tr.benchmark_snapshots(dd.run_dir, n_images=1, pairs_per_image=1, progress=False)
+    assert [r["file"] for r in report["rows"]] == ["step_0000001.pt", "step_0000002.pt", "best.pt"]
+    assert report["n_pairs"] == {"viewpoint": 1, "illumination": 1}
+    assert all(0.0 <= r["score"] <= 1.0 for r in report["rows"])
+    assert (dd.run_dir / "best_benchmark.pt").read_bytes() == (dd.run_dir / report["best"]).read_bytes()
+    assert json.loads((dd.run_dir / "snapshot_benchmark.json").read_text())["best"] == report["best"]
+    with pytest.raises(FileNotFoundError, match=r"no step_\*\.pt snapshots"):
+        tr.benchmark_snapshots(tmp_path / "empty_run_folder_that_is_not_there")
     detector = SuperPointDetector(weights=dd.best_path, inference="fused", max_keypoints=20)
     features = detector.detect_and_describe(np.random.default_rng(0).random((40, 56)).astype(np.float32))
     assert features.descriptors.shape[1] == 16 and len(features) <= 20
@@ -269,6 +278,8 @@ def test_cli_runs_a_variant_and_logs_the_command(tmp_path, capsys):
     assert tr.main_train(["--list"]) == 0 and "pretrained_detdesc_round2" in capsys.readouterr().out
     assert tr.main_train(["nope", "--out", str(out), "--quiet"]) == 2
     assert "neither a config file" in capsys.readouterr().err
+    assert tr.main_train(["magicpoint", "--out", str(out), "--select-snapshots", "--quiet"]) == 2  # none kept
+    assert "no step_*.pt" in capsys.readouterr().err
     with pytest.raises(ValueError, match="names must be a non-empty list"):
         tr.run_chain([])
 
