@@ -153,11 +153,15 @@ class FeatureDetector(ABC):
         self.max_keypoints = _check_int("max_keypoints", max_keypoints, minimum=1)
         self.nms_radius = _check_int("nms_radius", nms_radius, minimum=0)
         if options:
-            accepted = [
-                p.name
-                for p in inspect.signature(type(self).__init__).parameters.values()
-                if p.name != "self" and p.kind not in (p.VAR_KEYWORD, p.VAR_POSITIONAL)
-            ]
+            accepted: list[str] = []  # every named parameter of the constructors along the class hierarchy
+            for cls in type(self).__mro__:
+                if "__init__" in vars(cls) and cls is not object:
+                    accepted += [
+                        p.name
+                        for p in inspect.signature(vars(cls)["__init__"]).parameters.values()
+                        if p.name != "self" and p.name not in accepted
+                        and p.kind not in (p.VAR_KEYWORD, p.VAR_POSITIONAL)
+                    ]
             raise ValueError(
                 f"unknown option(s) {sorted(options)} for detector {self.name!r}; accepted options: {accepted}"
             )

@@ -214,6 +214,7 @@ class _CornerResponseDetector(_UprightSiftDescribed):
     """Corners from a dense response map: 3x3 local maxima above ``quality_level * max`` -> NMS -> top-k."""
 
     _floor: float = 0.0  # absolute minimum response, rejects rounding noise on (nearly) flat images
+    _default_quality_level: float = 0.001  # each response's own default (it scales differently with contrast)
 
     def __init__(
         self,
@@ -222,7 +223,7 @@ class _CornerResponseDetector(_UprightSiftDescribed):
         *,
         block_size: int = 3,
         aperture: int = 3,
-        quality_level: float = 0.001,
+        quality_level: float | None = None,
         descriptor_size: float = 4.0,
         **options: Any,
     ) -> None:
@@ -231,7 +232,8 @@ class _CornerResponseDetector(_UprightSiftDescribed):
         if aperture not in (3, 5, 7) or isinstance(aperture, bool):
             raise ValueError(f"aperture must be a Sobel kernel size 3, 5 or 7; got {aperture!r}")
         self.aperture = int(aperture)
-        self.quality_level = _check_real("quality_level", quality_level, 0.0, 1.0)
+        level = self._default_quality_level if quality_level is None else quality_level
+        self.quality_level = _check_real("quality_level", level, 0.0, 1.0)
         self.descriptor_size = _check_real("descriptor_size", descriptor_size, 0.0, low_open=True)
 
     def _response(self, img01: NDArray[np.float32]) -> NDArray[np.float32]:
@@ -271,28 +273,10 @@ class HarrisDetector(_CornerResponseDetector):
 
     name = "harris"
     _floor = 1e-10  # R scales with contrast^4: a corner of contrast 1 gives R ~ 0.1
+    _default_quality_level = 1e-5
 
-    def __init__(
-        self,
-        max_keypoints: int = 1000,
-        nms_radius: int = 4,
-        *,
-        block_size: int = 3,
-        aperture: int = 3,
-        k: float = 0.04,
-        quality_level: float = 1e-5,
-        descriptor_size: float = 4.0,
-        **options: Any,
-    ) -> None:
-        super().__init__(
-            max_keypoints,
-            nms_radius,
-            block_size=block_size,
-            aperture=aperture,
-            quality_level=quality_level,
-            descriptor_size=descriptor_size,
-            **options,
-        )
+    def __init__(self, max_keypoints: int = 1000, nms_radius: int = 4, *, k: float = 0.04, **options: Any) -> None:
+        super().__init__(max_keypoints, nms_radius, **options)  # block_size, aperture, quality_level, ...
         self.k = _check_real("k", k, 0.0, 0.25, low_open=True)
 
     def _response(self, img01):  # type: ignore[no-untyped-def]
@@ -322,27 +306,7 @@ class ShiTomasiDetector(_CornerResponseDetector):
 
     name = "shi_tomasi"
     _floor = 1e-7  # lambda_min scales with contrast^2: a corner of contrast 1 gives ~0.25
-
-    def __init__(
-        self,
-        max_keypoints: int = 1000,
-        nms_radius: int = 4,
-        *,
-        block_size: int = 3,
-        aperture: int = 3,
-        quality_level: float = 1e-4,
-        descriptor_size: float = 4.0,
-        **options: Any,
-    ) -> None:
-        super().__init__(
-            max_keypoints,
-            nms_radius,
-            block_size=block_size,
-            aperture=aperture,
-            quality_level=quality_level,
-            descriptor_size=descriptor_size,
-            **options,
-        )
+    _default_quality_level = 1e-4
 
     def _response(self, img01):  # type: ignore[no-untyped-def]
         return cv2.cornerMinEigenVal(img01, self.block_size, ksize=self.aperture)  # lambda_min(M)
