@@ -192,7 +192,7 @@ def test_training_is_deterministic_and_resume_is_bit_identical(tmp_path):
         tr.train(tiny_magicpoint(tmp_path / "c", max_steps=6, lr=0.5, **common), progress=False, resume=True)
 
 
-def test_each_stage_type_runs_two_steps(tmp_path, label_cache):
+def test_each_stage_type_runs_two_steps(tmp_path, label_cache, capsys):
     mp = tr.train(tiny_magicpoint(tmp_path / "runs", name="mp"), progress=False)
     assert mp.best_path.is_file() and load_model(mp.best_path).descriptor_dim == 0
     real = dict(SMALL, checkpoint_dir=str(tmp_path / "runs"), max_steps=2, labels_from="mp")
@@ -224,6 +224,9 @@ def test_each_stage_type_runs_two_steps(tmp_path, label_cache):
     assert all(0.0 <= r["score"] <= 1.0 for r in report["rows"])
     assert (dd.run_dir / "best_benchmark.pt").read_bytes() == (dd.run_dir / report["best"]).read_bytes()
     assert json.loads((dd.run_dir / "snapshot_benchmark.json").read_text())["best"] == report["best"]
+    again = tr.benchmark_snapshots(dd.run_dir, n_images=1, pairs_per_image=1, progress=True)  # all known: no scoring
+    assert again["rows"] == report["rows"] and again["n_pairs"] == report["n_pairs"]
+    assert capsys.readouterr().out == ""  # nothing was benchmarked again
     with pytest.raises(FileNotFoundError, match=r"no step_\*\.pt snapshots"):
         tr.benchmark_snapshots(tmp_path / "empty_run_folder_that_is_not_there")
     detector = SuperPointDetector(weights=dd.best_path, inference="fused", max_keypoints=20)
