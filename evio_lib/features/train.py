@@ -50,8 +50,7 @@ import numpy as np
 import torch
 from torch.utils.data import DataLoader, Dataset, Subset
 
-from evio_lib.features.augment import PairSample
-from evio_lib.features.augment import HOMOGRAPHIC_PAIR, HomographicConfig
+from evio_lib.features.augment import HOMOGRAPHIC_PAIR, HomographicConfig, PairSample
 from evio_lib.features.losses import descriptor_cell_stats, detector_loss, superpoint_loss
 from evio_lib.features.metrics import detection_counts, keypoints_to_map
 from evio_lib.features.superpoint import (
@@ -626,10 +625,11 @@ def _datasets(config: TrainConfig, progress: bool) -> tuple[Dataset, Dataset]:
 
     labels = export_labels(config, progress=progress)
     pairs = config.stage == "detdesc"
+    warps = config.pair_homographic()
     train = RealImages(training_images(config, "train"), split="train", seed=config.seed, keypoints=labels["train"],
-                       augment=config.augment, pairs=pairs, pair_homographic=config.pair_homographic())
+                       augment=config.augment, pairs=pairs, pair_homographic=warps)
     val = RealImages(training_images(config, "val"), split="val", seed=config.seed, keypoints=labels["val"],
-                     augment=False, pairs=pairs, pair_homographic=config.pair_homographic())
+                     augment=False, pairs=pairs, pair_homographic=warps)
     return train, val
 
 

@@ -304,3 +304,8 @@ def test_heldout_pairs_from_the_test_pool():
     assert [p.split for p in pairs] == ["viewpoint", "viewpoint", "illumination", "illumination"]
     np.testing.assert_array_equal(pairs[0].image1, pool[0])
     np.testing.assert_array_equal(pairs[3].image1, pool[1])
+
+
+def test_heldout_pairs_pool_choice_is_checked():
+    with pytest.raises(ValueError, match="pool must be 'test' or 'val'"):
+        heldout_pairs(0, n_images=1, pool="train")  # the training split is never a benchmark

@@ -7,6 +7,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from evio_lib.geometry.homography import (
+    crop_to_full_homography,
     homography_from_plane,
     sample_homography,
     valid_mask,
@@ -257,3 +258,10 @@ def test_sample_homography_with_artifacts_never_fails_on_large_patches():
         H = sample_homography((240, 320), rng, allow_artifacts=True, scaling_amplitude=0.2, patch_ratio=0.85,
                               perspective_amplitude_x=0.2, perspective_amplitude_y=0.2, max_angle=np.pi / 2)
         assert H.shape == (3, 3) and np.all(np.isfinite(H))
+
+
+def test_crop_to_full_homography_rejects_a_bad_ratio():
+    for bad in (0.0, 1.5, -0.2):
+        with pytest.raises(ValueError, match=r"patch_ratio must be in \(0, 1\]"):
+            crop_to_full_homography((10, 10), bad)
+    np.testing.assert_array_equal(crop_to_full_homography((10, 10), 1.0), np.eye(3))  # the whole image: identity
