@@ -348,7 +348,7 @@ def descriptor_cell_stats(
     """Return the mean cosine of corresponding and of other cell pairs, and nearest-neighbour cell retrieval.
 
     The descriptor loss can fall while descriptors stay useless: with a large ``lambda_d`` the positives win and all
-    descriptors drift together (positive and negative dots both near 1), and the loss alone does not show it.
+    descriptors drift together (the negative dots rise far above m_n), and the loss alone does not show it.
     Retrieval does: for every valid image-1 cell that has a valid correspondence (s = 1, Eq. 10), the valid
     image-2 cell of largest d^T d' must be one of its correspondences. Arguments as :func:`descriptor_loss`.
 

@@ -949,8 +949,8 @@ def benchmark_snapshots(
         progress: print one line per snapshot.
 
     Returns:
-        ``{"rows": [{"file", "step", "score", "homography", "matching_score"}, ...], "best": file name,
-        "n_pairs": {split: n}}``.
+        ``{"rows": [{"file", "sha1", "step", "score", "homography", "matching_score"}, ...], "best": file name,
+        "n_pairs": {split: n}}`` plus the settings (eps, pool, n_images, pairs_per_image, seed).
     """
     import shutil
 
@@ -969,12 +969,13 @@ def benchmark_snapshots(
     setup = {"eps": float(eps), "pool": "val", "n_images": n_images, "pairs_per_image": pairs_per_image, "seed": seed}
     report_path = run_dir / "snapshot_benchmark.json"
     known: dict[str, dict[str, Any]] = {}  # rows of an earlier call with the same setup, by file digest
+    n_pairs: dict[str, int] = {}
     if report_path.is_file():
         earlier = json.loads(report_path.read_text())
         if all(earlier.get(k) == v for k, v in setup.items()):
             known = {row["sha1"]: row for row in earlier.get("rows", []) if "sha1" in row}
+            n_pairs = dict(earlier.get("n_pairs", {}))
     pairs: list[Any] | None = None
-    n_pairs: dict[str, int] = {}
     rows = []
     for path in files:  # loop over snapshots
         digest = _file_digest(path)
@@ -995,8 +996,6 @@ def benchmark_snapshots(
             print(f"{path.name:20s} step {step}: homography {homography}, matching score {matching}", flush=True)
     best = max(rows, key=lambda r: (round(r["score"], 9), float(np.mean(list(r["matching_score"].values())))))
     shutil.copyfile(run_dir / best["file"], run_dir / "best_benchmark.pt")
-    if not n_pairs and report_path.is_file():
-        n_pairs = json.loads(report_path.read_text()).get("n_pairs", {})
     report = {"rows": rows, "best": best["file"], "n_pairs": n_pairs, **setup}
     report_path.write_text(json.dumps(report, indent=1))
     return report
