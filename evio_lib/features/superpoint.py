@@ -67,6 +67,7 @@ __all__ = [
     "logits_to_heatmap",
     "nms_heatmap",
     "extract_keypoints",
+    "refine_keypoints",
     "sample_descriptors",
     "postprocess",
     "calibration_images",
@@ -490,6 +491,53 @@ def extract_keypoints(
     return keypoints, values[order]
 
 
+def refine_keypoints(heatmap: torch.Tensor, keypoints: torch.Tensor, radius: int = 2) -> torch.Tensor:
+    """Return keypoints (N, 2) float32 moved to the centroid of the heatmap around each integer peak (sub-pixel).
+
+    For a peak at integer pixel (x, y) and the (2r + 1) x (2r + 1) window of probabilities p(u, v) around it
+    (u, v in -r..r; pixels outside the image count as 0), the refined point is::
+
+        x* = x + sum p(u, v) u / sum p(u, v),   y* = y + sum p(u, v) v / sum p(u, v)
+
+    (a weighted mean of pixels of the image, so it stays inside it). The network's cell head can only place a point on a pixel; the mass it spreads over the
+    neighbours says on which side of that pixel the corner lies, so the centroid recovers part of the lost half
+    pixel (SuperPoint's own post-processing stops at integer peaks, as the thesis does). ``radius = 0`` returns
+    the points unchanged.
+
+    Args:
+        heatmap: (H, W) keypoint probabilities (:func:`logits_to_heatmap`).
+        keypoints: (N, 2) integer-valued (x, y) peaks inside the heatmap (:func:`extract_keypoints`).
+        radius: half-size r of the window (pixels, >= 0).
+
+    >>> heat = torch.zeros(8, 8); heat[3, 4], heat[3, 5] = 0.6, 0.2   # mass right of the peak at (4, 3)
+    >>> refine_keypoints(heat, torch.tensor([[4.0, 3.0]]), radius=1).tolist()
+    [[4.25, 3.0]]
+    """
+    if not isinstance(heatmap, torch.Tensor) or heatmap.ndim != 2:
+        got = tuple(getattr(heatmap, "shape", ())) or type(heatmap).__name__
+        raise ValueError(f"heatmap must be a (H, W) torch tensor; got {got}")
+    if not isinstance(keypoints, torch.Tensor) or keypoints.ndim != 2 or keypoints.shape[1] != 2:
+        got = tuple(getattr(keypoints, "shape", ())) or type(keypoints).__name__
+        raise ValueError(f"keypoints must be a (N, 2) torch tensor of (x, y) pixels; got {got}")
+    radius = _check_count("radius", radius)
+    if radius == 0 or keypoints.shape[0] == 0:
+        return keypoints.to(torch.float32)
+    height, width = heatmap.shape
+    cols = keypoints[:, 0].round().long()
+    rows = keypoints[:, 1].round().long()
+    if (cols < 0).any() or (cols >= width).any() or (rows < 0).any() or (rows >= height).any():
+        raise ValueError(f"keypoints must lie inside the ({height}, {width}) heatmap")
+    heat = heatmap.float().clamp_min(0.0)
+    padded = F.pad(heat, (radius,) * 4)  # zeros outside the image
+    offsets = torch.arange(-radius, radius + 1, device=heat.device)
+    du, dv = offsets[None, :], offsets[:, None]  # (1, k) column offsets, (k, 1) row offsets
+    window = padded[rows[:, None, None] + radius + dv, cols[:, None, None] + radius + du]  # (N, k, k)
+    mass = window.sum(dim=(1, 2)).clamp_min(torch.finfo(torch.float32).tiny)
+    x = cols.float() + (window * du).sum(dim=(1, 2)) / mass
+    y = rows.float() + (window * dv).sum(dim=(1, 2)) / mass
+    return torch.stack([x, y], dim=1)
+
+
 def sample_descriptors(
     descriptor_map: torch.Tensor, keypoints: torch.Tensor, interpolation: str = "bicubic"
 ) -> torch.Tensor:
@@ -540,6 +588,7 @@ def postprocess(
     border: int = 4,
     max_keypoints: int | None = 1000,
     descriptor_interpolation: str = "bicubic",
+    subpixel_radius: int = 0,
 ) -> list[Features]:
     """Return one Features record per image from network outputs (the detector's whole post-processing).
 
@@ -550,6 +599,8 @@ def postprocess(
             (8 Hc, 8 Wc)).
         threshold, nms_radius, border, max_keypoints: see :func:`extract_keypoints`.
         descriptor_interpolation: "bicubic" or "bilinear", see :func:`sample_descriptors`.
+        subpixel_radius: window half-size of :func:`refine_keypoints` (0, the default: integer peaks as in the
+            thesis); descriptors are sampled at the refined points.
 
     Reference: thesis §3.2.4 (softmax, dustbin, reshape, threshold 1/65, NMS, bicubic descriptors, L2 norm).
 
@@ -580,6 +631,7 @@ def postprocess(
     records = []
     for i in range(b):  # loop over images only
         keypoints, scores = extract_keypoints(heat[i], threshold, nms_radius, border, max_keypoints)
+        keypoints = refine_keypoints(heat[i], keypoints, subpixel_radius)
         if descriptors is None:
             desc = np.zeros((keypoints.shape[0], 0), np.float32)
         else:
@@ -889,6 +941,8 @@ class SuperPointDetector(FeatureDetector):
         seed: initialisation seed of the untrained network.
         calibration: images for int8 calibration (default :func:`calibration_images`).
         descriptor_interpolation: "bicubic" (default, thesis) or "bilinear".
+        subpixel_radius: half-size of the heat-centroid window that moves each peak off the pixel grid
+            (:func:`refine_keypoints`; default 2, i.e. 5 x 5); 0 keeps the thesis's integer peaks.
         num_threads: if given, ``torch.set_num_threads(num_threads)`` (process-wide).
 
     Any image size works: the image is padded to multiples of 8 (edge replication) and the heatmap cropped back.
@@ -918,6 +972,7 @@ class SuperPointDetector(FeatureDetector):
         seed: int = 0,
         calibration: Sequence[np.ndarray] | None = None,
         descriptor_interpolation: str = "bicubic",
+        subpixel_radius: int = 2,
         num_threads: int | None = None,
         **options: Any,
     ) -> None:
@@ -929,6 +984,7 @@ class SuperPointDetector(FeatureDetector):
                 f"descriptor_interpolation must be 'bicubic' or 'bilinear'; got {descriptor_interpolation!r}"
             )
         self.descriptor_interpolation = descriptor_interpolation
+        self.subpixel_radius = _check_count("subpixel_radius", subpixel_radius)
         if inference not in INFERENCE_MODES:
             raise ValueError(f"inference must be one of {INFERENCE_MODES}; got {inference!r}")
         if num_threads is not None:
@@ -982,13 +1038,15 @@ class SuperPointDetector(FeatureDetector):
                 border=self.border,
                 max_keypoints=self.max_keypoints,
                 descriptor_interpolation=self.descriptor_interpolation,
+                subpixel_radius=self.subpixel_radius,
             )[0]
 
     def __repr__(self) -> str:
         source = self.weights_path.name if self.weights_path is not None else "untrained"
         return (
             f"SuperPointDetector(weights={source!r}, inference={self.inference!r}, device={str(self.device)!r}, "
-            f"max_keypoints={self.max_keypoints}, nms_radius={self.nms_radius}, threshold={self.threshold:.4g})"
+            f"max_keypoints={self.max_keypoints}, nms_radius={self.nms_radius}, threshold={self.threshold:.4g}, "
+            f"subpixel_radius={self.subpixel_radius})"
         )
 
 

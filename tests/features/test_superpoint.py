@@ -241,6 +241,41 @@ def test_extract_keypoints_threshold_topk_sorted(rng: np.random.Generator) -> No
         sp.extract_keypoints(heat[None])
 
 
+def test_refine_keypoints_finds_subpixel_blob_centres() -> None:
+    # a sampled Gaussian blob centred off the pixel grid: the integer peak is up to 0.5 px off, the centroid closer
+    ys, xs = np.mgrid[0:40, 0:50]
+    errors_int, errors_refined = [], []
+    for cx, cy in [(20.3, 14.8), (10.45, 30.25), (33.9, 20.0), (25.0, 25.0)]:
+        heat = np.exp(-((xs - cx) ** 2 + (ys - cy) ** 2) / (2 * 0.8**2)).astype(np.float32)
+        kp, _ = sp.extract_keypoints(torch.from_numpy(heat), threshold=0.1, nms_radius=4, border=4)
+        assert len(kp) == 1
+        refined = sp.refine_keypoints(torch.from_numpy(heat), kp, radius=2)
+        errors_int.append(np.hypot(*(kp[0].numpy() - [cx, cy])))
+        errors_refined.append(np.hypot(*(refined[0].numpy() - [cx, cy])))
+    assert max(errors_refined) < 0.08 and max(errors_int) > 0.4
+    assert errors_refined[-1] < 1e-6  # a centred blob stays put
+
+
+def test_refine_keypoints_edges_radius_zero_and_errors() -> None:
+    heat = torch.zeros(6, 8)
+    heat[0, 0], heat[0, 1], heat[5, 7] = 1.0, 1.0, 1.0
+    kp = torch.tensor([[0.0, 0.0], [7.0, 5.0]])
+    out = sp.refine_keypoints(heat, kp, radius=1)
+    assert out.tolist() == [[0.5, 0.0], [7.0, 5.0]]  # nothing outside the image: points stay inside it
+    assert sp.refine_keypoints(heat, kp, radius=0).tolist() == kp.tolist()
+    assert sp.refine_keypoints(heat, torch.zeros(0, 2), radius=2).shape == (0, 2)
+    with pytest.raises(ValueError, match="inside the"):
+        sp.refine_keypoints(heat, torch.tensor([[8.0, 0.0]]))
+    with pytest.raises(ValueError, match=r"\(N, 2\)"):
+        sp.refine_keypoints(heat, torch.zeros(3))
+    with pytest.raises(ValueError, match=r"\(H, W\)"):
+        sp.refine_keypoints(heat[None], kp)
+    with pytest.raises(ValueError, match="radius"):
+        sp.refine_keypoints(heat, kp, radius=-1)
+    with pytest.raises(ValueError, match="subpixel_radius"):
+        sp.SuperPointDetector(weights=None, allow_random=True, subpixel_radius=1.5)
+
+
 @pytest.mark.parametrize("mode", ["bilinear", "bicubic"])
 def test_sample_descriptors_at_cell_centres_and_between(rng: np.random.Generator, mode: str) -> None:
     dmap = torch.from_numpy(rng.normal(size=(32, 3, 4)).astype(np.float32))
@@ -366,7 +401,7 @@ def test_shipped_name_resolves_and_registers(tmp_path, monkeypatch) -> None:
 # ---------------------------------------------------------------------------------------------- detector
 def test_detector_any_size_uint8_equals_float(rng: np.random.Generator) -> None:
     det = create_detector("superpoint", weights=None, allow_random=True, inference="fused", max_keypoints=40,
-                          nms_radius=3, threshold=0.0)
+                          nms_radius=3, threshold=0.0, subpixel_radius=0)
     image = (sp.calibration_images((45, 61), count=1, seed=2)[0] * 255).round().astype(np.uint8)
     a = det.detect_and_describe(image)
     b = det.detect_and_describe(image.astype(np.float32) / 255.0)
@@ -381,6 +416,17 @@ def test_detector_any_size_uint8_equals_float(rng: np.random.Generator) -> None:
     heat = det.heatmap(image)
     assert heat.shape == (45, 61) and heat.dtype == np.float32
     np.testing.assert_allclose(a.scores, heat[a.keypoints[:, 1].astype(int), a.keypoints[:, 0].astype(int)], rtol=1e-5)
+    # the default detector refines the same peaks: same scores, points within the 5 x 5 window, heat centroids
+    refined = create_detector("superpoint", weights=None, allow_random=True, inference="fused", max_keypoints=40,
+                              nms_radius=3, threshold=0.0).detect_and_describe(image)
+    np.testing.assert_array_equal(refined.scores, a.scores)
+    assert np.abs(refined.keypoints - a.keypoints).max() <= 2.0 and not np.array_equal(refined.keypoints, a.keypoints)
+    padded = np.pad(heat, 2)
+    for (x, y), (xr, yr) in zip(a.keypoints.astype(int), refined.keypoints):  # loop reference of the centroid
+        window = padded[y : y + 5, x : x + 5].astype(np.float64)
+        offsets = np.arange(-2, 3)
+        assert xr == pytest.approx(x + (window * offsets[None, :]).sum() / window.sum(), abs=1e-4)
+        assert yr == pytest.approx(y + (window * offsets[:, None]).sum() / window.sum(), abs=1e-4)
 
 
 def test_detector_auto_and_int8_modes() -> None:
