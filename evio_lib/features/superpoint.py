@@ -447,6 +447,13 @@ def _nms_torch(s: torch.Tensor, radius: int) -> torch.Tensor:
     return torch.where(keep, s, torch.zeros_like(s))
 
 
+def _check_tensor(value: Any, name: str, form: str, ndim: int, *, last: int | None = None, what: str = "") -> None:
+    """Raise ValueError naming ``name`` and its expected ``form`` unless ``value`` is a torch tensor of that rank."""
+    if not isinstance(value, torch.Tensor) or value.ndim != ndim or (last is not None and value.shape[-1] != last):
+        got = tuple(getattr(value, "shape", ())) or type(value).__name__
+        raise ValueError(f"{name} must be a {form} torch tensor{what}; got {got}")
+
+
 def extract_keypoints(
     heatmap: torch.Tensor,
     threshold: float = 1.0 / 65.0,
@@ -465,9 +472,7 @@ def extract_keypoints(
     >>> kp.tolist(), sc.double().numpy().round(2).tolist()   # (1, 1) is in the border, (8, 6) is suppressed by (7, 5)
     ([[7.0, 5.0], [3.0, 10.0]], [0.9, 0.3])
     """
-    if not isinstance(heatmap, torch.Tensor) or heatmap.ndim != 2:
-        got = tuple(getattr(heatmap, "shape", ())) or type(heatmap).__name__
-        raise ValueError(f"heatmap must be a (H, W) torch tensor; got {got}")
+    _check_tensor(heatmap, "heatmap", "(H, W)", 2)
     threshold = _check_real("threshold", threshold, minimum=0.0)
     border = _check_count("border", border)
     nms_radius = _check_count("nms_radius", nms_radius)
@@ -513,12 +518,8 @@ def refine_keypoints(heatmap: torch.Tensor, keypoints: torch.Tensor, radius: int
     >>> refine_keypoints(heat, torch.tensor([[4.0, 3.0]]), radius=1).tolist()
     [[4.25, 3.0]]
     """
-    if not isinstance(heatmap, torch.Tensor) or heatmap.ndim != 2:
-        got = tuple(getattr(heatmap, "shape", ())) or type(heatmap).__name__
-        raise ValueError(f"heatmap must be a (H, W) torch tensor; got {got}")
-    if not isinstance(keypoints, torch.Tensor) or keypoints.ndim != 2 or keypoints.shape[1] != 2:
-        got = tuple(getattr(keypoints, "shape", ())) or type(keypoints).__name__
-        raise ValueError(f"keypoints must be a (N, 2) torch tensor of (x, y) pixels; got {got}")
+    _check_tensor(heatmap, "heatmap", "(H, W)", 2)
+    _check_tensor(keypoints, "keypoints", "(N, 2)", 2, last=2, what=" of (x, y) pixels")
     radius = _check_count("radius", radius)
     if radius == 0 or keypoints.shape[0] == 0:
         return keypoints.to(torch.float32)
@@ -557,12 +558,8 @@ def sample_descriptors(
     array([[1.   , 0.   ],
            [0.707, 0.707]], dtype=float32)
     """
-    if not isinstance(descriptor_map, torch.Tensor) or descriptor_map.ndim != 3:
-        got = tuple(getattr(descriptor_map, "shape", ())) or type(descriptor_map).__name__
-        raise ValueError(f"descriptor_map must be a (D, Hc, Wc) torch tensor; got {got}")
-    if not isinstance(keypoints, torch.Tensor) or keypoints.ndim != 2 or keypoints.shape[1] != 2:
-        got = tuple(getattr(keypoints, "shape", ())) or type(keypoints).__name__
-        raise ValueError(f"keypoints must be a (N, 2) torch tensor of (x, y) pixels; got {got}")
+    _check_tensor(descriptor_map, "descriptor_map", "(D, Hc, Wc)", 3)
+    _check_tensor(keypoints, "keypoints", "(N, 2)", 2, last=2, what=" of (x, y) pixels")
     if interpolation not in ("bicubic", "bilinear"):
         raise ValueError(f"interpolation must be 'bicubic' or 'bilinear'; got {interpolation!r}")
     d, hc, wc = descriptor_map.shape
