@@ -504,10 +504,10 @@ def refine_keypoints(heatmap: torch.Tensor, keypoints: torch.Tensor, radius: int
 
         x* = x + sum p(u, v) u / sum p(u, v),   y* = y + sum p(u, v) v / sum p(u, v)
 
-    (a weighted mean of pixels of the image, so it stays inside it). The network's cell head can only place a point on a pixel; the mass it spreads over the
-    neighbours says on which side of that pixel the corner lies, so the centroid recovers part of the lost half
-    pixel (SuperPoint's own post-processing stops at integer peaks, as the thesis does). ``radius = 0`` returns
-    the points unchanged.
+    (a weighted mean of pixels of the image, so it stays inside it). The network's cell head can only place a
+    point on a pixel; the mass it spreads over the neighbours says on which side of that pixel the corner lies, so
+    the centroid recovers part of the lost half pixel (SuperPoint's own post-processing stops at integer peaks, as
+    the thesis does). ``radius = 0`` returns the points unchanged.
 
     Args:
         heatmap: (H, W) keypoint probabilities (:func:`logits_to_heatmap`).
