@@ -44,7 +44,8 @@ def warps(shape: tuple[int, int]) -> list[tuple[str, np.ndarray]]:
         return H
 
     return [("shift 1 px", shift(1, 0)), ("shift 2.5 px", shift(2.5, 0)), ("shift (4, 4) px", shift(4, 4)),
-            ("zoom 1.1", about_centre(1.1, 0)), ("zoom 1.5", about_centre(1.5, 0)), ("rotate 5 deg", about_centre(1, 5))]
+            ("zoom 1.1", about_centre(1.1, 0)), ("zoom 1.5", about_centre(1.5, 0)),
+            ("rotate 5 deg", about_centre(1, 5))]
 
 
 def main() -> None:
