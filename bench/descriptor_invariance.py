@@ -16,27 +16,13 @@ that never saw a zoom in training loses them (the issue-4 notes have the figures
 """
 from __future__ import annotations
 
-import argparse
-
 import numpy as np
+from _val_probe import probe_parser, probe_setup, similarity
 
-from evio_lib.features import create_detector
-from evio_lib.features.datasets import image_pool
 from evio_lib.features.evaluate import match_descriptors
 from evio_lib.geometry.homography import warp_image, warp_points
 
 WARPS = ((1.0, 0.0), (1.25, 0.0), (1.5, 0.0), (1.0, 15.0), (1.0, 30.0), (1.0, 45.0), (1.5, 30.0))  # (zoom, degrees)
-
-
-def similarity(shape: tuple[int, int], zoom: float, degrees: float) -> np.ndarray:
-    """Return the (3, 3) zoom-and-rotation homography about the pixel centre of an image of ``shape``."""
-    height, width = shape
-    centre = np.array([(width - 1) / 2.0, (height - 1) / 2.0])
-    a = np.deg2rad(degrees)
-    A = zoom * np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
-    H = np.eye(3)
-    H[:2, :2], H[:2, 2] = A, centre - A @ centre
-    return H
 
 
 def match_precision(detector, image: np.ndarray, H: np.ndarray, rng: np.random.Generator) -> float:  # type: ignore[no-untyped-def]
@@ -55,21 +41,9 @@ def match_precision(detector, image: np.ndarray, H: np.ndarray, rng: np.random.G
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--weights", nargs="*", default=["pretrained_detdesc_round2_cpu"],
-                        help="SuperPoint weights: shipped names or .pt paths")
-    parser.add_argument("--detectors", nargs="*", default=["sift"], help="other detectors by name")
-    parser.add_argument("--size", default="120x160", help="HxW of the images")
-    parser.add_argument("--images", type=int, default=8)
-    parser.add_argument("--keypoints", type=int, default=150)
-    parser.add_argument("--nms", type=int, default=4)
-    parser.add_argument("--seed", type=int, default=0)
+    parser = probe_parser(__doc__.split("\n")[0], detectors=["sift"], size="120x160", images=8, keypoints=150, nms=4)
     args = parser.parse_args()
-    shape = tuple(int(v) for v in args.size.lower().split("x"))
-    images = image_pool("val", seed=args.seed, size=shape, n_images=args.images)
-    detectors = {w: create_detector("superpoint", weights=w, max_keypoints=args.keypoints, nms_radius=args.nms)
-                 for w in args.weights}
-    detectors |= {n: create_detector(n, max_keypoints=args.keypoints, nms_radius=args.nms) for n in args.detectors}
+    shape, images, detectors = probe_setup(args)
     names = list(detectors)
     print(f"{len(images)} val images at {shape[0]}x{shape[1]}, best {args.keypoints} points, NMS {args.nms}: "
           "precision of mutual nearest-neighbour matches at 3 px")

@@ -16,27 +16,15 @@ Harris, whose corners are covariant by construction, keeps ~0.9 at 1 px under in
 """
 from __future__ import annotations
 
-import argparse
-
 import numpy as np
+from _val_probe import probe_parser, probe_setup, similarity
 
-from evio_lib.features import create_detector
-from evio_lib.features.datasets import image_pool
 from evio_lib.features.evaluate import repeatability
 from evio_lib.geometry.homography import warp_image
 
 
 def warps(shape: tuple[int, int]) -> list[tuple[str, np.ndarray]]:
     """Return the probe's (name, 3x3 homography) pairs for images of ``shape``: shifts, zooms, a rotation."""
-    height, width = shape
-    centre = np.array([(width - 1) / 2.0, (height - 1) / 2.0])
-
-    def about_centre(zoom: float, degrees: float) -> np.ndarray:
-        a = np.deg2rad(degrees)
-        A = zoom * np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
-        H = np.eye(3)
-        H[:2, :2], H[:2, 2] = A, centre - A @ centre
-        return H
 
     def shift(dx: float, dy: float) -> np.ndarray:
         H = np.eye(3)
@@ -44,26 +32,15 @@ def warps(shape: tuple[int, int]) -> list[tuple[str, np.ndarray]]:
         return H
 
     return [("shift 1 px", shift(1, 0)), ("shift 2.5 px", shift(2.5, 0)), ("shift (4, 4) px", shift(4, 4)),
-            ("zoom 1.1", about_centre(1.1, 0)), ("zoom 1.5", about_centre(1.5, 0)),
-            ("rotate 5 deg", about_centre(1, 5))]
+            ("zoom 1.1", similarity(shape, 1.1, 0)), ("zoom 1.5", similarity(shape, 1.5, 0)),
+            ("rotate 5 deg", similarity(shape, 1, 5))]
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--weights", nargs="*", default=["pretrained_detdesc_round2_cpu"],
-                        help="SuperPoint weights: shipped names or .pt paths")
-    parser.add_argument("--detectors", nargs="*", default=["harris", "sift"], help="other detectors by name")
-    parser.add_argument("--size", default="480x640", help="HxW of the images")
-    parser.add_argument("--images", type=int, default=4)
-    parser.add_argument("--keypoints", type=int, default=1000)
-    parser.add_argument("--nms", type=int, default=8)
-    parser.add_argument("--seed", type=int, default=0)
+    parser = probe_parser(__doc__.split("\n")[0], detectors=["harris", "sift"], size="480x640", images=4,
+                          keypoints=1000, nms=8)
     args = parser.parse_args()
-    shape = tuple(int(v) for v in args.size.lower().split("x"))
-    images = image_pool("val", seed=args.seed, size=shape, n_images=args.images)
-    detectors = {w: create_detector("superpoint", weights=w, max_keypoints=args.keypoints, nms_radius=args.nms)
-                 for w in args.weights}
-    detectors |= {n: create_detector(n, max_keypoints=args.keypoints, nms_radius=args.nms) for n in args.detectors}
+    shape, images, detectors = probe_setup(args)
     print(f"{len(images)} val images at {shape[0]}x{shape[1]}, best {args.keypoints} points, NMS {args.nms}: "
           "repeatability at 1 / 3 px")
     print(f"{'warp':>16s} " + " ".join(f"{n[-24:]:>24s}" for n in detectors))
