@@ -163,6 +163,10 @@ class TrainConfig:
             "desc_nn_accuracy" (highest nearest-neighbour retrieval of corresponding cells; DetDesc stages).
         snapshot_every: also keep the weights of every this many steps as ``step_NNNNNNN.pt`` (None: none), e.g. to
             choose a checkpoint afterwards on the validation benchmark.
+        max_minutes: wall-clock budget of one :func:`train` call (None: none). When it is spent the call stops
+            after the current step, validates and writes ``last.pt``; the result equals a run with ``max_steps`` set
+            to the steps done (the learning rate is constant), and ``--resume`` continues it. For lent machines
+            whose commands have a time limit.
         description: one line for humans (the thesis's name of the variant).
     """
 
@@ -198,6 +202,7 @@ class TrainConfig:
     val_every: int = 250
     select_on: str = "loss"
     snapshot_every: int | None = None
+    max_minutes: float | None = None
     description: str = ""
 
     def __post_init__(self) -> None:
@@ -279,6 +284,8 @@ class TrainConfig:
             object.__setattr__(self, "checkpoint_dir", str(self.checkpoint_dir))
         _int("checkpoint_every", self.checkpoint_every, 1)
         _int("val_every", self.val_every, 1)
+        if self.max_minutes is not None:
+            _real("max_minutes", self.max_minutes, 0.0, strict=True)
         if not isinstance(self.description, str):
             raise _bad("description", self.description, "a string")
 
@@ -794,7 +801,7 @@ def _restore_rng(state: Mapping[str, Any], device: torch.device) -> None:
 
 
 _RESUME_FREE = {"max_steps", "epochs", "device", "num_workers", "num_threads", "checkpoint_every", "val_every",
-                "checkpoint_dir", "snapshot_every", "description"}
+                "checkpoint_dir", "snapshot_every", "description", "max_minutes"}
 
 
 def train(config: TrainConfig | str, progress: bool = True, *, resume: bool = False) -> TrainResult:
@@ -882,6 +889,7 @@ def _train(config: TrainConfig, progress: bool, resume: bool) -> TrainResult:
         bar = tqdm(total=total, initial=step, desc=config.name, unit="step")
     model.train()
     per_epoch = config.steps_per_epoch
+    stopped_early = False  # the max_minutes budget ran out before ``total``
     while step < total:  # one iteration per (remaining part of an) epoch
         epoch, offset = divmod(step, per_epoch)
         if hasattr(train_data, "set_epoch"):
@@ -908,6 +916,11 @@ def _train(config: TrainConfig, progress: bool, resume: bool) -> TrainResult:
                 save_checkpoint(model, run_dir / f"step_{step:07d}.pt",
                                 {"variant": config.name, "stage": config.stage, "step": step,
                                  "config": config.to_dict(), "description": config.description})
+            if config.max_minutes is not None and time.perf_counter() - started >= 60.0 * config.max_minutes:
+                stopped_early = step < total
+                break
+        if stopped_early:
+            break
     if bar is not None:
         bar.close()
     if not last_path.is_file():  # nothing to train (total reached before this call) and no file yet
@@ -1005,7 +1018,8 @@ def benchmark_snapshots(
 def _command(name: str, overrides: Mapping[str, Any], resume: bool) -> str:
     """Return the command line that reproduces one training call."""
     flags = {"max_steps": "--steps", "epochs": "--epochs", "batch_size": "--batch-size", "device": "--device",
-             "checkpoint_dir": "--out", "seed": "--seed", "num_workers": "--num-workers", "num_threads": "--threads"}
+             "checkpoint_dir": "--out", "seed": "--seed", "num_workers": "--num-workers", "num_threads": "--threads",
+             "max_minutes": "--max-minutes"}
     parts = ["python", "-m", "evio_lib", "features-train", name]
     for key, value in overrides.items():
         if value is None:
@@ -1099,6 +1113,9 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentPar
     parser.add_argument("--seed", type=int)
     parser.add_argument("--num-workers", type=int, dest="num_workers")
     parser.add_argument("--threads", type=int, dest="num_threads", help="torch CPU threads (default: torch's)")
+    parser.add_argument("--max-minutes", type=float, dest="max_minutes",
+                        help="stop each training call after this many minutes (validate and save first); "
+                             "--resume continues")
     parser.add_argument("--out", type=str, dest="checkpoint_dir", help="checkpoint folder (default runs/features)")
     parser.add_argument("--set", type=_parse_set, action="append", default=[], metavar="KEY=VALUE",
                         help="any other config field, VALUE in JSON (repeatable), e.g. --set n_homographies=20")
@@ -1131,7 +1148,7 @@ def main_train(args: argparse.Namespace | Sequence[str] | None = None) -> int:
             return 2
         return 0
     overrides = {k: getattr(args, k) for k in ("max_steps", "epochs", "batch_size", "image_size", "device", "seed",
-                                               "num_workers", "num_threads", "checkpoint_dir")}
+                                               "num_workers", "num_threads", "checkpoint_dir", "max_minutes")}
     overrides.update(dict(args.set))
     overrides = {k: v for k, v in overrides.items() if v is not None}
     try:

@@ -110,6 +110,7 @@ def test_load_config_files_overrides_and_round_trip(tmp_path):
         ({"pair_homography": [0.5]}, "pair_homography must be null or a dict"),
         ({"select_on": "precision"}, "select_on must be one of"),
         ({"snapshot_every": 0}, "snapshot_every must be an int >= 1"),
+        ({"max_minutes": 0}, "max_minutes must be a finite number > 0"),
         ({"event_fraction": 1.5, "stage": "detector", "labels_from": "magicpoint"}, "event_fraction must be"),
     ],
 )
@@ -298,6 +299,19 @@ def test_sparse_labels_warn_and_dense_labels_do_not(capsys):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         tr._check_label_density(enough, config, "train", verbose=False)
+
+
+def test_time_budget_stops_saves_and_resumes_to_the_same_run(tmp_path):
+    common = dict(n_train_images=6, batch_size=2, augment=True, val_every=1000, checkpoint_every=1000)
+    full = tr.train(tiny_magicpoint(tmp_path / "a", max_steps=4, **common), progress=False)
+    # a budget spent by the first step: the call stops there, validates and writes last.pt
+    cut = tr.train(tiny_magicpoint(tmp_path / "b", max_steps=4, max_minutes=1e-9, **common), progress=False)
+    assert cut.steps == 1 and [v["step"] for v in cut.validation] == [1]
+    assert load_checkpoint(cut.last_path)["step"] == 1
+    resumed = tr.train(tiny_magicpoint(tmp_path / "b", max_steps=4, **common), progress=False, resume=True)
+    assert resumed.resumed_from == 1 and resumed.steps == 4
+    assert resumed.train_loss == full.train_loss  # the cut changes nothing but where the call stopped
+    assert "--max-minutes 0.5" in tr._command("magicpoint", {"max_minutes": 0.5}, resume=True)
 
 
 def test_resume_accepts_a_checkpoint_written_before_a_config_field_existed(tmp_path):
