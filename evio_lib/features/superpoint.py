@@ -287,7 +287,7 @@ class SuperPointNet(nn.Module):
                 if isinstance(module, nn.Sequential) and hasattr(module, "conv"):  # a conv block
                     conv = module.conv
                     weight = conv.weight.detach().float()
-                    bias = conv.bias.detach().float() if conv.bias is not None else torch.zeros(weight.shape[0])
+                    bias = conv.bias.detach().float() if conv.bias is not None else weight.new_zeros(weight.shape[0])
                     if hasattr(module, "bn"):
                         bn = module.bn
                         scale = bn.weight.detach().float() / torch.sqrt(bn.running_var.float() + bn.eps)  # s
