@@ -153,7 +153,8 @@ class TrainConfig:
             ``{"simulate": preset, "duration": s, "seed": k, "events_per_frame": n}`` -- the "Events" variants.
         event_fraction: share of the real pool taken by event frames (thesis: about 20 %).
         device: "cpu", "cuda" or "auto" (CUDA when available).
-        num_workers: DataLoader worker processes (0: load in the main process).
+        num_workers: DataLoader worker processes (0: load in the main process); also the processes that render the
+            real-image pool (at least one).
         num_threads: torch CPU threads during training (None: torch's default); 1 is several times faster than 2
             on a 2-core machine that other jobs keep busy. Restored when :func:`train` returns.
         checkpoint_dir: folder of the run folders (None: ``runs/features`` in the repository).
@@ -514,7 +515,10 @@ def load_event_frames(spec: str | Path | Mapping[str, Any], name: str = "events"
 
 
 def training_images(config: TrainConfig, split: str, progress: bool = False) -> list[np.ndarray]:
-    """Return the real-image pool of a split for a config (cached in memory for the life of the process)."""
+    """Return the real-image pool of a split for a config (cached in memory for the life of the process).
+
+    ``config.num_workers`` processes render it (the same pool as one process renders).
+    """
     from evio_lib.features.datasets import image_pool
 
     if split not in ("train", "val"):
@@ -526,7 +530,7 @@ def training_images(config: TrainConfig, split: str, progress: bool = False) -> 
         events = None if config.event_frames is None else load_event_frames(config.event_frames)
         _POOL_CACHE[key] = image_pool(split, config.pool_seed, config.image_size, n, event_frames=events,
                                       event_fraction=config.event_fraction, progress=progress,
-                                      render_zoom=config.render_zoom)
+                                      render_zoom=config.render_zoom, workers=max(1, config.num_workers))
     return _POOL_CACHE[key]
 
 

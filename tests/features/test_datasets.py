@@ -114,6 +114,17 @@ def test_pool_is_deterministic_and_from_its_split():
     assert np.mean([p.std() > 0.04 for p in pool]) >= 0.9
 
 
+def test_pool_rendered_by_worker_processes_is_the_same_pool():
+    serial, names = image_pool("train", seed=3, size=(48, 64), n_images=20, return_sources=True, render_zoom=2.0)
+    parallel, names_parallel = image_pool("train", seed=3, size=(48, 64), n_images=20, return_sources=True,
+                                          render_zoom=2.0, workers=3)
+    assert names == names_parallel and len(parallel) == 20
+    assert all(np.array_equal(a, b) for a, b in zip(serial, parallel))
+    for bad in (0, -2, 1.5, True):
+        with pytest.raises(ValueError, match="workers must be an int >= 1"):
+            image_pool("test", n_images=1, workers=bad)
+
+
 def test_render_zoom_magnifies_rendered_views_only(monkeypatch):
     size = (48, 64)
     plain, names = image_pool("test", seed=1, size=size, n_images=10, return_sources=True)
