@@ -621,8 +621,8 @@ def image_pool(split: str, seed: int = 0, size: tuple[int, int] = (240, 320), n_
     zoomed_shape = (int(math.ceil(1.25 * render_zoom * height)), int(math.ceil(1.25 * render_zoom * width)))
     images: list[np.ndarray | None] = [None] * len(plan)
     order = sorted(range(len(plan)), key=lambda j: plan[j].name)  # one source at a time: scenes built once
-    shapes = {j: zoomed_shape if plan[j].kind in _RENDERED_KINDS else render_shape for j in order}
-    tasks = [(j, plan[j], seed, split, shapes[j], (height, width)) for j in order]
+    tasks = [(j, plan[j], seed, split, zoomed_shape if plan[j].kind in _RENDERED_KINDS else render_shape,
+              (height, width)) for j in order]
     bar: Any = None
     if progress:
         from tqdm import tqdm
