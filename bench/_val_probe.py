@@ -13,6 +13,7 @@ import numpy as np
 
 from evio_lib.features import create_detector
 from evio_lib.features.datasets import image_pool
+from evio_lib.features.superpoint import shipped_weights
 
 
 def similarity(shape: tuple[int, int], zoom: float, degrees: float) -> np.ndarray:
@@ -34,8 +35,8 @@ def probe_parser(description: str, *, detectors: list[str], size: str, images: i
     """Return the probes' parser (--weights, --detectors, --size, --images, --keypoints, --nms, --seed) with these
     defaults."""
     parser = argparse.ArgumentParser(description=description)
-    parser.add_argument("--weights", nargs="*", default=["pretrained_detdesc_round2_cpu"],
-                        help="SuperPoint weights: shipped names or .pt paths")
+    parser.add_argument("--weights", nargs="*", default=shipped_weights(),
+                        help="SuperPoint weights: shipped names or .pt paths (default: every shipped file)")
     parser.add_argument("--detectors", nargs="*", default=detectors, help="other detectors by name")
     parser.add_argument("--size", default=size, help="HxW of the images")
     parser.add_argument("--images", type=int, default=images)
