@@ -300,8 +300,8 @@ plt.show()
 # %% [markdown]
 # The untrained network fires almost at random (its precision is roughly the share of pixels near a corner). A few
 # hundred steps make the detections several times more precise, although many corners are still missed: MagicPoint
-# proper trains for tens of thousands of steps on augmented images. The shipped weights come from the full chain of
-# lesson 07, trained far longer; if they are installed, here they are on the same images.
+# proper trains for tens of thousands of steps on augmented images. The shipped weights come from the training chains
+# of lesson 07, trained far longer; if they are installed, here they are on the same images.
 
 # %%
 available = shipped_weights()
