@@ -11,6 +11,7 @@ from evio_lib.features.evaluate import (
     average_precision,
     corner_error,
     descriptor_distances,
+    diagnose_matches,
     estimate_homography,
     homography_correctness,
     match_descriptors,
@@ -343,3 +344,64 @@ def test_descriptor_metrics_bad_input():
         matching_score(kp, kp, np.eye(3), np.eye(3), np.eye(3), SHAPE, SHAPE)
     with pytest.raises(ValueError, match="eps must be a pixel threshold"):
         mean_average_precision(kp[:2], kp[:2], np.eye(2), np.eye(2), np.eye(3), SHAPE, SHAPE, eps=[])
+
+
+# ---------------------------------------------------------------------------------------------- diagnosis
+def test_diagnose_matches_noise_free_pair_is_exact(rng):
+    H = random_homography(rng, jitter=0.15)
+    kp1 = rng.uniform([0, 0], [SHAPE[1] - 1, SHAPE[0] - 1], (40, 2))
+    desc = rng.normal(size=(40, 16))
+    d = diagnose_matches(kp1, cv_warp(H, kp1), desc, desc, H, SHAPE)
+    assert (d.n_matches, d.n_correct) == (40, 40)
+    assert d.localisation_error < 1e-6 and d.corner_error_oracle < 1e-4 and d.corner_error_ransac < 1e-3
+
+
+def test_diagnose_matches_localisation_error_is_the_rayleigh_mean(rng):
+    # isotropic Gaussian noise of std s per axis on x2: the error norm is Rayleigh, mean s sqrt(pi / 2)
+    H = random_homography(rng)
+    sigma = 0.5
+    kp1 = rng.uniform([0, 0], [SHAPE[1] - 1, SHAPE[0] - 1], (4000, 2))
+    desc = np.eye(4000)
+    d = diagnose_matches(kp1, cv_warp(H, kp1) + rng.normal(0, sigma, (4000, 2)), desc, desc, H, SHAPE)
+    assert d.n_correct == 4000  # 3 px is 6 sigma
+    assert d.localisation_error == pytest.approx(sigma * math.sqrt(math.pi / 2), rel=0.03)
+
+
+def test_diagnose_matches_oracle_error_falls_with_the_number_of_correct_matches(rng):
+    # least squares averages the noise: 16 times the points -> about a quarter of the corner error
+    H = random_homography(rng)
+    errors = {}
+    for n in (25, 400):
+        values = []
+        for _ in range(20):
+            kp1 = rng.uniform([0, 0], [SHAPE[1] - 1, SHAPE[0] - 1], (n, 2))
+            kp2 = cv_warp(H, kp1) + rng.normal(0, 0.7, (n, 2))
+            values.append(diagnose_matches(kp1, kp2, np.eye(n), np.eye(n), H, SHAPE).corner_error_oracle)
+        errors[n] = np.median(values)
+    assert 2.5 < errors[25] / errors[400] < 6.5
+
+
+def test_diagnose_matches_counts_wrong_matches_and_the_oracle_ignores_them(rng):
+    H = translation(3.0, -2.0)
+    kp1 = grid_points()  # 10 px apart: a wrong match is off by >= 10 px
+    n = len(kp1)
+    desc1 = np.eye(n)
+    order = np.arange(n)
+    order[:10] = np.roll(order[:10], 1)  # the first 10 points get a neighbour's descriptor
+    kp2 = cv_warp(H, kp1)
+    d = diagnose_matches(kp1, kp2, desc1, desc1[order], H, SHAPE)
+    assert (d.n_matches, d.n_correct) == (n, n - 10)
+    assert d.corner_error_oracle < 1e-6 and d.corner_error_ransac < 1e-3
+    few = diagnose_matches(kp1[:3], kp2[:3], np.eye(3), np.eye(3), H, SHAPE)  # 3 correct: no homography
+    assert few.n_correct == 3 and few.corner_error_oracle == math.inf and few.corner_error_ransac == math.inf
+    none = diagnose_matches(kp1[:5], kp2[:5] + 50.0, np.eye(5), np.eye(5), H, SHAPE)
+    assert none.n_correct == 0 and math.isnan(none.localisation_error)
+
+
+def test_diagnose_matches_bad_input():
+    kp = grid_points()
+    n = len(kp)
+    with pytest.raises(ValueError, match="desc1/desc2 must have one row per keypoint"):
+        diagnose_matches(kp, kp, np.eye(3), np.eye(3), np.eye(3), SHAPE)
+    with pytest.raises(ValueError, match="eps must be a positive number"):
+        diagnose_matches(kp, kp, np.eye(n), np.eye(n), np.eye(3), SHAPE, eps=0.0)
