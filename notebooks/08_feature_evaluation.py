@@ -37,6 +37,7 @@
 import os
 import time
 
+import cv2
 import matplotlib.pyplot as plt
 import numpy as np
 from IPython.display import Markdown, display
@@ -53,6 +54,7 @@ from evio_lib.features.benchmark import (
 )
 from evio_lib.features.evaluate import (
     corner_error,
+    diagnose_matches,
     estimate_homography,
     homography_correctness,
     match_descriptors,
@@ -507,6 +509,93 @@ if "sift" in by_name and "orb" in by_name:
     assert by_name["sift"]["homography"]["viewpoint"][3.0] >= by_name["orb"]["homography"]["viewpoint"][3.0]
 
 # %% [markdown]
+# ## 10. Why does the CNN lose the viewpoint split? Matching or localisation
+#
+# On the viewpoint split SIFT estimates more homographies correctly than the project's networks (Table 4 above and
+# the README). Two different failures give the same wrong $\hat H$:
+#
+# * **matching**: too few correct matches among the mutual nearest neighbours, so RANSAC has nothing to fit;
+# * **localisation**: enough correct matches, but each keypoint sits a little off the true point. A homography
+#   fitted to them is extrapolated to image 1's corners, far outside the zoomed-in patch that the matches cover,
+#   and an error of 1 px at the keypoints becomes several px at the corners.
+#
+# `diagnose_matches` separates them. It counts the correct matches (error $e_k = \lVert H\mathbf x_{1,k} -
+# \mathbf x_{2,k}\rVert \le 3$ px), averages their error $e_k$ (the **localisation error**), and fits an
+# **oracle** homography to the correct matches alone by least squares. The oracle is what perfect outlier
+# rejection would give. Least squares averages independent errors, so the oracle's corner error shrinks roughly as
+# (localisation error) / $\sqrt{\text{number of correct matches}}$. First the oracle by hand on one pair, then
+# every detector on a few viewpoint pairs.
+
+# %%
+diag_detectors = {"sift": create_detector("sift", max_keypoints=settings.homography_keypoints,
+                                          nms_radius=settings.homography_nms)}
+if not FAST:
+    diag_detectors["harris"] = create_detector("harris", max_keypoints=settings.homography_keypoints,
+                                               nms_radius=settings.homography_nms)
+for w, options in cnn:
+    diag_detectors[w] = create_detector("superpoint", max_keypoints=settings.homography_keypoints,
+                                        nms_radius=settings.homography_nms, **options)
+
+# the oracle by hand on the pair of section 3, with SIFT's matches from there
+err_k = np.linalg.norm(warp_points(large.H, g1.keypoints[matches[:, 0]]) - g2.keypoints[matches[:, 1]], axis=1)
+good = err_k <= 3.0
+H_oracle, _ = cv2.findHomography(g1.keypoints[matches[good, 0]], g2.keypoints[matches[good, 1]], 0)  # least squares
+diag = diagnose_matches(g1.keypoints, g2.keypoints, g1.descriptors, g2.descriptors, large.H, large.image1.shape)
+print(f"by hand: {good.sum()} correct of {len(matches)}, localisation error {err_k[good].mean():.3f} px, "
+      f"oracle corner error {corner_error(H_oracle, large.H, large.image1.shape):.3f} px")
+print("library:", diag)
+assert diag.n_correct == good.sum() and np.isclose(diag.localisation_error, err_k[good].mean())
+assert np.isclose(diag.corner_error_oracle, corner_error(H_oracle, large.H, large.image1.shape), atol=1e-3)
+
+# %%
+diag_pairs = heldout_pairs(SEED, n_images=3 if FAST else 12, pairs_per_image=2, splits=("viewpoint",))
+diagnoses = {}
+for name, detector in diag_detectors.items():  # a loop over detectors and pairs; diagnose_matches does the rest
+    per_pair = []
+    for pair in diag_pairs:
+        f1, f2 = detector.detect_and_describe(pair.image1), detector.detect_and_describe(pair.image2)
+        per_pair.append(diagnose_matches(f1.keypoints, f2.keypoints, f1.descriptors, f2.descriptors, pair.H,
+                                         pair.image1.shape, binary=f1.binary))
+    diagnoses[name] = np.array(per_pair, dtype=np.float64)  # columns: the fields of MatchDiagnosis
+
+lines = ["| detector | correct matches | localisation error (px) | RANSAC correct, ε = 3 | oracle correct, ε = 3 |",
+         "|---|---|---|---|---|"]
+for name, d in diagnoses.items():
+    lines.append(f"| {name} | {d[:, 1].mean():.1f} | {np.nanmean(d[:, 2]):.2f} | {(d[:, 3] <= 3).mean():.2f} | "
+                 f"{(d[:, 4] <= 3).mean():.2f} |")
+display(Markdown(f"{len(diag_pairs)} viewpoint pairs (held-out images, 480 x 640, best 1000 points, NMS 8)\n\n"
+                 + "\n".join(lines)))
+
+fig, ax = plt.subplots(figsize=(8, 4.5))
+for name, d in diagnoses.items():
+    ax.scatter(np.maximum(d[:, 1], 1), np.clip(d[:, 4], 0.05, 1e3), label=name, alpha=0.7)
+ax.axhline(3.0, color="k", ls="--", lw=1, label="ε = 3 px")
+ax.set_xscale("log")
+ax.set_yscale("log")
+ax.set_xlabel("correct matches in the pair")
+ax.set_ylabel("oracle corner error (px)")
+ax.set_title("least squares on the correct matches only: what perfect RANSAC would reach")
+ax.legend(fontsize=8)
+plt.tight_layout()
+plt.show()
+
+# %% [markdown]
+# Read the table from left to right. The networks find correct matches on most pairs, but their keypoints sit
+# about twice as far from the true points as SIFT's: SIFT fits each keypoint to a sub-pixel extremum of its
+# scale space, so a zoomed copy of a blob is found at the same scene point. A single-scale corner detector, the
+# network or Harris, fires a little inside or outside a corner depending on the zoom. The network also has a
+# fixed 8 x 8 cell grid: `bench/detector_localisation.py` shows that a shift by a whole cell (8 px) moves its
+# points exactly, while shifts by 1-4 px do not. Many network pairs therefore miss 3 px even with the oracle, and
+# no RANSAC setting can fix that. What would: more correct matches (the error falls as $1/\sqrt n$), or a
+# detector that localises under a change of scale. The claim checked below is the localisation gap.
+
+# %%
+sift_error = np.nanmean(diagnoses["sift"][:, 2])
+for w, _ in cnn:
+    print(f"{w}: localisation error {np.nanmean(diagnoses[w][:, 2]):.2f} px vs SIFT {sift_error:.2f} px")
+    assert np.nanmean(diagnoses[w][:, 2]) > sift_error  # SIFT's correct matches are better localised
+
+# %% [markdown]
 # ## Summary
 #
 # * **Repeatability** (Eqs. 15-16) asks whether the detector finds the same scene points again: carry each point
@@ -518,7 +607,11 @@ if "sift" in by_name and "orb" in by_name:
 # * Every metric was computed by hand on one pair and agrees with `evio_lib.features.evaluate`.
 # * `evio_lib.features.benchmark` turns these into tables shaped like the thesis's Tables 2-5 (held-out
 #   viewpoint/illumination pairs and simulated event frames), plus a speed table; the full 580-pair run is
-#   `python -m evio_lib features-benchmark --out DIR`. The CNN rows appear once trained weights are shipped.
+#   `python -m evio_lib features-benchmark --out DIR`. One CNN row appears per weights file shipped in
+#   `evio_lib/weights/`.
+# * `diagnose_matches` tells a matching failure from a localisation failure. On the viewpoint split the networks'
+#   correct matches are localised about half as precisely as SIFT's, and with the zoom of about 1.5x in these
+#   pairs (patch ratio 0.65) that alone costs them the 3 px threshold on many pairs.
 #
 # ## Exercises
 #
@@ -531,6 +624,8 @@ if "sift" in by_name and "orb" in by_name:
 #    degrade, and which one degrades least?
 # 4. Time `measure_speed` for SIFT at 480 x 640 and compare with 240 x 320. Is the cost proportional to the
 #    number of pixels?
-# 5. Once the CNN weights exist: does the shipped network meet the issue's targets (at least SIFT's homography
+# 5. Do the shipped networks meet the issue's targets (at least SIFT's homography
 #    correctness at $\varepsilon = 3$ on the viewpoint split, better than every classical method on the
-#    illumination split)?
+#    illumination split)? Run the full benchmark from the command line.
+# 6. Run `bench/homography_diagnosis.py --splits illumination`. Is the networks' gap to Harris at $\varepsilon = 5$
+#    a matching or a localisation failure? Look at the pairs where a network finds fewer than 50 keypoints.
