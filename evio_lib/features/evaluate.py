@@ -26,6 +26,7 @@ from evio_lib.geometry.homography import as_image_shape
 
 __all__ = [
     "repeatability",
+    "localisation_error",
     "corner_error",
     "homography_correctness",
     "descriptor_distances",
@@ -214,18 +215,76 @@ def repeatability(
         if s2.shape != (len(pts2),):
             raise ValueError(f"scores2 must have shape (N2,) = ({len(pts2)},) like kp2; got {s2.shape}")
 
+    d1, d2 = _shared_view_distances(pts1, pts2, H, shape1, shape2, s1, s2, keep_k)
+    if len(d1) + len(d2) == 0:
+        return _result(np.full(len(eps_values), np.nan), scalar)
+    count = (d1[:, None] <= eps_values).sum(axis=0) + (d2[:, None] <= eps_values).sum(axis=0)  # Eq. 15 per eps
+    return _result(count / (len(d1) + len(d2)), scalar)  # Eq. 16
+
+
+def _shared_view_distances(
+    pts1: NDArray[np.float64],
+    pts2: NDArray[np.float64],
+    H: NDArray[np.float64],
+    shape1: tuple[int, int],
+    shape2: tuple[int, int],
+    s1: NDArray[np.float64] | None = None,
+    s2: NDArray[np.float64] | None = None,
+    keep_k: int | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Return (d1, d2): each shared-view point's distance (image 2 frame) to the other image's nearest point.
+
+    ``d1_i = min_j ||H x1_i - x2_j||`` over the points of image 1 that land inside image 2, ``d2_j = min_i ||x2_j -
+    H x1_i||`` over the points of image 2 whose ``H^-1 x2_j`` lands inside image 1; with ``keep_k`` only the
+    ``keep_k`` best-scoring of each side count.
+    """
     warped1 = _warp(H, pts1, shape1)  # H x1, image 2 frame
     back2 = _warp(np.linalg.inv(H), pts2, shape2)  # H^-1 x2, image 1 frame
     keep1 = _keep_best(_inside(warped1, shape2), s1, keep_k)
     keep2 = _keep_best(_inside(back2, shape1), s2, keep_k)
-    n1, n2 = len(keep1), len(keep2)
-    if n1 + n2 == 0:
-        return _result(np.full(len(eps_values), np.nan), scalar)
     a, b = warped1[keep1], pts2[keep2]  # both in image 2's frame
-    d1 = _nearest_distance(a, b)  # min_j ||H x1_i - x2_j||
-    d2 = _nearest_distance(b, a)  # min_i ||x2_j - H x1_i||
-    count = (d1[:, None] <= eps_values).sum(axis=0) + (d2[:, None] <= eps_values).sum(axis=0)  # Eq. 15 per eps
-    return _result(count / (n1 + n2), scalar)  # Eq. 16
+    return _nearest_distance(a, b), _nearest_distance(b, a)
+
+
+def localisation_error(
+    kp1: ArrayLike,
+    kp2: ArrayLike,
+    H: ArrayLike,
+    shape1: tuple[int, int],
+    shape2: tuple[int, int],
+    eps: float = 3.0,
+) -> float:
+    """Return the mean localisation error (px, image 2 frame) of the points that repeatability counts as found again.
+
+    With the distances of :func:`repeatability` (Eq. 15, both directions, shared view only), ``d1_i = min_j ||H x1_i
+    - x2_j||`` and ``d2_j = min_i ||x2_j - H x1_i||``, this is the mean of those that are at most ``eps``:
+    ``(sum_{d1_i <= eps} d1_i + sum_{d2_j <= eps} d2_j) / #{d <= eps}`` (SuperPoint's "mean localisation error",
+    DeTone et al. 2018, Table 3). A covariant detector scores ~0 under a pure shift of the image; one whose points
+    stay on fixed positions of a grid scores about the part of the shift that the grid does not follow. NaN when no
+    point is found again.
+
+    Args:
+        kp1, kp2: (N1, 2), (N2, 2) keypoints (x, y) in image 1 / image 2 pixels.
+        H: (3, 3) homography mapping image-1 pixels to image-2 pixels.
+        shape1, shape2: (height, width) of image 1 and image 2.
+        eps: distance (px, finite, >= 0) within which a point counts as found again.
+
+    >>> kp = np.array([[10.0, 10.0], [30.0, 20.0], [50.0, 40.0]])
+    >>> shift = np.array([[1.0, 0, 2], [0, 1.0, 0], [0, 0, 1]])       # image 2 = image 1 moved 2 px right
+    >>> localisation_error(kp, kp + [2.5, 0], shift, (60, 80), (60, 80))   # every point 0.5 px off
+    0.5
+    """
+    pts1 = _as_points(kp1, "kp1")
+    pts2 = _as_points(kp2, "kp2")
+    H = _as_homography(H, "H")
+    shape1 = as_image_shape(shape1, "shape1")
+    shape2 = as_image_shape(shape2, "shape2")
+    eps_values, scalar = _as_eps(eps)
+    if not scalar:
+        raise ValueError(f"eps must be a single pixel threshold >= 0, not a sequence; got {eps!r}")
+    d = np.concatenate(_shared_view_distances(pts1, pts2, H, shape1, shape2))
+    found = d[d <= eps_values[0]]
+    return float(found.mean()) if len(found) else math.nan
 
 
 # ---------------------------------------------------------------------------------------------- homography

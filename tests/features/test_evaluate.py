@@ -13,6 +13,7 @@ from evio_lib.features.evaluate import (
     descriptor_distances,
     diagnose_matches,
     estimate_homography,
+    localisation_error,
     homography_correctness,
     match_descriptors,
     matching_score,
@@ -151,6 +152,42 @@ def test_repeatability_bad_input():
         repeatability(kp, kp, np.eye(3), SHAPE, SHAPE, keep_k=10)
     with pytest.raises(ValueError, match=r"scores1 must have shape \(N1,\)"):
         repeatability(kp, kp, np.eye(3), SHAPE, SHAPE, scores1=np.ones(3), scores2=np.ones(len(kp)), keep_k=5)
+
+
+# ---------------------------------------------------------------------------------------------- localisation error
+def test_localisation_error_of_a_constant_offset_is_the_offset():
+    kp = grid_points()  # 10 px apart: every point's nearest neighbour is its own copy
+    assert localisation_error(kp, kp + [2.3, 0.0], translation(2, 0), SHAPE, SHAPE) == pytest.approx(0.3)
+    assert localisation_error(kp, kp + [3.0, 4.0], np.eye(3), SHAPE, SHAPE, eps=6.0) == pytest.approx(5.0)
+    assert math.isnan(localisation_error(kp, kp + [3.0, 4.0], np.eye(3), SHAPE, SHAPE, eps=3.0))  # none found
+
+
+def test_localisation_error_matches_brute_force(rng):
+    def inside(p, shape):
+        return (p[:, 0] >= -0.5) & (p[:, 0] < shape[1] - 0.5) & (p[:, 1] >= -0.5) & (p[:, 1] < shape[0] - 0.5)
+
+    for _ in range(5):
+        H = random_homography(rng)
+        kp1 = rng.uniform([0, 0], [SHAPE[1] - 1, SHAPE[0] - 1], (40, 2))
+        kp2 = np.vstack([cv_warp(H, kp1[:25]) + rng.normal(0, 1.0, (25, 2)),
+                         rng.uniform([0, 0], [SHAPE[1] - 1, SHAPE[0] - 1], (10, 2))])
+        w1 = cv_warp(H, kp1)
+        a = w1[inside(w1, SHAPE)]
+        b = kp2[inside(cv_warp(np.linalg.inv(H), kp2), SHAPE)]
+        D = np.hypot(*(a[:, None, :] - b[None, :, :]).transpose(2, 0, 1))  # (len a, len b) in image 2's frame
+        d = np.concatenate([D.min(axis=1), D.min(axis=0)])
+        for eps in (1.0, 3.0):
+            assert localisation_error(kp1, kp2, H, SHAPE, SHAPE, eps) == pytest.approx(d[d <= eps].mean(), abs=1e-12)
+
+
+def test_localisation_error_bad_input():
+    kp = grid_points()
+    with pytest.raises(ValueError, match="eps must be a single pixel threshold"):
+        localisation_error(kp, kp, np.eye(3), SHAPE, SHAPE, eps=[1.0, 3.0])
+    with pytest.raises(ValueError, match="eps must be a pixel threshold"):
+        localisation_error(kp, kp, np.eye(3), SHAPE, SHAPE, eps=math.inf)
+    with pytest.raises(ValueError, match=r"kp2 must have shape \(N, 2\)"):
+        localisation_error(kp, kp[:, :1], np.eye(3), SHAPE, SHAPE)
 
 
 # ---------------------------------------------------------------------------------------------- homography
