@@ -109,6 +109,12 @@ def _as_descriptors(value: ArrayLike, name: str, binary: bool) -> NDArray:
 
 
 # ---------------------------------------------------------------------------------------------- geometry helpers
+def _geometry_inputs(kp1, kp2, H, shape1, shape2):  # type: ignore[no-untyped-def]
+    """Validate two keypoint sets, the homography between them and both image shapes (ValueError names the culprit)."""
+    return (_as_points(kp1, "kp1"), _as_points(kp2, "kp2"), _as_homography(H, "H"),
+            as_image_shape(shape1, "shape1"), as_image_shape(shape2, "shape2"))
+
+
 def _warp(H: NDArray[np.float64], points: NDArray[np.float64], source_shape: tuple[int, int]) -> NDArray[np.float64]:
     """Return H applied to (N, 2) points; points that land on or beyond H's vanishing line become NaN.
 
@@ -194,11 +200,7 @@ def repeatability(
     >>> repeatability(kp, kp + [4, 0], shift, (60, 80), (60, 80), eps=[1, 3]).round(3)   # 2 px off the truth
     array([0., 1.])
     """
-    pts1 = _as_points(kp1, "kp1")
-    pts2 = _as_points(kp2, "kp2")
-    H = _as_homography(H, "H")
-    shape1 = as_image_shape(shape1, "shape1")
-    shape2 = as_image_shape(shape2, "shape2")
+    pts1, pts2, H, shape1, shape2 = _geometry_inputs(kp1, kp2, H, shape1, shape2)
     eps_values, scalar = _as_eps(eps)
     s1 = s2 = None
     if keep_k is not None:
@@ -274,11 +276,7 @@ def localisation_error(
     >>> localisation_error(kp, kp + [2.5, 0], shift, (60, 80), (60, 80))   # every point 0.5 px off
     0.5
     """
-    pts1 = _as_points(kp1, "kp1")
-    pts2 = _as_points(kp2, "kp2")
-    H = _as_homography(H, "H")
-    shape1 = as_image_shape(shape1, "shape1")
-    shape2 = as_image_shape(shape2, "shape2")
+    pts1, pts2, H, shape1, shape2 = _geometry_inputs(kp1, kp2, H, shape1, shape2)
     eps_values, scalar = _as_eps(eps)
     if not scalar:
         raise ValueError(f"eps must be a single pixel threshold >= 0, not a sequence; got {eps!r}")
@@ -530,15 +528,14 @@ def _directional_matches(
 
 def _descriptor_inputs(kp1, kp2, desc1, desc2, H, shape1, shape2, binary):  # type: ignore[no-untyped-def]
     """Validate the common arguments of matching_score and mean_average_precision."""
-    pts1 = _as_points(kp1, "kp1")
-    pts2 = _as_points(kp2, "kp2")
+    pts1, pts2, H, shape1, shape2 = _geometry_inputs(kp1, kp2, H, shape1, shape2)
     distances = descriptor_distances(desc1, desc2, binary)
     if distances.shape != (len(pts1), len(pts2)):
         raise ValueError(
             f"desc1/desc2 must have one row per keypoint: kp1 has {len(pts1)} and kp2 {len(pts2)} rows, "
             f"the descriptors {distances.shape[0]} and {distances.shape[1]}"
         )
-    return pts1, pts2, distances, _as_homography(H, "H"), as_image_shape(shape1, "shape1"), as_image_shape(shape2, "shape2")
+    return pts1, pts2, distances, H, shape1, shape2
 
 
 def matching_score(
