@@ -581,7 +581,8 @@ plt.show()
 
 # %% [markdown]
 # Read the table from left to right. The networks find correct matches on most pairs, but their keypoints sit
-# about twice as far from the true points as SIFT's: SIFT fits each keypoint to a sub-pixel extremum of its
+# further from the true points than SIFT's (1.5 to 1.8 times as far on the 22 pairs of the full mode, 2 times on
+# the README's 30 validation pairs): SIFT fits each keypoint to a sub-pixel extremum of its
 # scale space, so a zoomed copy of a blob is found at the same scene point. A single-scale corner detector, the
 # network or Harris, fires a little inside or outside a corner depending on the zoom. The network also has a
 # fixed 8 x 8 cell grid: `bench/detector_localisation.py` shows that a shift by a whole cell (8 px) moves its
@@ -610,7 +611,7 @@ for w, _ in cnn:
 #   `python -m evio_lib features-benchmark --out DIR`. One CNN row appears per weights file shipped in
 #   `evio_lib/weights/`.
 # * `diagnose_matches` tells a matching failure from a localisation failure. On the viewpoint split the networks'
-#   correct matches are localised about half as precisely as SIFT's, and with the zoom of about 1.5x in these
+#   correct matches lie 1.5 to 2 times as far from the truth as SIFT's, and with the zoom of about 1.5x in these
 #   pairs (patch ratio 0.65) that alone costs them the 3 px threshold on many pairs.
 #
 # ## Exercises
