@@ -34,7 +34,8 @@ def warps(shape: tuple[int, int]) -> list[tuple[str, np.ndarray]]:
         return H
 
     return [("shift 0.5 px", shift(0.5, 0)), ("shift 1 px", shift(1, 0)), ("shift 2.5 px", shift(2.5, 0)),
-            ("shift (4, 4) px", shift(4, 4)), ("shift 8 px", shift(8, 0)), ("zoom 1.1", similarity(shape, 1.1, 0)), ("zoom 1.5", similarity(shape, 1.5, 0)),
+            ("shift (4, 4) px", shift(4, 4)), ("shift 8 px", shift(8, 0)),
+            ("zoom 1.1", similarity(shape, 1.1, 0)), ("zoom 1.5", similarity(shape, 1.5, 0)),
             ("rotate 5 deg", similarity(shape, 1, 5))]
 
 

@@ -110,7 +110,7 @@ def _as_descriptors(value: ArrayLike, name: str, binary: bool) -> NDArray:
 
 # ---------------------------------------------------------------------------------------------- geometry helpers
 def _geometry_inputs(kp1, kp2, H, shape1, shape2):  # type: ignore[no-untyped-def]
-    """Validate two keypoint sets, the homography between them and both image shapes (ValueError names the culprit)."""
+    """Validate two keypoint sets, the homography between them and both image shapes (ValueError names which)."""
     return (_as_points(kp1, "kp1"), _as_points(kp2, "kp2"), _as_homography(H, "H"),
             as_image_shape(shape1, "shape1"), as_image_shape(shape2, "shape2"))
 

@@ -13,8 +13,8 @@ from evio_lib.features.evaluate import (
     descriptor_distances,
     diagnose_matches,
     estimate_homography,
-    localisation_error,
     homography_correctness,
+    localisation_error,
     match_descriptors,
     matching_score,
     mean_average_precision,
@@ -47,11 +47,13 @@ def cv_warp(H: np.ndarray, pts: np.ndarray) -> np.ndarray:
     return cv2.perspectiveTransform(pts.reshape(-1, 1, 2).astype(np.float64), H).reshape(-1, 2)
 
 
+def inside(p, shape):
+    """Return whether each (x, y) lies on the pixel area of an image of the given (height, width)."""
+    return (p[:, 0] >= -0.5) & (p[:, 0] < shape[1] - 0.5) & (p[:, 1] >= -0.5) & (p[:, 1] < shape[0] - 0.5)
+
+
 def brute_force_repeatability(kp1, kp2, H, shape1, shape2, eps):
     """SuperPoint's definition written out with full distance matrices and OpenCV warps."""
-    def inside(p, shape):
-        return (p[:, 0] >= -0.5) & (p[:, 0] < shape[1] - 0.5) & (p[:, 1] >= -0.5) & (p[:, 1] < shape[0] - 0.5)
-
     w1 = cv_warp(H, kp1)
     a = w1[inside(w1, shape2)]
     b = kp2[inside(cv_warp(np.linalg.inv(H), kp2), shape1)]
@@ -163,9 +165,6 @@ def test_localisation_error_of_a_constant_offset_is_the_offset():
 
 
 def test_localisation_error_matches_brute_force(rng):
-    def inside(p, shape):
-        return (p[:, 0] >= -0.5) & (p[:, 0] < shape[1] - 0.5) & (p[:, 1] >= -0.5) & (p[:, 1] < shape[0] - 0.5)
-
     for _ in range(5):
         H = random_homography(rng)
         kp1 = rng.uniform([0, 0], [SHAPE[1] - 1, SHAPE[0] - 1], (40, 2))
