@@ -9,7 +9,8 @@ The homography benchmark (thesis Eq. 17) needs two things: enough correct matche
 enough that a homography fitted to them lands within eps of the true corners. The corners of image 1 usually lie
 outside the region that the matches cover, so the fit is extrapolated and a keypoint error of 1 px can become
 several px at the corners. For each detector this prints, over the benchmark's pairs (thesis homography settings:
-480x640, best 1000 points, NMS 8, mutual nearest neighbours, RANSAC; ``evaluate.diagnose_matches`` on every pair):
+480x640, best 1000 points, NMS 8, mutual nearest neighbours, RANSAC; ``benchmark.diagnose_pairs``, which runs
+``evaluate.diagnose_matches`` on every pair):
 
 * ``matches`` / ``correct``: mutual matches and those within eps (px) of the truth;
 * ``loc. err``: mean error of the correct matches (px), averaged over the pairs -- the keypoints' localisation
@@ -28,8 +29,7 @@ import argparse
 import numpy as np
 
 from evio_lib.features import create_detector
-from evio_lib.features.benchmark import BenchmarkSettings, heldout_pairs
-from evio_lib.features.evaluate import diagnose_matches
+from evio_lib.features.benchmark import BenchmarkSettings, diagnose_pairs, heldout_pairs
 from evio_lib.features.superpoint import shipped_weights
 
 
@@ -49,24 +49,18 @@ def main() -> None:
     settings = BenchmarkSettings()  # the thesis's homography task: size, point budget, NMS radius
     height, width = settings.homography_size
     options = dict(max_keypoints=settings.homography_keypoints, nms_radius=settings.homography_nms)
-    detectors = {w: create_detector("superpoint", weights=w, **options) for w in args.weights}
+    detectors = {w: create_detector("superpoint", weights=w, **options) for w in args.weights}  # loaded once
     detectors |= {n: create_detector(n, **options) for n in args.detectors}
     pairs = heldout_pairs(args.seed, n_images=args.images, pairs_per_image=args.pairs, pool=args.pool,
                           splits=args.splits, size=(height, width))
-    print(f"{len(pairs)} {args.pool} pairs at {height}x{width}, best {options['max_keypoints']} points, "
-          f"NMS {options['nms_radius']}, eps = {args.eps:g} px")
+    print(f"{len(pairs)} {args.pool} pairs at {height}x{width}, best {settings.homography_keypoints} points, "
+          f"NMS {settings.homography_nms}, eps = {args.eps:g} px")
     print(f"{'split':>12s} {'detector':>30s} {'matches':>8s} {'correct':>8s} {'loc. err':>9s} {'RANSAC':>7s} "
           f"{'oracle':>7s}")
-    for split in args.splits:  # loop over splits and detectors; the pairs' work is in diagnose_matches
+    for split in args.splits:  # loop over splits and detectors; the pairs' work is in diagnose_pairs
         chosen = [p for p in pairs if p.split == split]
         for name, detector in detectors.items():
-            rows = []
-            for pair in chosen:
-                f1 = detector.detect_and_describe(pair.image1)
-                f2 = detector.detect_and_describe(pair.image2)
-                rows.append(diagnose_matches(f1.keypoints, f2.keypoints, f1.descriptors, f2.descriptors, pair.H,
-                                             pair.image1.shape, eps=args.eps, binary=f1.binary))
-            d = np.array(rows, dtype=np.float64)  # columns: the MatchDiagnosis fields
+            d = diagnose_pairs(detector, chosen, settings, eps=args.eps)  # columns: the MatchDiagnosis fields
             loc = np.nanmean(d[:, 2]) if np.isfinite(d[:, 2]).any() else np.nan
             print(f"{split:>12s} {name[-30:]:>30s} {d[:, 0].mean():8.1f} {d[:, 1].mean():8.1f} {loc:9.2f} "
                   f"{(d[:, 3] <= args.eps).mean():7.3f} {(d[:, 4] <= args.eps).mean():7.3f}", flush=True)

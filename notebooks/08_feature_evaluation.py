@@ -46,6 +46,7 @@ from evio_lib.events.array import event_count_image, events_between
 from evio_lib.features.base import available_detectors, create_detector
 from evio_lib.features.benchmark import (
     BenchmarkSettings,
+    diagnose_pairs,
     event_frame_pairs,
     format_table,
     heldout_pairs,
@@ -549,14 +550,8 @@ assert np.isclose(diag.corner_error_oracle, corner_error(H_oracle, large.H, larg
 
 # %%
 diag_pairs = heldout_pairs(SEED, n_images=3 if FAST else 12, pairs_per_image=2, splits=("viewpoint",))
-diagnoses = {}
-for name, detector in diag_detectors.items():  # a loop over detectors and pairs; diagnose_matches does the rest
-    per_pair = []
-    for pair in diag_pairs:
-        f1, f2 = detector.detect_and_describe(pair.image1), detector.detect_and_describe(pair.image2)
-        per_pair.append(diagnose_matches(f1.keypoints, f2.keypoints, f1.descriptors, f2.descriptors, pair.H,
-                                         pair.image1.shape, binary=f1.binary))
-    diagnoses[name] = np.array(per_pair, dtype=np.float64)  # columns: the fields of MatchDiagnosis
+# diagnose_pairs runs diagnose_matches on every pair; one row per pair, columns: the fields of MatchDiagnosis
+diagnoses = {name: diagnose_pairs(detector, diag_pairs, settings) for name, detector in diag_detectors.items()}
 
 lines = ["| detector | correct matches | localisation error (px) | RANSAC correct, ε = 3 | oracle correct, ε = 3 |",
          "|---|---|---|---|---|"]

@@ -37,6 +37,7 @@ from numpy.typing import NDArray
 
 from evio_lib.features.evaluate import (
     corner_error,
+    diagnose_matches,
     estimate_homography,
     match_descriptors,
     matching_score,
@@ -65,6 +66,7 @@ __all__ = [
     "heldout_pairs",
     "event_frame_pairs",
     "run_benchmark",
+    "diagnose_pairs",
     "measure_speed",
     "format_table",
     "add_benchmark_arguments",
@@ -611,6 +613,48 @@ def run_benchmark(
             result["speed"][key] = {"ms": ms, "fps": 1000.0 / ms if ms > 0 else math.inf, "images": timer.images}
     result["per_pair"] = per_pair
     return result
+
+
+def diagnose_pairs(
+    detector: DetectorArg,
+    pairs: Iterable[ImagePair],
+    settings: BenchmarkSettings | None = None,
+    *,
+    eps: float = 3.0,
+    detector_options: dict[str, Any] | None = None,
+) -> NDArray[np.float64]:
+    """Return ``evaluate.diagnose_matches`` on every pair, one row per pair, for the homography task's detections.
+
+    The detector sees what ``run_benchmark``'s homography task gives it: each pair resized to
+    ``settings.homography_size``, the best ``homography_keypoints`` points with NMS ``homography_nms``. The rows
+    split each pair's result into its correct matches, their localisation error and the oracle homography fitted
+    to them (see :func:`evio_lib.features.evaluate.diagnose_matches`).
+
+    Args:
+        detector, settings, detector_options: as for :func:`run_benchmark`.
+        pairs: ``ImagePair`` objects.
+        eps: the correctness threshold of a match (px).
+
+    Returns:
+        (n_pairs, 5) float64, columns in the order of ``MatchDiagnosis._fields``: n_matches, n_correct,
+        localisation_error (NaN without correct matches), corner_error_ransac, corner_error_oracle (inf when
+        there is no homography).
+    """
+    settings = BenchmarkSettings() if settings is None else settings
+    if not isinstance(settings, BenchmarkSettings):
+        raise ValueError(f"settings must be a BenchmarkSettings; got {type(settings).__name__}")
+    k = settings.homography_keypoints
+    det = _make_detector(detector, k, settings.homography_nms, dict(detector_options or {}))
+    timer = _Timer()
+    rows = []
+    for pair in pairs:  # a loop over pairs; the per-pair work is vectorised in diagnose_matches
+        if not isinstance(pair, ImagePair):
+            raise ValueError(f"pairs must hold ImagePair objects; got {type(pair).__name__}")
+        large = resize_pair(pair, settings.homography_size, settings.resize_mode)
+        f1, f2 = _detect(det, large.image1, k, timer), _detect(det, large.image2, k, timer)
+        rows.append(diagnose_matches(f1.keypoints, f2.keypoints, f1.descriptors, f2.descriptors, large.H,
+                                     large.image1.shape, eps=eps, binary=f1.binary))
+    return np.array(rows, dtype=np.float64).reshape(-1, 5)
 
 
 def measure_speed(

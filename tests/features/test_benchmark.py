@@ -12,6 +12,7 @@ from skimage import data as skdata
 from evio_lib.features.base import Features, FeatureDetector, create_detector
 from evio_lib.features.benchmark import (
     BenchmarkSettings,
+    diagnose_pairs,
     event_frame_pairs,
     format_table,
     heldout_pairs,
@@ -22,7 +23,8 @@ from evio_lib.features.benchmark import (
     run_benchmark,
     viewpoint_pairs,
 )
-from evio_lib.features.hpatches import ImagePair
+from evio_lib.features.evaluate import diagnose_matches
+from evio_lib.features.hpatches import ImagePair, resize_pair
 
 
 @pytest.fixture(scope="module")
@@ -189,6 +191,27 @@ def test_end_to_end_with_sift_on_two_pairs(camera):
     table = format_table([result], "homography")
     assert table.splitlines()[0].startswith("| Model | Viewpoint ε = 1 |") and "| SIFT |" in table
     json.dumps({k: v for k, v in result.items() if k != "per_pair"})  # the summary is JSON-serialisable
+
+
+def test_diagnose_pairs_sees_the_homography_task_of_run_benchmark(camera):
+    pairs = viewpoint_pairs([camera], seed=0, pairs_per_image=1) + illumination_pairs([camera], seed=0,
+                                                                                        pairs_per_image=1)
+    rows = diagnose_pairs("sift", pairs)
+    assert rows.shape == (2, 5)
+    settings = BenchmarkSettings()
+    sift = create_detector("sift", max_keypoints=settings.homography_keypoints, nms_radius=settings.homography_nms)
+    for row, pair in zip(rows, pairs):  # the same detections as written out by hand, at 480 x 640
+        large = resize_pair(pair, settings.homography_size, settings.resize_mode)
+        f1, f2 = sift.detect_and_describe(large.image1), sift.detect_and_describe(large.image2)
+        expected = diagnose_matches(f1.keypoints, f2.keypoints, f1.descriptors, f2.descriptors, large.H,
+                                    large.image1.shape)
+        np.testing.assert_allclose(row[:3], expected[:3])
+        assert row[4] == pytest.approx(expected.corner_error_oracle)
+    benchmark = run_benchmark("sift", pairs, BenchmarkSettings(tasks=("homography",)))
+    np.testing.assert_array_equal(rows[:, 0], [r["n_matches"] for r in benchmark["per_pair"]])
+    assert (rows[:, 1] <= rows[:, 0]).all() and (rows[:, 4] <= 3.0).all()  # SIFT on a clean photograph
+    with pytest.raises(ValueError, match="pairs must hold ImagePair objects"):
+        diagnose_pairs("sift", [camera])
 
 
 def test_measure_speed(camera):
