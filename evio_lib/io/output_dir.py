@@ -1,0 +1,151 @@
+"""Output folders that are never overwritten by accident and never left half-written.
+
+Every command that writes a folder follows two rules (issue 17, docs/reliability.md):
+
+* :func:`check_output_dir`, called before any work starts, refuses an existing non-empty folder unless the user
+  said ``--force``, a path that is a file, and a place where the folder cannot be created;
+* :func:`atomic_output_dir` yields a fresh temporary folder beside the target (same parent, so the final
+  ``rename`` is atomic on one file system), and moves it into place only when the ``with`` block ends normally.
+  On any exception, Ctrl-C included, the temporary folder is removed and the target is exactly as it was.
+
+>>> import tempfile, pathlib
+>>> target = pathlib.Path(tempfile.mkdtemp()) / "run"
+>>> with atomic_output_dir(target) as tmp:
+...     _ = (tmp / "result.txt").write_text("42")
+>>> (target / "result.txt").read_text()
+'42'
+>>> check_output_dir(target)  # doctest: +ELLIPSIS
+Traceback (most recent call last):
+...
+evio_lib.io.output_dir.OutputExistsError: output folder ... already exists and is not empty; use --force to replace it
+"""
+from __future__ import annotations
+
+import os
+import secrets
+import shutil
+import tempfile
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Iterator
+
+__all__ = ["OutputExistsError", "check_output_dir", "atomic_output_dir"]
+
+
+class OutputExistsError(ValueError):
+    """The output folder already holds files and the user did not ask to replace them (``--force``)."""
+
+
+def _nearest_existing(path: Path) -> Path:
+    """Return ``path`` or its nearest ancestor that exists."""
+    path = Path(os.path.abspath(path))
+    while not path.exists() and path != path.parent:
+        path = path.parent
+    return path
+
+
+def check_output_dir(path: str | Path, force: bool = False) -> Path:
+    """Return ``Path(path)`` after checking that a command may write its output folder there.
+
+    Args:
+        path: the output folder (may not exist yet; missing parents are allowed).
+        force: allow an existing non-empty folder (it will be replaced).
+
+    Raises:
+        OutputExistsError (a ValueError): ``path`` is a folder that holds files and ``force`` is False.
+        ValueError: ``path`` exists and is not a folder; or the nearest existing parent folder is not a folder or
+            not writable (the output and its temporary sibling could not be created there).
+    """
+    if not isinstance(path, (str, os.PathLike)) or str(path) == "":
+        raise ValueError(f"output folder must be a path; got {path!r}")
+    path = Path(path)
+    if path.exists() or path.is_symlink():
+        if not path.is_dir():
+            raise ValueError(f"output path {path} exists and is not a folder; expected a new or empty folder")
+        if not force and any(path.iterdir()):
+            raise OutputExistsError(f"output folder {path} already exists and is not empty; use --force to replace it")
+    parent = _nearest_existing(Path(os.path.abspath(path)).parent)
+    if not parent.is_dir():
+        raise ValueError(f"cannot create output folder {path}: {parent} is a file, not a folder")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise ValueError(f"cannot create output folder {path}: the folder {parent} is not writable")
+    return path
+
+
+def _default_mode() -> int:
+    """Return the permission bits a plain ``mkdir`` gives now (0o777 less the umask)."""
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o777 & ~umask
+
+
+def _remove_created(created: list[Path]) -> None:
+    """Remove the parent folders this module created, innermost first, while they are empty."""
+    for folder in reversed(created):
+        try:
+            folder.rmdir()
+        except OSError:
+            break
+
+
+def _commit(tmp: Path, target: Path, force: bool) -> None:
+    """Move the finished ``tmp`` folder to ``target``; with ``force`` an existing target is replaced.
+
+    The old target is renamed aside first, the new folder renamed in, and only then the old one deleted, so at
+    every instant either the old or the new complete folder sits at ``target``.
+    """
+    if force and target.exists() and not (target.is_dir() and not any(target.iterdir())):
+        aside = target.parent / f".{target.name}.old-{secrets.token_hex(4)}"
+        os.rename(target, aside)
+        try:
+            os.rename(tmp, target)
+        except BaseException:
+            os.rename(aside, target)  # put the old folder back
+            raise
+        if aside.is_dir() and not aside.is_symlink():
+            shutil.rmtree(aside)
+        else:
+            aside.unlink()
+        return
+    try:
+        os.rename(tmp, target)  # POSIX: succeeds when target is absent or an empty folder
+    except OSError as error:
+        if target.exists() and target.is_dir() and any(target.iterdir()):
+            raise OutputExistsError(
+                f"output folder {target} was filled by something else while this command ran; use --force to replace it"
+            ) from error
+        raise
+
+
+@contextmanager
+def atomic_output_dir(path: str | Path, force: bool = False) -> Iterator[Path]:
+    """Yield a temporary folder beside ``path`` that replaces ``path`` when the ``with`` block ends normally.
+
+    Args:
+        path: the output folder (checked with :func:`check_output_dir` first).
+        force: replace an existing non-empty folder; the old one is removed only after the new one is complete.
+
+    Yields:
+        an empty folder ``<parent>/.<name>.tmp-XXXX`` to write everything into.
+
+    On an exception (KeyboardInterrupt included) the temporary folder is deleted, parents this call created are
+    removed again, the exception propagates and ``path`` is untouched.
+    """
+    target = Path(os.path.abspath(check_output_dir(path, force)))
+    created: list[Path] = []
+    parent = target.parent
+    for folder in reversed([parent, *parent.parents]):  # create missing parents, remembering which
+        if not folder.exists():
+            folder.mkdir()
+            created.append(folder)
+    tmp = None
+    try:
+        tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.tmp-", dir=parent))
+        os.chmod(tmp, _default_mode())  # mkdtemp makes 0o700; the result should look like a plain mkdir's
+        yield tmp
+        _commit(tmp, target, force)
+    except BaseException:
+        if tmp is not None and tmp.exists():
+            shutil.rmtree(tmp, ignore_errors=True)
+        _remove_created(created)
+        raise
