@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from evio_lib.events.array import empty_events, events_between, validate_events
+from evio_lib.events.array import EVENT_DTYPE, empty_events, events_between, validate_events
 from evio_lib.geometry.camera import PinholeRadtan
 from evio_lib.geometry.rotation import quat_to_rot
 
@@ -49,6 +49,14 @@ def _check_times(t: np.ndarray, name: str) -> None:
         raise ValueError(f"{name} must be strictly increasing; got {name}[{i}] = {float(t[i])!r} after {name}[{i - 1}] = {float(t[i - 1])!r}")
 
 
+def _float_array_any(value: Any, name: str, expected: str) -> np.ndarray:
+    """Return ``value`` as a float64 array (any shape); raise ValueError naming ``name`` and ``expected`` otherwise."""
+    try:
+        return np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be {expected}; got {value!r}") from None
+
+
 def _check_finite(values: np.ndarray, name: str) -> None:
     """Raise ValueError naming ``name`` if ``values`` holds NaN or inf."""
     bad = ~np.isfinite(values)
@@ -57,10 +65,58 @@ def _check_finite(values: np.ndarray, name: str) -> None:
         raise ValueError(f"{name} must be finite; got a non-finite value in row {row}")
 
 
-def _time_mask(t: np.ndarray, t0: float, t1: float) -> slice:
-    """Return the slice of sorted times ``t`` with t0 <= t < t1."""
+def _time_mask(t: np.ndarray, t0: float, t1: float, name: str = "t") -> slice:
+    """Return the slice of sorted times ``t`` with t0 <= t < t1; raise ValueError if ``t`` is not sorted.
+
+    The binary search is only right on sorted times, so the order is checked first (O(N), cheap next to a copy).
+    """
+    bad = np.flatnonzero(t[1:] < t[:-1])
+    if bad.size:
+        raise ValueError(f"{name} must be sorted by time to slice it; {name}[{int(bad[0]) + 1}] < {name}[{int(bad[0])}] "
+                         f"({bad.size} out-of-order values)")
     i0, i1 = np.searchsorted(t, [t0, t1], side="left")
     return slice(int(i0), int(i1))
+
+
+_EVENTS_EXPECTED = ("a 1-D NumPy array of dtype EVENT_DTYPE (t float64 [s], x and y uint16, p int8 +1/-1) sorted by t; "
+                    "build one with evio_lib.events.array.make_events(t, x, y, p)")
+
+
+def _check_event_array(events: Any) -> None:
+    """Raise ValueError unless ``events`` is a 1-D EVENT_DTYPE array, finite, sorted by t, polarities +1/-1.
+
+    The message says what was given and how to convert it (make_events, or a stable sort by t).
+    """
+    if not isinstance(events, np.ndarray):
+        raise ValueError(f"events must be {_EVENTS_EXPECTED}; got {type(events).__name__}")
+    if events.dtype != EVENT_DTYPE or events.ndim != 1:
+        if events.dtype.names is None and events.ndim == 2 and events.shape[1] == 4:
+            hint = "; for columns (t, x, y, p) use make_events(a[:, 0], a[:, 1], a[:, 2], a[:, 3])"
+        elif events.dtype.names is not None and {"t", "x", "y", "p"} <= set(events.dtype.names):
+            hint = "; convert with make_events(ev['t'], ev['x'], ev['y'], ev['p'])"
+        else:
+            hint = ""
+        raise ValueError(f"events must be {_EVENTS_EXPECTED}; got an array of dtype {events.dtype} and shape "
+                         f"{events.shape}{hint}")
+    t = events["t"]
+    bad = np.flatnonzero(t[1:] < t[:-1])
+    if bad.size:
+        raise ValueError(
+            f"events must be sorted by time; found {bad.size} out-of-order timestamps starting at index {int(bad[0]) + 1}; "
+            f"sort them with events[np.argsort(events['t'], kind='stable')]"
+        )
+    try:
+        validate_events(events)
+    except ValueError as exc:
+        raise ValueError(f"events: {exc}") from None
+
+
+def _check_rotation(R: np.ndarray, name: str) -> None:
+    """Raise ValueError unless ``R`` is a finite (3, 3) rotation matrix (R R^T = I, det R = 1, tolerance 1e-6)."""
+    if R.shape != (3, 3) or not np.all(np.isfinite(R)):
+        raise ValueError(f"{name} must be a finite (3, 3) rotation matrix; got shape {R.shape}")
+    if np.abs(R @ R.T - np.eye(3)).max() > _UNIT_TOL or abs(np.linalg.det(R) - 1.0) > _UNIT_TOL:
+        raise ValueError(f"{name} must be a rotation matrix (R R^T = I, det 1, tol {_UNIT_TOL:g}); got det {np.linalg.det(R):.6g}")
 
 
 @dataclass
@@ -102,8 +158,8 @@ class ImuSamples:
         _check_finite(self.accel, f"{prefix}.accel")
 
     def slice_time(self, t0: float, t1: float) -> "ImuSamples":
-        """Return a copy of the samples with t0 <= t < t1."""
-        s = _time_mask(self.t, t0, t1)
+        """Return a copy of the samples with t0 <= t < t1 (ValueError if the times are not sorted)."""
+        s = _time_mask(self.t, t0, t1, "imu.t")
         return ImuSamples(self.t[s].copy(), self.gyro[s].copy(), self.accel[s].copy())
 
 
@@ -161,20 +217,27 @@ class GroundTruth:
         """Return the (K, 3, 3) rotations R_BtoG = C(q_GtoB)^T (body orientation in the world)."""
         return np.swapaxes(quat_to_rot(self.q_GtoB), -1, -2)
 
-    def validate(self, prefix: str = "groundtruth") -> None:
-        """Return None if times increase strictly, values are finite and quaternions unit; else raise ValueError."""
+    def validate(self, prefix: str = "groundtruth", *, unit_quaternions: bool = True) -> None:
+        """Return None if times increase strictly, values are finite and quaternions unit; else raise ValueError.
+
+        Args:
+            prefix: how messages name this ground truth.
+            unit_quaternions: also check |q| = 1 within 1e-6 (Sequence construction checks the rest only).
+        """
         _check_times(self.t, f"{prefix}.t")
         for name in ("p_BinG", "q_GtoB", *_GT_OPTIONAL):
             if getattr(self, name) is not None:
                 _check_finite(getattr(self, name), f"{prefix}.{name}")
+        if not unit_quaternions:
+            return
         norm_err = np.abs(np.linalg.norm(self.q_GtoB, axis=1) - 1.0)
         if np.any(norm_err > _UNIT_TOL):
             row = int(np.argmax(norm_err))
             raise ValueError(f"{prefix}.q_GtoB must hold unit quaternions (tol {_UNIT_TOL:g}); row {row} has norm error {norm_err[row]:.3g}")
 
     def slice_time(self, t0: float, t1: float) -> "GroundTruth":
-        """Return a copy of the samples with t0 <= t < t1."""
-        s = _time_mask(self.t, t0, t1)
+        """Return a copy of the samples with t0 <= t < t1 (ValueError if the times are not sorted)."""
+        s = _time_mask(self.t, t0, t1, "groundtruth.t")
         parts = {name: (None if getattr(self, name) is None else getattr(self, name)[s].copy())
                  for name in ("t", "p_BinG", "q_GtoB", *_GT_OPTIONAL)}
         return GroundTruth(body=self.body, **parts)
@@ -264,22 +327,88 @@ class Sequence:
     p_CinI: np.ndarray | None = None
     metadata: dict = field(default_factory=dict)
 
+    def __setattr__(self, name: str, value: Any) -> None:
+        """Set a field after checking it on its own (type, dtype, shape, order, finiteness); see :meth:`validate`.
+
+        This runs for every field the constructor sets and for every later assignment (``seq.events = ...``), so
+        the events stay sorted and :meth:`slice_time` / ``events_between`` stay right. Checks that relate two
+        fields (frames against frame_times and the camera) run at the end of construction and in :meth:`validate`.
+        """
+        super().__setattr__(name, self._checked_field(name, value))
+
+    def _checked_field(self, name: str, value: Any) -> Any:
+        """Return ``value`` converted for field ``name`` (None -> empty where the field has an empty form), or raise."""
+        if name == "events":
+            if value is None:
+                return empty_events()
+            _check_event_array(value)
+        elif name == "frame_times":
+            if value is None:
+                return np.zeros(0, dtype=np.float64)
+            try:
+                value = np.asarray(value, dtype=np.float64)
+            except (TypeError, ValueError):
+                raise ValueError(f"frame_times must be a numeric array of shape (F,) [s]; got {value!r}") from None
+            if value.ndim != 1:
+                raise ValueError(f"frame_times must have shape (F,); got {value.shape}")
+            _check_times(value, "frame_times")
+        elif name == "frames":
+            if value is None:
+                camera = self.__dict__.get("camera")
+                h, w = (camera.height, camera.width) if isinstance(camera, PinholeRadtan) else (0, 0)
+                return np.zeros((0, h, w), dtype=np.uint8)
+            if not isinstance(value, np.ndarray) or value.dtype != np.uint8 or value.ndim != 3:
+                got = (f"dtype {value.dtype} and shape {value.shape}" if isinstance(value, np.ndarray)
+                       else type(value).__name__)
+                raise ValueError(f"frames must be a uint8 array of shape (F, H, W) (convert float images in [0, 1] with "
+                                 f"evio_lib.features.base.to_uint8_image); got {got}")
+        elif name == "camera":
+            if value is not None and not isinstance(value, PinholeRadtan):
+                raise ValueError(f"camera must be a PinholeRadtan or None; got {type(value).__name__}")
+        elif name == "name":
+            if not isinstance(value, str):
+                raise ValueError(f"name must be a str; got {type(value).__name__}")
+        elif name == "metadata":
+            if value is None:
+                return {}
+            if not isinstance(value, dict):
+                raise ValueError(f"metadata must be a dict; got {type(value).__name__}")
+        elif name == "imu":
+            if value is not None:
+                if not isinstance(value, ImuSamples):
+                    raise ValueError(f"imu must be an ImuSamples or None; got {type(value).__name__}")
+                value.validate("imu")
+        elif name in ("groundtruth", "groundtruth_imu"):
+            if value is not None:
+                if not isinstance(value, GroundTruth):
+                    raise ValueError(f"{name} must be a GroundTruth or None; got {type(value).__name__}")
+                body = "camera" if name == "groundtruth" else "imu"
+                if value.body != body:
+                    raise ValueError(f"{name}.body must be {body!r}; got {value.body!r}")
+                value.validate(name, unit_quaternions=False)
+        elif name == "R_CtoI":
+            if value is not None:
+                value = _float_array_any(value, "R_CtoI", "a (3, 3) rotation matrix")
+                _check_rotation(value, "R_CtoI")
+        elif name == "p_CinI":
+            if value is not None:
+                value = _float_array_any(value, "p_CinI", "a vector of shape (3,) [m]")
+                if value.shape != (3,) or not np.all(np.isfinite(value)):
+                    raise ValueError(f"p_CinI must be a finite vector of shape (3,); got shape {value.shape}")
+        return value
+
     def __post_init__(self) -> None:
-        if self.events is None:
-            self.events = empty_events()
-        if self.frame_times is None:
-            self.frame_times = np.zeros(0, dtype=np.float64)
-        else:
-            self.frame_times = np.asarray(self.frame_times, dtype=np.float64)
-        if self.frames is None:
-            h, w = (self.camera.height, self.camera.width) if self.camera is not None else (0, 0)
-            self.frames = np.zeros((0, h, w), dtype=np.uint8)
-        if self.R_CtoI is not None:
-            self.R_CtoI = np.asarray(self.R_CtoI, dtype=np.float64)
-        if self.p_CinI is not None:
-            self.p_CinI = np.asarray(self.p_CinI, dtype=np.float64)
-        if self.metadata is None:
-            self.metadata = {}
+        self._check_frames()
+
+    def _check_frames(self) -> None:
+        """Raise ValueError unless frames match frame_times in number and the camera in size."""
+        f = self.frame_times.shape[0]
+        if self.frames.shape[0] != f:
+            raise ValueError(f"frames must have shape ({f}, H, W) matching frame_times ({f},); got {self.frames.shape}")
+        if self.camera is not None and self.frames.shape[1] * self.frames.shape[2] > 0:
+            expected = (self.camera.height, self.camera.width)
+            if self.frames.shape[1:] != expected:
+                raise ValueError(f"frames must have shape (F, {expected[0]}, {expected[1]}) like the camera; got {self.frames.shape}")
 
     @property
     def sensor_size(self) -> tuple[int, int] | None:
@@ -293,55 +422,25 @@ class Sequence:
     def validate(self) -> None:
         """Return None if every part is consistent; else raise ValueError naming the field and the problem.
 
-        Checks: name is a str; events (dtype, sorted, finite, polarity, inside the sensor); frames (F, H, W) uint8
-        with F = len(frame_times), size equal to the camera's; strictly increasing finite times everywhere; IMU and
-        ground-truth shapes and finiteness; unit quaternions; ground-truth bodies; R_CtoI a rotation, p_CinI (3,).
+        Construction and every assignment already check each field on its own (events: EVENT_DTYPE, 1-D, sorted,
+        finite, polarity +1/-1; frames (F, H, W) uint8; strictly increasing finite times everywhere; IMU and
+        ground-truth types, shapes, bodies and finiteness; R_CtoI a rotation, p_CinI (3,)) and, at construction,
+        frames against frame_times and the camera. ``validate`` re-checks all of it (arrays may have been edited
+        in place) and adds: events inside the sensor, unit ground-truth quaternions (tolerance 1e-6).
         """
-        if not isinstance(self.name, str):
-            raise ValueError(f"name must be a str; got {type(self.name).__name__}")
-        if self.camera is not None and not isinstance(self.camera, PinholeRadtan):
-            raise ValueError(f"camera must be a PinholeRadtan or None; got {type(self.camera).__name__}")
-        if not isinstance(self.metadata, dict):
-            raise ValueError(f"metadata must be a dict; got {type(self.metadata).__name__}")
+        for name in ("name", "camera", "metadata", "events", "frame_times", "frames", "imu", "groundtruth",
+                     "groundtruth_imu", "R_CtoI", "p_CinI"):
+            self._checked_field(name, getattr(self, name))
         size = self.sensor_size
-        try:
-            validate_events(self.events, *(size if size is not None else (None, None)))
-        except ValueError as exc:
-            raise ValueError(f"events: {exc}") from None
-        if self.frame_times.ndim != 1:
-            raise ValueError(f"frame_times must have shape (F,); got {self.frame_times.shape}")
-        f = self.frame_times.shape[0]
-        _check_times(self.frame_times, "frame_times")
-        if not isinstance(self.frames, np.ndarray) or self.frames.dtype != np.uint8 or self.frames.ndim != 3:
-            got = (self.frames.dtype, self.frames.shape) if isinstance(self.frames, np.ndarray) else type(self.frames).__name__
-            raise ValueError(f"frames must be a uint8 array of shape (F, H, W); got {got}")
-        if self.frames.shape[0] != f:
-            raise ValueError(f"frames must have shape ({f}, H, W) matching frame_times ({f},); got {self.frames.shape}")
-        if self.camera is not None and self.frames.shape[1] * self.frames.shape[2] > 0:
-            expected = (self.camera.height, self.camera.width)
-            if self.frames.shape[1:] != expected:
-                raise ValueError(f"frames must have shape (F, {expected[0]}, {expected[1]}) like the camera; got {self.frames.shape}")
-        if self.imu is not None:
-            if not isinstance(self.imu, ImuSamples):
-                raise ValueError(f"imu must be an ImuSamples or None; got {type(self.imu).__name__}")
-            self.imu.validate("imu")
-        for name, body in (("groundtruth", "camera"), ("groundtruth_imu", "imu")):
-            gt = getattr(self, name)
-            if gt is None:
-                continue
-            if not isinstance(gt, GroundTruth):
-                raise ValueError(f"{name} must be a GroundTruth or None; got {type(gt).__name__}")
-            if gt.body != body:
-                raise ValueError(f"{name}.body must be {body!r}; got {gt.body!r}")
-            gt.validate(name)
-        if self.R_CtoI is not None:
-            R = self.R_CtoI
-            if R.shape != (3, 3) or not np.all(np.isfinite(R)):
-                raise ValueError(f"R_CtoI must be a finite (3, 3) rotation matrix; got shape {R.shape}")
-            if np.abs(R @ R.T - np.eye(3)).max() > _UNIT_TOL or abs(np.linalg.det(R) - 1.0) > _UNIT_TOL:
-                raise ValueError(f"R_CtoI must be a rotation matrix (R R^T = I, det 1, tol {_UNIT_TOL:g}); got det {np.linalg.det(R):.6g}")
-        if self.p_CinI is not None and (self.p_CinI.shape != (3,) or not np.all(np.isfinite(self.p_CinI))):
-            raise ValueError(f"p_CinI must be a finite vector of shape (3,); got shape {self.p_CinI.shape}")
+        if size is not None:
+            try:
+                validate_events(self.events, *size)
+            except ValueError as exc:
+                raise ValueError(f"events: {exc}") from None
+        self._check_frames()
+        for name in ("groundtruth", "groundtruth_imu"):
+            if getattr(self, name) is not None:
+                getattr(self, name).validate(name)
 
     def slice_time(self, t0: float, t1: float) -> "Sequence":
         """Return a new Sequence holding copies of everything with t0 <= t < t1 (half-open window).

@@ -1,9 +1,11 @@
 """Tests of evio_lib.sequence: ImuSamples, GroundTruth (rotations, interpolation) and Sequence (validate, slice)."""
+import copy
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation, Slerp
 
-from evio_lib.events.array import make_events
+from evio_lib.events.array import EVENT_DTYPE, events_between, make_events
 from evio_lib.geometry.camera import PinholeRadtan
 from evio_lib.sequence import GroundTruth, ImuSamples, Sequence
 
@@ -150,7 +152,7 @@ def test_sequence_slice_time_matches_masks_and_copies(rng):
     "change, message",
     [
         (lambda s: setattr(s, "events", make_events([0.0], [64], [0], [1])), r"events: event x out of range \[0, 64\)"),
-        (lambda s: setattr(s, "events", np.zeros(3)), r"events: events must have dtype"),
+        (lambda s: setattr(s, "events", np.zeros(3)), r"events must be a 1-D NumPy array of dtype EVENT_DTYPE"),
         (lambda s: setattr(s, "frame_times", s.frame_times[::-1].copy()), r"frame_times must be strictly increasing"),
         (lambda s: setattr(s, "frames", s.frames[:-1]), r"frames must have shape \(8, H, W\) matching frame_times"),
         (lambda s: setattr(s, "frames", s.frames.astype(np.float32)), r"frames must be a uint8 array of shape \(F, H, W\)"),
@@ -166,6 +168,160 @@ def test_sequence_slice_time_matches_masks_and_copies(rng):
 )
 def test_sequence_validate_names_the_field(rng, change, message):
     seq = _full_sequence(rng)
-    change(seq)
+    with pytest.raises(ValueError, match=message):  # refused on assignment, or by validate() for in-place edits
+        change(seq)
+        seq.validate()
+
+
+# ---------------------------------------------------------------------------------------------- construction checks
+def _events_like(kind: str):
+    """Return a bad `events` argument of the given kind (5 events that would otherwise be fine)."""
+    good = make_events([0.0, 0.1, 0.2, 0.3, 0.4], [1, 2, 3, 4, 5], [0, 0, 0, 0, 0], [1, -1, 1, -1, 1])
+    columns = np.stack([good["t"], good["x"], good["y"], good["p"]], axis=1)
+    if kind == "list":
+        return columns.tolist()
+    if kind == "n4_float":
+        return columns
+    if kind == "tuple_of_arrays":
+        return (good["t"], good["x"], good["y"], good["p"])
+    if kind == "wrong_dtype":
+        other = np.zeros(5, dtype=[("t", "<f8"), ("x", "<i4"), ("y", "<i4"), ("p", "<i4")])
+        for f in "txyp":
+            other[f] = good[f]
+        return other
+    if kind == "float_1d":
+        return good["t"].copy()
+    if kind == "2d_structured":
+        return good.reshape(5, 1)
+    if kind == "unsorted":
+        return good[[0, 2, 1, 3, 4]]
+    if kind == "nan_time":
+        bad = good.copy()
+        bad["t"][4] = np.nan
+        return bad
+    if kind == "zero_polarity":
+        bad = good.copy()
+        bad["p"][2] = 0
+        return bad
+    raise AssertionError(kind)
+
+
+BAD_EVENTS = [
+    ("list", r"events must be a 1-D NumPy array of dtype EVENT_DTYPE .* sorted by t; build one with "
+             r"evio_lib.events.array.make_events\(t, x, y, p\); got list"),
+    ("n4_float", r"got an array of dtype float64 and shape \(5, 4\); for columns \(t, x, y, p\) use make_events\(a\[:, 0\]"),
+    ("tuple_of_arrays", r"events must be a 1-D NumPy array of dtype EVENT_DTYPE.*got tuple"),
+    ("wrong_dtype", r"got an array of dtype .*'<i4'.* convert with make_events\(ev\['t'\], ev\['x'\]"),
+    ("float_1d", r"got an array of dtype float64 and shape \(5,\)$"),
+    ("2d_structured", r"got an array of dtype .* and shape \(5, 1\)"),
+    ("unsorted", r"events must be sorted by time; found 1 out-of-order timestamps starting at index 2; sort them with "
+                 r"events\[np.argsort\(events\['t'\], kind='stable'\)\]"),
+    ("nan_time", r"events: event timestamps must be finite; 1 non-finite, first at index 4"),
+    ("zero_polarity", r"events: event polarity must be \+1 or -1; 1 events invalid, first at index 2 \(p=0\)"),
+]
+
+
+@pytest.mark.parametrize("kind, message", BAD_EVENTS, ids=[k for k, _ in BAD_EVENTS])
+def test_sequence_refuses_bad_events_on_construction_and_assignment(kind, message):
+    bad = _events_like(kind)
+    before = copy.deepcopy(bad)
     with pytest.raises(ValueError, match=message):
+        Sequence("bad", events=bad)
+    seq = Sequence("good", events=make_events([0.0, 1.0], [0, 1], [0, 0], [1, 1]))
+    kept = seq.events
+    with pytest.raises(ValueError, match=message):
+        seq.events = bad
+    assert seq.events is kept  # the refused value never replaced the good one
+    if isinstance(bad, np.ndarray):
+        assert bad.tobytes() == before.tobytes() and bad.dtype == before.dtype  # nothing the user gave is modified
+    else:
+        assert repr(bad) == repr(before)
+
+
+def test_unsorted_events_can_no_longer_give_wrong_slices():
+    """Before the check, searchsorted on unsorted times returned the wrong events without a word."""
+    t = np.array([0.0, 0.5, 0.1, 0.6, 0.2])
+    unsorted = np.zeros(5, EVENT_DTYPE)
+    unsorted["t"], unsorted["x"], unsorted["p"] = t, np.arange(5), 1
+    truth = np.flatnonzero((t >= 0.0) & (t < 0.3))  # indices 0, 2, 4 lie in [0, 0.3)
+    wrong = np.arange(5)[slice(*np.searchsorted(t, [0.0, 0.3]))]
+    assert sorted(wrong.tolist()) != truth.tolist()  # the silent failure the construction check prevents
+    with pytest.raises(ValueError, match="events must be sorted by time"):
+        Sequence("unsorted", events=unsorted)
+    order = np.argsort(unsorted["t"], kind="stable")  # the conversion the message suggests
+    seq = Sequence("sorted", events=unsorted[order])
+    assert sorted(seq.slice_time(0.0, 0.3).events["x"].tolist()) == truth.tolist()
+    assert sorted(events_between(seq.events, 0.0, 0.3)["x"].tolist()) == truth.tolist()
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"R_CtoI": np.eye(2)}, r"R_CtoI must be a finite \(3, 3\) rotation matrix; got shape \(2, 2\)"),
+        ({"R_CtoI": np.eye(3).ravel()}, r"R_CtoI must be a finite \(3, 3\) rotation matrix; got shape \(9,\)"),
+        ({"R_CtoI": np.diag([1.0, 1.0, -1.0])}, r"R_CtoI must be a rotation matrix \(R R\^T = I, det 1.*got det -1"),
+        ({"R_CtoI": 2.0 * np.eye(3)}, r"R_CtoI must be a rotation matrix"),
+        ({"R_CtoI": np.full((3, 3), np.nan)}, r"R_CtoI must be a finite \(3, 3\) rotation matrix"),
+        ({"R_CtoI": "identity"}, r"R_CtoI must be a \(3, 3\) rotation matrix; got 'identity'"),
+        ({"p_CinI": [0.0, 0.1]}, r"p_CinI must be a finite vector of shape \(3,\); got shape \(2,\)"),
+        ({"p_CinI": np.zeros((3, 1))}, r"p_CinI must be a finite vector of shape \(3,\); got shape \(3, 1\)"),
+        ({"p_CinI": [0.0, np.inf, 0.0]}, r"p_CinI must be a finite vector of shape \(3,\)"),
+        ({"p_CinI": "abc"}, r"p_CinI must be a vector of shape \(3,\) \[m\]; got 'abc'"),
+        ({"frame_times": [0.0, 0.2, 0.1], "frames": np.zeros((3, 4, 5), np.uint8)}, r"frame_times must be strictly increasing"),
+        ({"frame_times": np.zeros((2, 1))}, r"frame_times must have shape \(F,\); got \(2, 1\)"),
+        ({"frame_times": [0.0, 0.1], "frames": np.zeros((3, 4, 5), np.uint8)},
+         r"frames must have shape \(2, H, W\) matching frame_times \(2,\); got \(3, 4, 5\)"),
+        ({"frame_times": [0.0], "frames": np.zeros((1, 4, 5), np.float32)},
+         r"frames must be a uint8 array of shape \(F, H, W\) \(convert float images .*to_uint8_image\); got dtype float32"),
+        ({"frame_times": [0.0], "frames": [[[0]]]}, r"frames must be a uint8 array .*; got list"),
+        ({"camera": PinholeRadtan.davis240c(), "frame_times": [0.0], "frames": np.zeros((1, 4, 5), np.uint8)},
+         r"frames must have shape \(F, 180, 240\) like the camera; got \(1, 4, 5\)"),
+        ({"camera": "davis240c"}, r"camera must be a PinholeRadtan or None; got str"),
+        ({"imu": ImuSamples([0.0, 0.2, 0.1], np.zeros((3, 3)), np.zeros((3, 3)))}, r"imu.t must be strictly increasing"),
+        ({"imu": {"t": [0.0]}}, r"imu must be an ImuSamples or None; got dict"),
+        ({"groundtruth": GroundTruth([0.0, 1.0], np.zeros((2, 3)), [[0, 0, 0, 1]] * 2, body="imu")},
+         r"groundtruth.body must be 'camera'; got 'imu'"),
+        ({"groundtruth_imu": GroundTruth([1.0, 0.0], np.zeros((2, 3)), [[0, 0, 0, 1]] * 2, body="imu")},
+         r"groundtruth_imu.t must be strictly increasing"),
+        ({"metadata": [("a", 1)]}, r"metadata must be a dict; got list"),
+    ],
+)
+def test_sequence_construction_checks_fields(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        Sequence(kwargs.pop("name", "bad"), **kwargs)
+
+
+def test_sequence_name_must_be_str():
+    with pytest.raises(ValueError, match="name must be a str; got int"):
+        Sequence(3)
+
+
+def test_sequence_construction_accepts_lists_for_extrinsics_and_keeps_inputs(rng):
+    R = Rotation.from_euler("xyz", [10, 20, 30], degrees=True).as_matrix()
+    p = [0.01, 0.02, 0.03]
+    events = make_events([0.0, 0.1], [1, 2], [3, 4], [1, -1])
+    seq = Sequence("lists", events=events, R_CtoI=R.tolist(), p_CinI=p)
+    assert seq.R_CtoI.shape == (3, 3) and seq.p_CinI.dtype == np.float64
+    assert seq.events is events and p == [0.01, 0.02, 0.03]
+    seq.validate()
+
+
+def test_slice_time_refuses_times_edited_out_of_order(rng):
+    seq = _full_sequence(rng)
+    seq.imu.t[:] = seq.imu.t[::-1].copy()  # an in-place edit that no assignment check can see
+    with pytest.raises(ValueError, match=r"imu.t must be sorted by time to slice it"):
+        seq.slice_time(0.5, 1.0)
+    with pytest.raises(ValueError, match=r"imu.t must be strictly increasing"):
+        seq.validate()
+    gt = _random_gt(rng, 6)
+    gt.t[:] = gt.t[::-1].copy()
+    with pytest.raises(ValueError, match=r"groundtruth.t must be sorted by time to slice it"):
+        gt.slice_time(0.0, 1.0)
+
+
+def test_non_unit_quaternions_are_left_to_validate(rng):
+    """Construction checks order and finiteness; the unit norm is validate()'s (readers normalise, see io.tum)."""
+    gt = _random_gt(rng, 5)
+    seq = Sequence("q", groundtruth_imu=GroundTruth(gt.t, gt.p_BinG, gt.q_GtoB * 2.0, body="imu"))
+    with pytest.raises(ValueError, match=r"groundtruth_imu.q_GtoB must hold unit quaternions"):
         seq.validate()

@@ -148,7 +148,8 @@ def load_sequence_npz(path: str | Path) -> Sequence:
     """Return the Sequence stored by :func:`save_sequence_npz` (arrays identical, metadata restored).
 
     Raises:
-        DataFileError (a ValueError): the file is missing or is not an evio sequence cache.
+        DataFileError (a ValueError): the file is missing, is not an evio sequence cache, or holds a sequence that
+            the Sequence checks refuse (e.g. unsorted events), with the problem in the message.
 
     >>> import tempfile, os
     >>> from evio_lib.events.array import make_events
@@ -177,6 +178,15 @@ def load_sequence_npz(path: str | Path) -> Sequence:
             f"{path.name}: header format {header.get('format')!r} version {header.get('version')!r}; "
             f"expected {_FORMAT!r} version {_VERSION}"
         )
+    try:
+        return _sequence_from_arrays(arrays, header)
+    except (KeyError, TypeError, ValueError) as exc:  # a damaged or hand-made file: say which and why
+        problem = f"missing entry {exc}" if isinstance(exc, KeyError) else str(exc)
+        raise DataFileError(f"{path.name}: the cached sequence is not valid ({problem})") from None
+
+
+def _sequence_from_arrays(arrays: dict[str, np.ndarray], header: dict) -> Sequence:
+    """Return the Sequence of the npz entries and header (the Sequence checks every field on construction)."""
     imu = None
     if "imu_t" in arrays:
         imu = ImuSamples(arrays["imu_t"], arrays["imu_gyro"], arrays["imu_accel"])

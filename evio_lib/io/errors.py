@@ -9,6 +9,11 @@ Every text reader of :mod:`evio_lib.io` (ECD, EuRoC, TUM) parses its files throu
 
 Checks that need the parsed values (finite numbers, sorted timestamps, value ranges) go through
 :meth:`Table.error`, which maps a row back to its line number (comment and blank lines are skipped).
+
+Quaternions read from files (TUM, ECD, EuRoC ground truth) go through :func:`unit_quaternions`: a row whose norm
+is within ``QUATERNION_NORM_TOL`` = 1e-3 of 1 (a file written with few decimals) is divided by its norm (rows within
+1e-6, the tolerance :meth:`evio_lib.sequence.GroundTruth.validate` accepts, keep their numbers exactly, so file round
+trips stay bit-exact); a row further from 1 (norm 2, 0.5, 0) is not a rotation and raises an error naming the row.
 """
 from __future__ import annotations
 
@@ -20,7 +25,13 @@ from typing import Sequence
 
 import numpy as np
 
-__all__ = ["DataFileError", "Table", "read_table", "require_file", "time_format", "write_table"]
+__all__ = ["DataFileError", "Table", "read_table", "require_file", "time_format", "write_table", "unit_quaternions",
+           "quaternion_norm_problem", "QUATERNION_NORM_TOL"]
+
+#: Largest |norm - 1| of a quaternion that readers normalise; beyond it the quaternion is refused.
+QUATERNION_NORM_TOL = 1e-3
+#: Rows with |norm - 1| up to this are kept as they are (the tolerance of GroundTruth.validate()).
+_QUATERNION_EXACT_TOL = 1e-6
 
 
 class DataFileError(ValueError):
@@ -43,6 +54,38 @@ def require_file(path: str | Path, what: str) -> Path:
     if not path.is_file():
         raise DataFileError(f"{path.name}: file not found at {path} (expected {what})")
     return path
+
+
+def unit_quaternions(q: np.ndarray) -> tuple[np.ndarray, int, float]:
+    """Return (q normalised (N, 4), index of the first row beyond QUATERNION_NORM_TOL or -1, that row's norm).
+
+    q_unit = q / |q| for rows with 1e-6 < | |q| - 1 | <= QUATERNION_NORM_TOL; other rows are copied unchanged (the
+    caller raises for the row named by the index). The input is not modified.
+
+    Args:
+        q: (N, 4) finite quaternions (any component order: the norm does not depend on it).
+
+    >>> q, bad, norm = unit_quaternions(np.array([[0.0, 0.0, 0.0, 1.0005], [0.0, 0.0, 0.0, 2.0]]))
+    >>> q[0].tolist(), bad, norm
+    ([0.0, 0.0, 0.0, 1.0], 1, 2.0)
+    """
+    q = np.array(q, dtype=np.float64)
+    if q.ndim != 2 or q.shape[1] != 4:
+        raise ValueError(f"quaternions must have shape (N, 4); got {q.shape}")
+    norm = np.linalg.norm(q, axis=1)
+    error = np.abs(norm - 1.0)
+    bad = np.flatnonzero(~(error <= QUATERNION_NORM_TOL))  # NaN counts as bad
+    fix = (error > _QUATERNION_EXACT_TOL) & (error <= QUATERNION_NORM_TOL)
+    q[fix] /= norm[fix, None]  # q <- q / |q|
+    return q, (int(bad[0]) if bad.size else -1), (float(norm[bad[0]]) if bad.size else 1.0)
+
+
+def quaternion_norm_problem(norm: float, layout: str) -> str:
+    """Return the message for a quaternion whose norm is too far from 1 (``layout`` names its columns)."""
+    if norm < 1e-6:
+        return f"quaternion ({layout}) has zero norm; expected a unit quaternion"
+    return (f"quaternion ({layout}) has norm {norm:.6g}; expected a unit quaternion "
+            f"(norms within {QUATERNION_NORM_TOL:g} of 1 are normalised, others are not rotations)")
 
 
 def _is_data_line(stripped: str) -> bool:
@@ -118,6 +161,22 @@ class Table:
             raise self.error(
                 row, f"timestamp {t[row].item()!r} follows {t[row - 1].item()!r} on the previous data line; {column} must be {order}"
             )
+
+    def unit_quaternions(self, columns: Sequence[str], layout: str | None = None) -> np.ndarray:
+        """Return the (N, 4) quaternions in ``columns`` (in that order), normalised; raise at a row that is no rotation.
+
+        Rows within 1e-6 of unit norm are returned exactly as read, rows within QUATERNION_NORM_TOL (1e-3) are
+        divided by their norm, others raise DataFileError "NAME line L: quaternion (LAYOUT) has norm ...".
+
+        Args:
+            columns: the four column names, in the order of the returned array (e.g. qx qy qz qw).
+            layout: how the message names the columns (default: ``columns`` joined; e.g. "qw qx qy qz" for the
+                order in a EuRoC file).
+        """
+        q, bad, norm = unit_quaternions(np.stack([self.data[c] for c in columns], axis=1))
+        if bad >= 0:
+            raise self.error(bad, quaternion_norm_problem(norm, layout or " ".join(columns)))
+        return q
 
     def check_range(self, column: str, low: float, high: float, what: str) -> None:
         """Raise DataFileError at the first value of ``column`` outside [low, high]; ``what`` explains the range."""

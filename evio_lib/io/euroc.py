@@ -15,13 +15,16 @@ Ground truth is looked for in that order: the ``groundtruth`` argument, the stan
 ground truth in the same 17-column layout). A ``.txt`` argument is read as a TUM file (pose only).
 
 Times: nanosecond integers are parsed exactly (int64) and converted once to float64 seconds
-(t = s + ns_rest / 1e9). Quaternions: the Hamilton q of R_ItoG has the same four numbers as the JPL q_GtoI.
+(t = s + ns_rest / 1e9). Timestamps that are obviously not nanoseconds are refused: an IMU whose median step is
+outside 0.1 ms .. 100 ms (10 Hz .. 10 kHz) once read as ns, or image / ground-truth times on a time base about 1000x
+(or 10^6x) off the IMU's (e.g. microseconds), with the expected unit in the message. Quaternions: the Hamilton q of R_ItoG has the same four numbers as the JPL q_GtoI.
 The camera ground truth is derived from the IMU one with the extrinsics (thesis §3.3.2, Eq. 27-28)::
 
     R_CtoG = R_ItoG R_CtoI,     p_CinG = p_IinG + R_ItoG p_CinI
 """
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -38,6 +41,7 @@ __all__ = ["read_euroc", "read_asl_yaml", "ns_to_seconds", "camera_groundtruth"]
 
 _IMU_COLUMNS = ("t_ns", "wx", "wy", "wz", "ax", "ay", "az")
 _GT_COLUMNS = ("t_ns", "px", "py", "pz", "qw", "qx", "qy", "qz", "vx", "vy", "vz", "bwx", "bwy", "bwz", "bax", "bay", "baz")
+_IMU_STEP_RANGE_S = (1e-4, 0.1)  # plausible IMU sample interval [s]: 10 kHz .. 10 Hz
 _NOISE_KEYS = ("gyroscope_noise_density", "gyroscope_random_walk", "accelerometer_noise_density", "accelerometer_random_walk")
 
 
@@ -205,13 +209,60 @@ def _read_groundtruth(path: Path, name: str) -> GroundTruth:
     def stack(names: tuple[str, ...]) -> np.ndarray:
         return np.stack([table[c] for c in names], axis=1)
 
-    q = stack(("qx", "qy", "qz", "qw"))  # Hamilton (w x y z in the file) of R_ItoG -> JPL q_GtoI, same numbers
-    norm = np.linalg.norm(q, axis=1)
-    if np.any(norm < 1e-6):
-        raise table.error(int(np.argmax(norm < 1e-6)), "quaternion (qw qx qy qz) has zero norm")
+    # Hamilton (w x y z in the file) of R_ItoG -> JPL q_GtoI, same numbers; norms within 1e-3 of 1 normalised
+    q = table.unit_quaternions(("qx", "qy", "qz", "qw"), layout="qw qx qy qz")
     return GroundTruth(t=ns_to_seconds(table["t_ns"]), p_BinG=stack(("px", "py", "pz")), q_GtoB=q, body="imu",
                        v_BinG=stack(("vx", "vy", "vz")), bias_gyro=stack(("bwx", "bwy", "bwz")),
                        bias_accel=stack(("bax", "bay", "baz")))
+
+
+def _unit_hint(step_ns: float) -> str:
+    """Return which unit a median timestamp step (read as ns) suggests, for a plausible IMU rate, or ""."""
+    for unit, factor in (("microseconds", 1e3), ("milliseconds", 1e6), ("seconds", 1e9)):
+        if _IMU_STEP_RANGE_S[0] <= step_ns * factor * 1e-9 <= _IMU_STEP_RANGE_S[1]:
+            return f"; they look like {unit} (multiply by {factor:.0e} to get nanoseconds)"
+    return ""
+
+
+def _check_imu_rate(t_ns: np.ndarray, name: str) -> None:
+    """Raise DataFileError unless the median IMU step, read as nanoseconds, is a plausible 10 Hz .. 10 kHz rate."""
+    step_ns = float(np.median(np.diff(t_ns)))
+    step_s = step_ns * 1e-9
+    low, high = _IMU_STEP_RANGE_S
+    if not low <= step_s <= high:
+        raise DataFileError(
+            f"{name}: the median step between timestamps is {step_ns:.6g}, i.e. {step_s:.3g} s ({1.0 / step_s:.4g} Hz) "
+            f"read as nanoseconds, outside a plausible IMU rate of {1 / high:g} Hz .. {1 / low:g} Hz; EuRoC timestamps "
+            f"must be integer nanoseconds (200 Hz is a step of 5000000){_unit_hint(step_ns)}"
+        )
+
+
+def _check_time_base(t: np.ndarray, t_imu: np.ndarray, name: str, imu_name: str) -> None:
+    """Raise DataFileError when times ``t`` [s] lie on another time base than the IMU's (a ratio near 10^3 or 10^6).
+
+    Two recordings of the same run overlap in time; when they do not and their mid times differ by a factor within
+    [300, 3000] or [3e5, 3e6], one file has microseconds or milliseconds where nanoseconds are expected.
+    """
+    if t.size == 0 or t_imu.size == 0 or (t[0] <= t_imu[-1] and t_imu[0] <= t[-1]):
+        return
+    mid, mid_imu = 0.5 * (t[0] + t[-1]), 0.5 * (t_imu[0] + t_imu[-1])
+    if mid <= 0 or mid_imu <= 0:
+        return
+    ratio = mid / mid_imu
+    for factor, unit in ((1e3, "microseconds"), (1e6, "milliseconds")):
+        for r, who, other in ((ratio, imu_name, name), (1.0 / ratio, name, imu_name)):
+            if 0.3 * factor <= r <= 3.0 * factor:
+                raise DataFileError(
+                    f"{name}: its times ({t[0]:.6g} .. {t[-1]:.6g} s) and those of {imu_name} "
+                    f"({t_imu[0]:.6g} .. {t_imu[-1]:.6g} s) differ by a factor of {r if r > 1 else 1 / r:.4g}: "
+                    f"{who} looks like {unit} where {other} has the expected nanoseconds; every EuRoC timestamp "
+                    f"must be integer nanoseconds"
+                )
+
+
+def _camera_folders(mav0: Path) -> list[str]:
+    """Return the names of the camera folders ``mav0/cam*`` (sorted)."""
+    return sorted(p.name for p in mav0.glob("cam*") if p.is_dir())
 
 
 def camera_groundtruth(gt_imu: GroundTruth, R_CtoI: np.ndarray, p_CinI: np.ndarray) -> GroundTruth:
@@ -226,14 +277,16 @@ def camera_groundtruth(gt_imu: GroundTruth, R_CtoI: np.ndarray, p_CinI: np.ndarr
     return GroundTruth(t=gt_imu.t.copy(), p_BinG=p_CinG, q_GtoB=q_GtoC, body="camera")
 
 
-def read_euroc(folder: str | Path, *, load_frames: bool = True, camera: str = "cam0",
+def read_euroc(folder: str | Path, *, load_frames: bool = True, camera: str | None = None,
                groundtruth: str | Path | None = None) -> Sequence:
     """Return the Sequence of a EuRoC ASL folder: frames of one camera, IMU, calibration, extrinsics, ground truth.
 
     Args:
         folder: the dataset folder holding ``mav0/`` (or the ``mav0`` folder itself).
         load_frames: load the PNG images (False: no frames and no frame_times; the camera is still read).
-        camera: which camera folder, "cam0" or "cam1".
+        camera: which camera folder, e.g. "cam0" or "cam1"; it must exist. None (default) takes "cam0"; a recording
+            without any ``mav0/cam*`` folder then loads without camera, with a warning and
+            ``metadata["camera_name"] = None``.
         groundtruth: optional explicit ground-truth file (EuRoC csv, or TUM .txt for pose only).
 
     Returns:
@@ -243,12 +296,29 @@ def read_euroc(folder: str | Path, *, load_frames: bool = True, camera: str = "c
         continuous-time noise parameters (Kalibr names), rates and the files read.
 
     Raises:
-        DataFileError (a ValueError): missing files or malformed lines ("mav0/imu0/data.csv line L: ...").
+        DataFileError (a ValueError): missing files or malformed lines ("mav0/imu0/data.csv line L: ..."); an IMU
+            file without samples (or with one); timestamps that are not nanoseconds; a named camera folder that is
+            absent; a camera folder without its data.csv (when frames are loaded).
     """
     folder = Path(folder)
+    if camera is not None and (not isinstance(camera, str) or not camera.strip() or "/" in camera):
+        raise ValueError(f"camera must be the name of a camera folder such as 'cam0' or 'cam1', or None; got {camera!r}")
     mav0 = folder / "mav0" if (folder / "mav0").is_dir() else folder
-    if not (mav0 / "imu0").is_dir() and not (mav0 / camera).is_dir():
-        raise DataFileError(f"EuRoC folder not found: {folder} has no mav0/imu0 or mav0/{camera}")
+    cameras = _camera_folders(mav0) if mav0.is_dir() else []
+    if not (mav0 / "imu0").is_dir() and not cameras:
+        raise DataFileError(f"EuRoC folder not found: {folder} has no mav0/imu0 or mav0/cam0")
+    if camera is not None and camera not in cameras:
+        raise DataFileError(
+            f"camera {camera!r} not found: {mav0} has no folder {camera}/ "
+            f"(camera folders: {', '.join(cameras) if cameras else 'none'})"
+        )
+    camera_name = camera if camera is not None else ("cam0" if "cam0" in cameras else None)
+    if camera_name is None:
+        warnings.warn(
+            f"{folder}: no camera folder mav0/cam0 (camera folders: {', '.join(cameras) if cameras else 'none'}); "
+            f"loading IMU and ground truth only (camera=None, no frames)",
+            stacklevel=2,
+        )
 
     def rel(path: Path) -> str:  # how messages name a file: relative to the dataset folder
         return str(path.relative_to(folder)) if path.is_relative_to(folder) else str(path)
@@ -257,16 +327,25 @@ def read_euroc(folder: str | Path, *, load_frames: bool = True, camera: str = "c
     imu_yaml_path = mav0 / "imu0" / "sensor.yaml"
     imu_yaml = read_asl_yaml(imu_yaml_path, name=rel(imu_yaml_path)) if imu_yaml_path.is_file() else {}
     table = read_table(imu_csv, _IMU_COLUMNS, name=rel(imu_csv), int_columns=("t_ns",), delimiter=",")
+    if len(table) < 2:
+        raise DataFileError(
+            f"{rel(imu_csv)}: {'no IMU samples (only comments or a header)' if len(table) == 0 else 'a single IMU sample'}; "
+            f"expected at least 2 lines `timestamp [ns],w_x,w_y,w_z [rad/s],a_x,a_y,a_z [m/s^2]`"
+        )
     table.check_times("t_ns", strict=True)
+    _check_imu_rate(table["t_ns"], rel(imu_csv))
     imu = ImuSamples(t=ns_to_seconds(table["t_ns"]),
                      gyro=np.stack([table[c] for c in ("wx", "wy", "wz")], axis=1),
                      accel=np.stack([table[c] for c in ("ax", "ay", "az")], axis=1))
 
-    cam_dir = mav0 / camera
-    cam_yaml_path = cam_dir / "sensor.yaml"
+    cam_dir = mav0 / camera_name if camera_name is not None else None
+    cam_yaml_path = cam_dir / "sensor.yaml" if cam_dir is not None else None
     cam = None
     R_CtoI = p_CinI = None
-    if cam_yaml_path.is_file():
+    if cam_dir is not None and not cam_yaml_path.is_file():
+        warnings.warn(f"{rel(cam_yaml_path)} not found: {camera_name} has no calibration (camera=None, no extrinsics)",
+                      stacklevel=2)
+    elif cam_yaml_path is not None:
         cam_yaml = read_asl_yaml(cam_yaml_path, name=rel(cam_yaml_path))
         cam = _read_camera(cam_yaml, rel(cam_yaml_path))
         if "T_BS" in cam_yaml:
@@ -276,8 +355,15 @@ def read_euroc(folder: str | Path, *, load_frames: bool = True, camera: str = "c
             R_CtoI, p_CinI = T_CtoI[:3, :3].copy(), T_CtoI[:3, 3].copy()
 
     frame_times, frames = np.zeros(0), None
-    if (cam_dir / "data.csv").is_file() and load_frames:
-        frame_times, files = _read_image_index(cam_dir / "data.csv", rel(cam_dir / "data.csv"))
+    if cam_dir is not None and load_frames:
+        cam_csv = cam_dir / "data.csv"
+        if not cam_csv.is_file():
+            raise DataFileError(
+                f"{rel(cam_csv)}: file not found, although the camera folder {rel(cam_dir)}/ exists (expected the image "
+                f"list `timestamp [ns],filename`; pass load_frames=False to read the recording without frames)"
+            )
+        frame_times, files = _read_image_index(cam_csv, rel(cam_csv))
+        _check_time_base(frame_times, imu.t, rel(cam_csv), rel(imu_csv))
         images = []
         for path in files:
             image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
@@ -294,7 +380,7 @@ def read_euroc(folder: str | Path, *, load_frames: bool = True, camera: str = "c
                 )
             frames = np.stack(images)
 
-    metadata: dict[str, Any] = {"source": str(folder), "format": "EuRoC ASL", "camera_name": camera,
+    metadata: dict[str, Any] = {"source": str(folder), "format": "EuRoC ASL", "camera_name": camera_name,
                                 "imu_file": rel(imu_csv)}
     noise = {key: float(imu_yaml[key]) for key in _NOISE_KEYS if key in imu_yaml}
     if noise:
@@ -306,6 +392,7 @@ def read_euroc(folder: str | Path, *, load_frames: bool = True, camera: str = "c
     gt_path = _find_groundtruth(folder, mav0, groundtruth)
     if gt_path is not None:
         gt_imu = _read_groundtruth(gt_path, rel(gt_path))
+        _check_time_base(gt_imu.t, imu.t, rel(gt_path), rel(imu_csv))
         metadata["groundtruth_file"] = rel(gt_path)
         if R_CtoI is not None:
             gt_cam = camera_groundtruth(gt_imu, R_CtoI, p_CinI)

@@ -9,7 +9,9 @@ Hamilton quaternion of the transposed matrix, and R_GtoB^T = R_BtoG, so::
 
     q_GtoB (JPL) = q_BtoG (Hamilton, xyzw)      -- the same four numbers, no arithmetic
 
-This keeps file round trips exact. Reference: Sturm et al., "A benchmark for the evaluation of RGB-D SLAM
+This keeps file round trips exact. Quaternions must be unit: a row whose norm is within 1e-3 of 1 (few decimals in
+the file) is normalised on reading, a row further off (norm 2, 0.5, 0) is refused with the file and line; the
+writer refuses what the reader would refuse (see :func:`evio_lib.io.errors.unit_quaternions`). Reference: Sturm et al., "A benchmark for the evaluation of RGB-D SLAM
 systems", IROS 2012 (file format); Trawny & Roumeliotis 2005 (JPL quaternions).
 """
 from __future__ import annotations
@@ -19,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from evio_lib.io.errors import read_table, time_format, write_table
+from evio_lib.io.errors import QUATERNION_NORM_TOL, quaternion_norm_problem, read_table, time_format, unit_quaternions, write_table
 from evio_lib.sequence import GroundTruth
 
 __all__ = [
@@ -29,6 +31,8 @@ __all__ = [
     "groundtruth_from_tum",
     "jpl_q_GtoB_from_hamilton_BtoG",
     "hamilton_BtoG_from_jpl_q_GtoB",
+    "normalise_quaternions",
+    "QUATERNION_NORM_TOL",
 ]
 
 TUM_COLUMNS = ("t", "px", "py", "pz", "qx", "qy", "qz", "qw")
@@ -51,6 +55,21 @@ def jpl_q_GtoB_from_hamilton_BtoG(q_BtoG_xyzw: Any) -> np.ndarray:
 def hamilton_BtoG_from_jpl_q_GtoB(q_GtoB: Any) -> np.ndarray:
     """Return Hamilton quaternions [x, y, z, w] (..., 4) of R_BtoG from JPL q_GtoB (inverse of the above; identical numbers)."""
     return np.array(q_GtoB, dtype=np.float64)
+
+
+def normalise_quaternions(q_xyzw: Any, name: str = "q_xyzw") -> np.ndarray:
+    """Return a new (N, 4) array of unit quaternions: rows within 1e-3 of unit norm divided by their norm.
+
+    Rows within 1e-6 of unit norm keep their numbers exactly; a row whose norm is further than
+    ``QUATERNION_NORM_TOL`` = 1e-3 from 1 (or zero) raises ValueError naming ``name`` and the row.
+
+    >>> normalise_quaternions([[0.0, 0.0, 0.0, 1.0004]]).tolist()
+    [[0.0, 0.0, 0.0, 1.0]]
+    """
+    q, bad, norm = unit_quaternions(np.asarray(q_xyzw, dtype=np.float64))
+    if bad >= 0:
+        raise ValueError(f"{name}[{bad}]: " + quaternion_norm_problem(norm, "qx qy qz qw"))
+    return q
 
 
 def _check_pose_arrays(t: Any, p: Any, q_xyzw: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -81,16 +100,16 @@ def read_tum(path: str | Path, *, name: str | None = None) -> tuple[np.ndarray, 
         path: text file with lines ``timestamp tx ty tz qx qy qz qw``; ``#`` comments and blank lines allowed.
         name: how error messages name the file (default: its file name).
 
+    Returns:
+        q_xyzw has unit rows: rows within 1e-6 of unit norm as written, rows within 1e-3 divided by their norm.
+
     Raises:
         DataFileError (a ValueError): "NAME line L: problem" for a wrong column count, a non-number, NaN,
-            a timestamp that does not increase strictly, or a zero quaternion.
+            a timestamp that does not increase strictly, or a quaternion whose norm is not within 1e-3 of 1.
     """
     table = read_table(path, TUM_COLUMNS, name=name)
     table.check_times("t", strict=True)
-    q = np.stack([table[c] for c in ("qx", "qy", "qz", "qw")], axis=1)
-    norm = np.linalg.norm(q, axis=1)
-    if np.any(norm < 1e-6):
-        raise table.error(int(np.argmax(norm < 1e-6)), "quaternion (qx qy qz qw) has zero norm")
+    q = table.unit_quaternions(("qx", "qy", "qz", "qw"))
     p = np.stack([table[c] for c in ("px", "py", "pz")], axis=1)
     return table["t"].copy(), p, q
 
@@ -102,7 +121,8 @@ def write_tum(path: str | Path, t: Any, p: Any, q_xyzw: Any, *, header: bool = T
         path: output file (overwritten).
         t: (N,) strictly increasing timestamps [s]; 9 decimals when they lie on the ns grid.
         p: (N, 3) positions [m].
-        q_xyzw: (N, 4) Hamilton quaternions, scalar last.
+        q_xyzw: (N, 4) Hamilton quaternions, scalar last, of norm within 1e-3 of 1 (written as given; anything
+            :func:`read_tum` would refuse, e.g. a zero quaternion, raises ValueError and writes nothing).
         header: write a "# timestamp tx ty tz qx qy qz qw" comment line first.
 
     >>> import tempfile, os
@@ -114,6 +134,7 @@ def write_tum(path: str | Path, t: Any, p: Any, q_xyzw: Any, *, header: bool = T
     [0.1, 0.0, 0.0]
     """
     t, p, q = _check_pose_arrays(t, p, q_xyzw)
+    normalise_quaternions(q)  # raises for a quaternion that read_tum would refuse; the numbers are written as given
     columns = [t, *p.T, *q.T]
     write_table(path, columns, [time_format(t)] + ["%r"] * 7,
                 header="timestamp tx ty tz qx qy qz qw" if header else None)
@@ -132,7 +153,8 @@ def groundtruth_from_tum(t: Any, p: Any, q_xyzw: Any, body: str = "camera") -> G
     Args:
         t: (N,) timestamps [s].
         p: (N, 3) positions of the body in the world [m].
-        q_xyzw: (N, 4) Hamilton quaternions of the body orientation R_BtoG.
+        q_xyzw: (N, 4) Hamilton quaternions of the body orientation R_BtoG; norms within 1e-3 of 1 are
+            normalised (see :func:`normalise_quaternions`), others raise ValueError naming the row.
         body: "camera" or "imu".
 
     >>> gt = groundtruth_from_tum([0.0], [[1.0, 2.0, 3.0]], [[0.0, 0.0, np.sin(0.25), np.cos(0.25)]], body="imu")
@@ -140,4 +162,4 @@ def groundtruth_from_tum(t: Any, p: Any, q_xyzw: Any, body: str = "camera") -> G
     [0.878, -0.479, 0.0]
     """
     t, p, q = _check_pose_arrays(t, p, q_xyzw)
-    return GroundTruth(t=t, p_BinG=p, q_GtoB=jpl_q_GtoB_from_hamilton_BtoG(q), body=body)
+    return GroundTruth(t=t, p_BinG=p, q_GtoB=jpl_q_GtoB_from_hamilton_BtoG(normalise_quaternions(q)), body=body)

@@ -102,3 +102,38 @@ def test_real_slider_events_through_cache(real_data_dir, tmp_path):
     back = load_sequence_npz(save_sequence_npz(seq, tmp_path / "slider.npz"))
     np.testing.assert_array_equal(back.events, events)
     assert back.sensor_size == (240, 180) and back.frames.shape == (0, 180, 240)
+
+
+def _tampered(tmp_path, rng, **changes):
+    """Write a valid cache, then rewrite it with some entries replaced (None removes the entry); return its path."""
+    path = save_sequence_npz(_sequence(rng), tmp_path / "seq.npz")
+    with np.load(path, allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files}
+    for key, value in changes.items():
+        if value is None:
+            arrays.pop(key)
+        else:
+            arrays[key] = value(arrays[key]) if callable(value) else value
+    bad = tmp_path / "bad.npz"
+    np.savez(bad, **arrays)
+    return bad
+
+
+@pytest.mark.parametrize(
+    "changes, message",
+    [
+        ({"events": lambda ev: ev[::-1].copy()}, r"bad.npz: the cached sequence is not valid \(events must be sorted by time"),
+        ({"events": lambda ev: np.stack([ev["t"], ev["x"], ev["y"], ev["p"]], axis=1)},
+         r"bad.npz: the cached sequence is not valid \(events must be a 1-D NumPy array of dtype EVENT_DTYPE"),
+        ({"frames": lambda f: f[:1]}, r"bad.npz: .*frames must have shape \(2, H, W\) matching frame_times"),
+        ({"imu_t": lambda t: t[::-1].copy()}, r"bad.npz: .*imu.t must be strictly increasing"),
+        ({"R_CtoI": np.eye(2)}, r"bad.npz: .*R_CtoI must be a finite \(3, 3\) rotation matrix"),
+        ({"frames": None}, r"bad.npz: the cached sequence is not valid \(missing entry 'frames'\)"),
+    ],
+)
+def test_damaged_cache_is_a_clear_error(tmp_path, rng, changes, message):
+    bad = _tampered(tmp_path, rng, **changes)
+    before = bad.read_bytes()
+    with pytest.raises(DataFileError, match=message):
+        load_sequence_npz(bad)
+    assert bad.read_bytes() == before
