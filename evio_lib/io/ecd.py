@@ -24,10 +24,16 @@ representation, so a write -> read round trip reproduces the arrays exactly.
 
 Sensor size (needed to check pixel coordinates and to build the camera): the ``sensor_size`` argument, else
 the sidecar, else the first frame, else the DAVIS240C of the ECD (240 x 180).
+
+A half-written folder is never read as a recording: :func:`write_ecd` creates the marker file
+:data:`INCOMPLETE_MARKER` before it writes anything and removes it after the last file, and :func:`read_ecd`
+refuses a folder that holds the marker (a write that failed or was killed). A folder that write_ecd created itself
+is removed again when the write fails.
 """
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 from typing import Any
 
@@ -41,12 +47,14 @@ from evio_lib.io.errors import DataFileError, read_table, require_file, time_for
 from evio_lib.io.tum import read_tum, write_tum
 from evio_lib.sequence import GroundTruth, ImuSamples, Sequence
 
-__all__ = ["read_ecd", "read_ecd_events", "write_ecd", "DAVIS240C_SIZE", "SIDECAR_NAME"]
+__all__ = ["read_ecd", "read_ecd_events", "write_ecd", "DAVIS240C_SIZE", "SIDECAR_NAME", "INCOMPLETE_MARKER"]
 
 #: (width, height) of the DAVIS240C that recorded the ECD, assumed when nothing else gives the size.
 DAVIS240C_SIZE = (240, 180)
 #: File name of the evio sidecar (extrinsics, sensor size, metadata).
 SIDECAR_NAME = "evio_sim.json"
+#: File that :func:`write_ecd` writes first and removes last; :func:`read_ecd` refuses a folder that holds it.
+INCOMPLETE_MARKER = ".evio_incomplete"
 
 _EVENT_COLUMNS = ("t", "x", "y", "p")
 _IMU_COLUMNS = ("t", "ax", "ay", "az", "gx", "gy", "gz")
@@ -213,11 +221,15 @@ def read_ecd(folder: str | Path, *, load_events: bool = True, load_frames: bool 
         size came from when there is no sidecar.
 
     Raises:
-        DataFileError (a ValueError): missing events.txt or folder; any malformed file ("FILE line L: problem").
+        DataFileError (a ValueError): missing events.txt or folder; any malformed file ("FILE line L: problem");
+            a folder that :func:`write_ecd` did not finish (it holds :data:`INCOMPLETE_MARKER`).
     """
     folder = Path(folder)
     if not folder.is_dir():
         raise DataFileError(f"ECD folder not found: {folder}")
+    if (folder / INCOMPLETE_MARKER).exists():
+        raise DataFileError(f"ECD folder {folder} is incomplete: a write_ecd into it failed or was interrupted "
+                            f"({INCOMPLETE_MARKER} is still there); write the recording again")
     events_path = require_file(folder / "events.txt", "the ECD event list `t x y p`")
     sidecar = _read_sidecar(folder)
     has_images = (folder / "images.txt").is_file()
@@ -310,7 +322,11 @@ def write_ecd(sequence: Sequence, folder: str | Path, progress: bool = False) ->
         sequence: a valid Sequence (checked with ``sequence.validate()`` first).
         folder: output folder, created if needed. Layout files from an earlier write that the new sequence does
             not produce (e.g. imu.txt) are removed, as are old ``images/frame_*.png``; nothing else is touched.
+            (The command line never writes into a non-empty folder: see :mod:`evio_lib.io.output_dir`.)
         progress: show progress bars (events and frames).
+
+    If writing fails (a full disk, Ctrl-C), a folder this call created is removed again; an existing folder keeps
+    :data:`INCOMPLETE_MARKER`, so that :func:`read_ecd` refuses it instead of loading part of a recording.
 
     The round trip ``read_ecd(write_ecd(seq, f))`` gives the same events, frames, IMU, poses, extrinsics, sensor
     size and metadata (tuples and arrays in metadata included), bit for bit; only groundtruth.txt's velocity and
@@ -326,8 +342,36 @@ def write_ecd(sequence: Sequence, folder: str | Path, progress: bool = False) ->
     if not isinstance(sequence, Sequence):
         raise ValueError(f"sequence must be a Sequence; got {type(sequence).__name__}")
     sequence.validate()
+    sidecar: dict[str, Any] = {
+        "format": "evio_sim",
+        "version": 1,
+        "name": sequence.name,
+        "sensor_size": list(sequence.sensor_size) if sequence.sensor_size is not None else None,
+        "R_CtoI": sequence.R_CtoI,
+        "p_CinI": sequence.p_CinI,
+        "metadata": sequence.metadata,
+    }
+    sidecar_text = json.dumps(to_json_value(sidecar, "sequence"), indent=1) + "\n"  # before any file: bad metadata fails here
     folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise ValueError(f"folder must be a folder path; {folder} is a file")
+    created = not folder.exists()
     folder.mkdir(parents=True, exist_ok=True)
+    marker = folder / INCOMPLETE_MARKER
+    marker.write_text("write_ecd has not finished writing this folder; read_ecd refuses it while this file exists\n",
+                      encoding="utf-8")
+    try:
+        _write_layout(sequence, folder, sidecar_text, progress)
+    except BaseException:
+        if created:  # a folder this call made holds nothing else: remove it whole
+            shutil.rmtree(folder, ignore_errors=True)
+        raise
+    marker.unlink()  # last: the folder is complete
+    return folder
+
+
+def _write_layout(sequence: Sequence, folder: Path, sidecar_text: str, progress: bool) -> None:
+    """Write every file of the ECD layout of ``sequence``, and the sidecar text, into the existing ``folder``."""
     for stale in _LAYOUT_FILES:
         (folder / stale).unlink(missing_ok=True)
     if (folder / "images").is_dir():
@@ -362,14 +406,4 @@ def write_ecd(sequence: Sequence, folder: str | Path, progress: bool = False) ->
         write_table(folder / "calib.txt", [np.array([getattr(c, n)]) for n in _CALIB_COLUMNS], ["%r"] * 9)
     if sequence.groundtruth_imu is not None:
         _write_groundtruth_imu(folder / "groundtruth_imu.txt", sequence.groundtruth_imu)
-    sidecar: dict[str, Any] = {
-        "format": "evio_sim",
-        "version": 1,
-        "name": sequence.name,
-        "sensor_size": list(sequence.sensor_size) if sequence.sensor_size is not None else None,
-        "R_CtoI": sequence.R_CtoI,
-        "p_CinI": sequence.p_CinI,
-        "metadata": sequence.metadata,
-    }
-    (folder / SIDECAR_NAME).write_text(json.dumps(to_json_value(sidecar, "sequence"), indent=1) + "\n", encoding="utf-8")
-    return folder
+    (folder / SIDECAR_NAME).write_text(sidecar_text, encoding="utf-8")

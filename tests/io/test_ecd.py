@@ -9,6 +9,7 @@ from scipy.spatial.transform import Rotation
 from evio_lib.events.array import make_events
 from evio_lib.geometry.camera import PinholeRadtan
 from evio_lib.geometry.rotation import rot_to_quat
+from evio_lib.io import ecd
 from evio_lib.io.ecd import read_ecd, read_ecd_events, write_ecd
 from evio_lib.io.errors import DataFileError
 from evio_lib.sequence import GroundTruth, ImuSamples, Sequence
@@ -106,6 +107,7 @@ def test_write_rejects_invalid_sequence(tmp_path):
         write_ecd(seq, tmp_path / "bad")
     with pytest.raises(ValueError, match="sequence must be a Sequence; got dict"):
         write_ecd({}, tmp_path / "bad")
+    assert not (tmp_path / "bad").exists()  # checked before anything is written
 
 
 def test_read_hand_written_folder(tmp_path):
@@ -228,3 +230,46 @@ def test_sidecar_overrides_size_and_empty_events_file(tmp_path):
     assert len(read_ecd(folder, sensor_size=(5, 3)).events) == 1
     with pytest.raises(ValueError, match=r"sensor_size must be \(width, height\) in positive whole pixels; got \(5, 0\)"):
         read_ecd(folder, sensor_size=(5, 0))
+
+
+def _failing_groundtruth_writer(*args, **kwargs):
+    raise OSError("disk full (simulated)")
+
+
+def test_failed_write_into_new_folder_leaves_nothing(tmp_path, rng, monkeypatch):
+    monkeypatch.setattr(ecd, "write_tum", _failing_groundtruth_writer)  # fails after events, IMU and frames
+    with pytest.raises(OSError, match="disk full"):
+        write_ecd(_simulated_sequence(rng, True), tmp_path / "new")
+    assert not (tmp_path / "new").exists()
+
+
+@pytest.mark.parametrize("error", [OSError("disk full (simulated)"), KeyboardInterrupt()])
+def test_failed_write_into_existing_folder_is_refused_by_read_ecd(tmp_path, rng, monkeypatch, error):
+    folder = write_ecd(_simulated_sequence(rng, True), tmp_path / "f")
+    (folder / "notes.txt").write_text("the user's file")
+
+    def fail(*args, **kwargs):
+        raise error
+
+    monkeypatch.setattr(ecd, "write_tum", fail)
+    with pytest.raises(type(error)):
+        write_ecd(_simulated_sequence(rng, False), folder)
+    assert (folder / "events.txt").is_file() and (folder / ecd.INCOMPLETE_MARKER).is_file()  # half written ...
+    with pytest.raises(DataFileError, match=r"ECD folder .*f is incomplete: a write_ecd into it failed or was interrupted"):
+        read_ecd(folder)  # ... and never loaded as a recording
+    assert (folder / "notes.txt").read_text() == "the user's file"
+    monkeypatch.undo()
+    seq = _simulated_sequence(rng, True)
+    back = read_ecd(write_ecd(seq, folder))  # a complete write clears the marker
+    np.testing.assert_array_equal(back.events, seq.events)
+    assert not (folder / ecd.INCOMPLETE_MARKER).exists()
+
+
+def test_invalid_input_writes_nothing(tmp_path):
+    seq = Sequence("bad", events=make_events([0.0], [1], [1], [1]), metadata={"callback": print})
+    with pytest.raises(ValueError, match=r"sequence\['metadata'\]\['callback'\] must be JSON-like"):
+        write_ecd(seq, tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(ValueError, match="folder must be a folder path; .*file is a file"):
+        write_ecd(Sequence("ok", events=make_events([0.0], [1], [1], [1])), tmp_path / "file")
