@@ -192,3 +192,119 @@ def test_real_gravity_and_gyro_bias_in_ground_truth_frame(real_data_dir):
     assert abs(z_C_in_G[2]) < 0.5
     np.testing.assert_allclose(seq.groundtruth.p_BinG[0] - seq.groundtruth_imu.p_BinG[0],
                                seq.groundtruth_imu.R_BtoG[0] @ seq.p_CinI, atol=1e-12)
+
+
+# ---------------------------------------------------------------------------------------------- bad recordings (issue 17)
+def _imu_rows(start, step, n=4):
+    return [f"{start + i * step},0.01,0.02,0.03,0.0,0.0,9.81" for i in range(n)]
+
+
+def _gt_rows(start, step, q_wxyz=(1.0, 0.0, 0.0, 0.0), n=3):
+    return [f"{start + i * step},1,2,3,{','.join(map(repr, q_wxyz))},0,0,0,0,0,0,0,0,0" for i in range(n)]
+
+
+BAD_FOLDERS = [
+    ("imu_microseconds", {"imu_rows": _imu_rows(1_000_000, 5_000)},
+     r"mav0/imu0/data.csv: the median step between timestamps is 5000, i.e. 5e-06 s \(2e\+05 Hz\) read as nanoseconds, "
+     r"outside a plausible IMU rate of 10 Hz .. 10000 Hz; EuRoC timestamps must be integer nanoseconds .*"
+     r"they look like microseconds \(multiply by 1e\+03"),
+    ("imu_milliseconds", {"imu_rows": _imu_rows(1_000, 5)}, r"read as nanoseconds.*they look like milliseconds"),
+    ("imu_too_slow", {"imu_rows": _imu_rows(1_000_000_000, 1_000_000_000)}, r"1 s \(1 Hz\) read as nanoseconds"),
+    ("imu_header_only", {"imu_rows": []},
+     r"mav0/imu0/data.csv: no IMU samples \(only comments or a header\); expected at least 2 lines `timestamp \[ns\]"),
+    ("imu_single_sample", {"imu_rows": _imu_rows(1_000_000_000, 5_000_000, n=1)}, r"mav0/imu0/data.csv: a single IMU sample"),
+    ("gt_microseconds", {"gt_rows": _gt_rows(1_000_000, 5_000)},
+     r"mav0/state_groundtruth_estimate0/data.csv: its times \(0.001 .. 0.00101 s\) and those of mav0/imu0/data.csv "
+     r"\(1 .. 1.015 s\) differ by a factor of 1002: mav0/state_groundtruth_estimate0/data.csv looks like microseconds"),
+    ("cam_microseconds", {"cam_rows": ["1000000,1000000.png", "1050000,1050000.png"]},
+     r"mav0/cam0/data.csv: its times .* differ by a factor of 982.9: mav0/cam0/data.csv looks like microseconds"),
+    ("gt_quaternion_norm_2", {"gt_rows": _gt_rows(1_000_000_000, 5_000_000, (2.0, 0.0, 0.0, 0.0))},
+     r"mav0/state_groundtruth_estimate0/data.csv line 2: quaternion \(qw qx qy qz\) has norm 2; expected a unit quaternion"),
+    ("gt_quaternion_norm_half", {"gt_rows": _gt_rows(1_000_000_000, 5_000_000, (0.5, 0.0, 0.0, 0.0))},
+     r"data.csv line 2: quaternion \(qw qx qy qz\) has norm 0.5; expected a unit quaternion"),
+]
+
+
+@pytest.mark.parametrize("kwargs, message", [b[1:] for b in BAD_FOLDERS], ids=[b[0] for b in BAD_FOLDERS])
+def test_bad_recordings_are_clear_errors(tmp_path, kwargs, message):
+    root = _euroc_folder(tmp_path, **kwargs)
+    before = {p: p.read_bytes() for p in root.rglob("*") if p.is_file()}
+    with pytest.raises(DataFileError, match=message):
+        read_euroc(root)
+    assert {p: p.read_bytes() for p in root.rglob("*") if p.is_file()} == before  # the reader never writes
+
+
+def test_missing_camera_index_is_an_error_unless_frames_are_skipped(tmp_path):
+    root = _euroc_folder(tmp_path)
+    (root / "mav0" / "cam0" / "data.csv").unlink()
+    with pytest.raises(DataFileError, match=r"mav0/cam0/data.csv: file not found, although the camera folder mav0/cam0/ "
+                                            r"exists .*pass load_frames=False"):
+        read_euroc(root)
+    seq = read_euroc(root, load_frames=False)  # the calibration is still there
+    assert seq.camera.width == 16 and len(seq.frame_times) == 0
+
+
+def test_named_camera_must_exist(tmp_path):
+    root = _euroc_folder(tmp_path)
+    with pytest.raises(DataFileError, match=r"camera 'cam1' not found: .*mav0 has no folder cam1/ \(camera folders: cam0\)"):
+        read_euroc(root, camera="cam1")
+    for bad in ("", 3, "../cam0"):
+        with pytest.raises(ValueError, match=r"camera must be the name of a camera folder such as 'cam0'"):
+            read_euroc(root, camera=bad)
+    # a second camera, when present, is read by name
+    import shutil
+
+    shutil.copytree(root / "mav0" / "cam0", root / "mav0" / "cam1")
+    seq = read_euroc(root, camera="cam1")
+    assert seq.metadata["camera_name"] == "cam1" and seq.frames.shape == (2, 12, 16)
+
+
+def test_recording_without_camera_loads_and_says_so(tmp_path):
+    import shutil
+
+    root = _euroc_folder(tmp_path, gt_rows=_gt_rows(1_000_000_000, 5_000_000))
+    shutil.rmtree(root / "mav0" / "cam0")
+    with pytest.warns(UserWarning, match=r"no camera folder mav0/cam0 \(camera folders: none\); loading IMU and ground truth only"):
+        seq = read_euroc(root)
+    assert seq.camera is None and seq.frames.shape == (0, 0, 0) and seq.metadata["camera_name"] is None
+    assert len(seq.imu) == 4 and len(seq.groundtruth_imu) == 3 and seq.groundtruth is None  # no extrinsics: no camera poses
+    seq.validate()
+    with pytest.raises(DataFileError, match=r"camera 'cam0' not found: .*\(camera folders: none\)"):
+        read_euroc(root, camera="cam0")  # asked for by name: an error, not a warning
+
+
+def test_near_unit_groundtruth_quaternions_are_normalised(tmp_path):
+    q = np.array([0.9, 0.3, 0.2, 0.1])
+    q_file = q / np.linalg.norm(q) * 1.0008  # few decimals in a file: norm off by 8e-4 (< 1e-3)
+    seq = read_euroc(_euroc_folder(tmp_path, gt_rows=_gt_rows(1_000_000_000, 5_000_000, tuple(q_file.tolist()))))
+    seq.validate()
+    q_xyzw = np.array([q[1], q[2], q[3], q[0]]) / np.linalg.norm(q)
+    np.testing.assert_allclose(seq.groundtruth_imu.q_GtoB[0], q_xyzw, atol=1e-15)
+    np.testing.assert_allclose(seq.groundtruth_imu.R_BtoG[0], Rotation.from_quat(q_xyzw).as_matrix(), atol=1e-12)
+
+
+def test_real_imu_in_microseconds_is_refused(real_data_dir, tmp_path):
+    """The real IMU file rewritten in microseconds (a likely export mistake): refused, with the unit named."""
+    lines = (real_data_dir / EUROC / "mav0" / "imu0" / "data.csv").read_text().splitlines()
+    rows = [lines[0]] + [f"{int(l.split(',', 1)[0]) // 1000},{l.split(',', 1)[1]}" for l in lines[1:2001]]
+    (tmp_path / "mav0" / "imu0").mkdir(parents=True)
+    (tmp_path / "mav0" / "imu0" / "data.csv").write_text("\n".join(rows) + "\n")
+    with pytest.warns(UserWarning, match="no camera folder"):
+        with pytest.raises(DataFileError, match=r"imu0/data.csv: .*\(2e\+05 Hz\) read as nanoseconds.*look like microseconds"):
+            read_euroc(tmp_path)
+    # the ground truth given with nanosecond IMU but microsecond ground truth: the time bases disagree by 1000
+    ns_rows = lines[: 2001]
+    (tmp_path / "mav0" / "imu0" / "data.csv").write_text("\n".join(ns_rows) + "\n")
+    gt_lines = (real_data_dir / EUROC / "groundtruth_openvins" / "V1_01_easy.csv").read_text().splitlines()
+    gt_us = [l if l.startswith("#") else f"{int(l.split(',', 1)[0]) // 1000},{l.split(',', 1)[1]}" for l in gt_lines[:200]]
+    (tmp_path / "gt_us.csv").write_text("\n".join(gt_us) + "\n")
+    with pytest.warns(UserWarning, match="no camera folder"):
+        with pytest.raises(DataFileError, match=r"gt_us.csv: .*differ by a factor of \d+(\.\d+)?: gt_us.csv looks like microseconds"):
+            read_euroc(tmp_path, groundtruth=tmp_path / "gt_us.csv")
+
+
+def test_real_slice_camera_names(real_data_dir):
+    with pytest.raises(DataFileError, match=r"camera 'cam1' not found: .* \(camera folders: cam0\)"):
+        read_euroc(real_data_dir / EUROC, camera="cam1", load_frames=False)
+    seq = read_euroc(real_data_dir / EUROC, camera="cam0", load_frames=False)
+    assert seq.metadata["camera_name"] == "cam0" and seq.camera.width == 752

@@ -106,3 +106,76 @@ def test_real_openvins_tum_file(real_data_dir):
     np.testing.assert_allclose(p[0], [0.878895, 2.1834, 0.948427])
     np.testing.assert_allclose(q[0], [-0.824237, -0.106942, -0.551702, 0.069433])
     np.testing.assert_allclose(np.linalg.norm(q, axis=1), 1.0, atol=1e-5)
+
+
+# ---------------------------------------------------------------------------------------------- quaternion norms (issue 17)
+BAD_QUATERNION_ROWS = [
+    ("norm_2", "0 0 0 2", r"traj.txt line 3: quaternion \(qx qy qz qw\) has norm 2; expected a unit quaternion "
+                          r"\(norms within 0.001 of 1 are normalised, others are not rotations\)"),
+    ("norm_half", "0 0.3 0 0.4", r"traj.txt line 3: quaternion \(qx qy qz qw\) has norm 0.5; expected a unit quaternion"),
+    ("norm_zero", "0 0 0 0", r"traj.txt line 3: quaternion \(qx qy qz qw\) has zero norm; expected a unit quaternion"),
+    ("norm_1.002", "0 0 0 1.002", r"traj.txt line 3: quaternion \(qx qy qz qw\) has norm 1.002"),
+    ("norm_0.998", "0 0 0.6 0.7969", r"traj.txt line 3: quaternion \(qx qy qz qw\) has norm 0.99"),
+    ("tiny", "1e-9 0 0 0", r"traj.txt line 3: quaternion \(qx qy qz qw\) has zero norm"),
+]
+
+
+@pytest.mark.parametrize("q_text, message", [b[1:] for b in BAD_QUATERNION_ROWS], ids=[b[0] for b in BAD_QUATERNION_ROWS])
+def test_read_tum_refuses_quaternions_that_are_not_rotations(tmp_path, q_text, message):
+    path = tmp_path / "traj.txt"
+    path.write_text(f"# t x y z qx qy qz qw\n0.0 0 0 0 0 0 0 1\n0.1 0 0 0 {q_text}\n0.2 0 0 0 0 0 0 1\n")
+    before = path.read_bytes()
+    with pytest.raises(DataFileError, match=message):
+        read_tum(path)
+    assert path.read_bytes() == before
+
+
+def test_read_tum_normalises_near_unit_quaternions_and_keeps_unit_ones_exact(tmp_path):
+    q_unit = Rotation.from_euler("xyz", [0.1, -0.2, 0.3]).as_quat()
+    rows = np.array([q_unit, q_unit * 1.0009, q_unit * 0.9991, q_unit * (1 + 5e-7)])
+    path = tmp_path / "traj.txt"
+    write_tum(path, [0.0, 0.1, 0.2, 0.3], np.zeros((4, 3)), rows)
+    t, p, q = read_tum(path)
+    np.testing.assert_array_equal(q[0], rows[0])  # unit rows: the numbers of the file, bit for bit
+    np.testing.assert_array_equal(q[3], rows[3])  # within 1e-6 (what GroundTruth.validate accepts): unchanged
+    np.testing.assert_allclose(q[1:3], [q_unit, q_unit], atol=1e-15)  # within 1e-3: q / |q|
+    np.testing.assert_allclose(np.linalg.norm(q, axis=1), 1.0, atol=1e-6)
+    np.testing.assert_allclose(Rotation.from_quat(q).as_matrix(), Rotation.from_quat(rows).as_matrix(), atol=1e-14)
+    groundtruth_from_tum(t, p, q).validate()
+
+
+def test_groundtruth_from_tum_normalises_or_names_the_row():
+    t, p = [0.0, 1.0, 2.0], np.zeros((3, 3))
+    gt = groundtruth_from_tum(t, p, [[0, 0, 0, 1], [0, 0, 0, 1.0005], [0, 0.6, 0, 0.7995]])
+    np.testing.assert_allclose(np.linalg.norm(gt.q_GtoB, axis=1), 1.0, atol=1e-15)
+    gt.validate()
+    for q_bad, message in (([0, 0, 0, 2.0], r"q_xyzw\[1\]: quaternion \(qx qy qz qw\) has norm 2"),
+                           ([0, 0, 0, 0.5], r"q_xyzw\[1\]: quaternion \(qx qy qz qw\) has norm 0.5"),
+                           ([0, 0, 0, 0.0], r"q_xyzw\[1\]: quaternion \(qx qy qz qw\) has zero norm")):
+        q = np.array([[0, 0, 0, 1.0], q_bad, [0, 0, 0, 1.0]])
+        before = q.copy()
+        with pytest.raises(ValueError, match=message):
+            groundtruth_from_tum(t, p, q)
+        np.testing.assert_array_equal(q, before)
+
+
+@pytest.mark.parametrize(
+    "q_bad, message",
+    [
+        ([0, 0, 0, 0], r"q_xyzw\[2\]: quaternion \(qx qy qz qw\) has zero norm"),
+        ([0, 0, 0, 2], r"q_xyzw\[2\]: quaternion \(qx qy qz qw\) has norm 2"),
+        ([0, 0, 0, np.nan], r"q_xyzw must be finite; got NaN or inf"),
+        ([0, 0, np.inf, 1], r"q_xyzw must be finite; got NaN or inf"),
+    ],
+)
+def test_write_tum_refuses_what_read_tum_refuses_and_writes_nothing(tmp_path, q_bad, message):
+    q = np.tile([0.0, 0.0, 0.0, 1.0], (4, 1))
+    q[2] = q_bad
+    path = tmp_path / "out.txt"
+    with pytest.raises(ValueError, match=message):
+        write_tum(path, [0.0, 0.1, 0.2, 0.3], np.zeros((4, 3)), q)
+    assert not path.exists()
+    path.write_text("keep me\n")
+    with pytest.raises(ValueError, match=message):
+        write_tum(path, [0.0, 0.1, 0.2, 0.3], np.zeros((4, 3)), q)
+    assert path.read_text() == "keep me\n"  # an existing file is left as it was
