@@ -3,7 +3,8 @@
 Three sources, none of which touches the network:
 
 * photographs bundled inside the scikit-image wheel (read straight from its ``data`` folder with OpenCV,
-  never through ``skimage.data``'s download helpers), converted to gray and to linear intensity;
+  never through ``skimage.data``'s download helpers; :func:`read_gray8` drops the PNG colour profiles that make
+  libpng warn), converted to gray and to linear intensity;
 * procedural patterns (checkerboards, dead-leaves rectangles and blobs, value / fractal noise, stripes, tiles);
 * a procedural aerial terrain (fields, roads, buildings with shadows, trees) at a chosen metres-per-pixel.
 
@@ -22,6 +23,7 @@ import numpy as np
 
 __all__ = [
     "available_textures",
+    "read_gray8",
     "srgb_to_linear",
     "load_texture",
     "procedural_texture",
@@ -57,6 +59,47 @@ def _skimage_data_dir() -> Path:
     import skimage  # imported lazily: only the package location is needed
 
     return Path(skimage.__file__).resolve().parent / "data"
+
+
+def _without_png_chunk(data: bytes, chunk_type: bytes) -> bytes:
+    """Return the PNG file ``data`` with every chunk of ``chunk_type`` removed (other bytes unchanged).
+
+    A PNG is an 8-byte signature followed by chunks ``length (4 bytes, big endian) | type (4) | data | CRC (4)``
+    (PNG specification, section 5.3); an ancillary chunk such as ``iCCP`` can be dropped without touching the rest.
+    """
+    if data[:8] != b"\x89PNG\r\n\x1a\n":
+        return data
+    parts, offset = [data[:8]], 8
+    while offset + 8 <= len(data):
+        length = int.from_bytes(data[offset:offset + 4], "big")
+        end = offset + 12 + length  # length + type + data + CRC
+        if data[offset + 4:offset + 8] != chunk_type:
+            parts.append(data[offset:end])
+        offset = end
+    parts.append(data[offset:])
+    return b"".join(parts)
+
+
+def read_gray8(path: str | Path) -> np.ndarray:
+    """Return the image file at ``path`` as an (H, W) uint8 gray array (OpenCV's decoder and BT.601 gray weights).
+
+    PNG files are decoded without their ``iCCP`` colour-profile chunk: the profiles of some bundled scikit-image
+    photographs (``page.png``) carry an invalid rendering intent, on which libpng prints
+    ``libpng warning: iCCP: ... invalid rendering intent`` to the terminal. OpenCV ignores colour profiles, so the
+    pixels are exactly those of ``cv2.imread(path, cv2.IMREAD_GRAYSCALE)``.
+
+    Raises:
+        ValueError: the file is missing or cannot be decoded as an image.
+    """
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except OSError as error:
+        raise ValueError(f"image file {path} could not be read ({error.strerror or error})") from None
+    gray8 = cv2.imdecode(np.frombuffer(_without_png_chunk(data, b"iCCP"), dtype=np.uint8), cv2.IMREAD_GRAYSCALE)
+    if gray8 is None:
+        raise ValueError(f"image file {path} could not be decoded as an image")
+    return gray8
 
 
 def available_textures() -> list[str]:
@@ -146,9 +189,7 @@ def load_texture(name: str, size: tuple[int, int] | None = None) -> np.ndarray:
     path = _skimage_data_dir() / _SKIMAGE_FILES[name]
     if not path.is_file():
         raise ValueError(f"texture {name!r} is not bundled with this scikit-image install (looked for {path})")
-    gray8 = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
-    if gray8 is None:
-        raise ValueError(f"texture {name!r} could not be decoded from {path}")
+    gray8 = read_gray8(path)  # without the iCCP chunk that makes libpng warn on page.png
     texture = srgb_to_linear(gray8.astype(np.float32) / np.float32(255.0))
     if size is not None:
         height, width = _check_shape(size, "size")
