@@ -11,9 +11,11 @@
 # %% [markdown]
 # # 09 — IMU kinematics: quaternions, RK4 dead reckoning and what biases do
 #
-# The MSCKF back-end of the thesis (§3.3) is an *IMU-driven* filter: between two images the state is carried forward
-# by integrating the gyroscope and the accelerometer, and the camera only corrects it afterwards. This lesson is
-# about that first half, with no camera at all:
+# Notebook 08 ended with what the filter asks of the front end: tracks of the same scene points over several images,
+# as undistorted coordinates with about a pixel of noise. Those tracks only *correct* the estimate. The MSCKF back-end
+# of the thesis (§3.3) is an *IMU-driven* filter: between two images the state is carried forward by integrating the
+# gyroscope and the accelerometer, and the camera corrects it afterwards. This lesson is about that first half, with
+# no camera at all:
 #
 # 1. the **JPL quaternion** and its kinematics $\dot{\bar q} = \tfrac12\,\Omega(\omega)\,\bar q$ (thesis Eqs. 18-21, 31-32),
 # 2. a **hand-written RK4 step** of the IMU equations, checked against the library's integrator,
@@ -39,6 +41,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import evio_lib  # noqa: E402
+from evio_lib.evaluation.plots_imu import plot_pose_errors  # noqa: E402
 from evio_lib.evaluation.plots_msckf import plot_error_growth  # noqa: E402
 from evio_lib.evaluation.plots_sim import plot_imu_vs_truth  # noqa: E402
 from evio_lib.geometry.rotation import (  # noqa: E402
@@ -166,17 +169,19 @@ dtheta = np.linalg.norm(quat_to_rotvec(quat_multiply(q, quat_inverse(q_lib[-1]))
 print(f"hand RK4 vs library after 2 s: attitude {dtheta:.2e} rad, velocity {np.linalg.norm(v - v_lib[-1]):.2e} m/s,"
       f" position {np.linalg.norm(p_hand - p_lib[-1]):.2e} m")
 truth_2s = traj.evaluate(2.0)
-print(f"library vs ground truth     : position {np.linalg.norm(p_lib[-1] - truth_2s.p_IinG[0]):.2e} m")
+lib_vs_truth = np.linalg.norm(p_lib[-1] - truth_2s.p_IinG[0])
+print(f"library vs ground truth     : position {lib_vs_truth:.2e} m")
 R_ref, p_ref, v_ref = integrate_imu_rk4(imu_short, s0.R_ItoG[0], s0.p_IinG[0], s0.v_IinG[0])
 print(f"hand RK4 vs sim.imu.integrate_imu_rk4: position {np.linalg.norm(p_hand - p_ref[-1]):.2e} m")
 assert np.linalg.norm(p_hand - p_ref[-1]) < 1e-8  # the same RK4 scheme: identical up to round-off
-assert dtheta < 1e-5 and np.linalg.norm(p_hand - p_lib[-1]) < 1e-5  # the filter's integrator: ~1 µm apart
+assert dtheta < 1e-5 and np.linalg.norm(p_hand - p_lib[-1]) < 3e-6  # the filter's integrator: ~1 µm apart
+assert 3e-5 < lib_vs_truth < 1e-4 and lib_vs_truth > 20 * np.linalg.norm(p_hand - p_lib[-1])  # ~50 µm, 40-60x more
 
 # %% [markdown]
 # The hand-written step reproduces the simulator's reference RK4 integrator (`integrate_imu_rk4`) to round-off.
 # The filter's integrator differs from it by about a micrometre after 2 s: it rotates the quaternion in closed form
 # with the mean rate of each half step, which is exact for a constant rate but only second order for a changing one.
-# Both are about 50 µm from the truth, some 50 times more than they differ from each other. That remaining error is
+# Both are about 50 µm from the truth, some 40-60 times more than they differ from each other. That remaining error is
 # *not* RK4's fault, as section 4 shows.
 #
 # ## 3. The IMU measurement model
@@ -224,16 +229,22 @@ n_a = imu_noisy.accel - imu_noisy.bias_accel - imu_true.accel
 print(f"gyro noise std  {n_g.std():.5f} rad/s   expected σ_g √f = {noise.gyro_noise_density * np.sqrt(rate):.5f}")
 print(f"accel noise std {n_a.std():.5f} m/s²    expected σ_a √f = {noise.accel_noise_density * np.sqrt(rate):.5f}")
 print("drawn biases: b_g =", imu_noisy.bias_gyro[0].round(4), "rad/s,  b_a =", imu_noisy.bias_accel[0].round(3), "m/s²")
+bias_to_noise_g = np.linalg.norm(imu_noisy.bias_gyro[0]) / n_g.std()
+bias_to_noise_a = np.linalg.norm(imu_noisy.bias_accel[0]) / n_a.std()
+print(f"|b_g| / (gyro noise std) = {bias_to_noise_g:.1f},  |b_a| / (accel noise std) = {bias_to_noise_a:.1f}")
 drift = np.linalg.norm(imu_noisy.bias_accel[-1] - imu_noisy.bias_accel[0])
 print(f"accelerometer bias drift over {DURATION:g} s: {drift:.3f} m/s² "
       f"(σ_wa √(3T) = {noise.accel_random_walk * np.sqrt(3 * DURATION):.3f})")
 assert abs(n_g.std() / (noise.gyro_noise_density * np.sqrt(rate)) - 1) < 0.05
 assert abs(n_a.std() / (noise.accel_noise_density * np.sqrt(rate)) - 1) < 0.05
+assert 0.002 < n_g.std() < 0.004 and 0.1 < n_a.std() < 0.15  # ~3 mrad/s and ~0.12 m/s² per sample
+assert bias_to_noise_g > 8 and 1 < bias_to_noise_a < 3  # the biases are not small next to one sample's noise
 
 # %% [markdown]
-# Per sample, the noise is large (3 mrad/s and 0.12 m/s² at 1 kHz) but zero-mean; it averages out in the
-# integration. The biases (here ~0.03 rad/s and ~0.15 m/s²) are much smaller than the noise of one sample, yet
-# they never average out: they are what ruins dead reckoning (section 5).
+# Per sample, the noise is 3 mrad/s and 0.12 m/s² at 1 kHz, zero-mean: it averages out in the integration. The biases
+# drawn here are larger still: the gyroscope's (~0.035 rad/s) is more than ten times the noise of one sample, the
+# accelerometer's (~0.2 m/s²) about one and a half times. And unlike the noise they never average out: they are what
+# ruins dead reckoning (section 5).
 #
 # ## 4. Dead reckoning with perfect measurements
 #
@@ -262,10 +273,11 @@ plot_error_growth(t_grid, dead_reckoning, ylabel="|p_est - p_true| [m]",
 plt.yscale("log")
 plt.show()
 assert dead_reckoning["1000 Hz"][-1] < 1e-3  # < 1 mm after 10 s (full mode) at 1 kHz
-assert dead_reckoning["200 Hz"][-1] / dead_reckoning["1000 Hz"][-1] > 15  # ~ (1000 / 200)^2 = 25: 2nd order
+assert 20 < dead_reckoning["200 Hz"][-1] / dead_reckoning["1000 Hz"][-1] < 30  # ~ (1000 / 200)^2 = 25: 2nd order
 
 # %% [markdown]
-# With perfect data, 1 kHz and RK4 the integrator drifts by well under a millimetre in 10 s, and the 25× ratio
+# With perfect data, 1 kHz and RK4 the integrator drifts by well under a millimetre over the whole run (3 s in fast
+# mode, 10 s in full mode), and the 25× ratio
 # between 200 Hz and 1 kHz confirms the $h^2$ law of the linear interpolation. Integration error is therefore not
 # the problem of an IMU-only estimate. Sensor errors are.
 #
@@ -294,34 +306,33 @@ runs = {
                                                b_a=true_b_a),
 }
 q_true = rot_to_quat(np.swapaxes(truth.R_ItoG, 1, 2))  # q_GtoI of the ground truth
-fig, axes = plt.subplots(1, 3, figsize=(14, 3.6))
-final = {}
+errors = {}
 for label, state in runs.items():
     q_e, v_e, p_e = integrate_imu(state, imu_noisy.t, gyro_m, accel_m, G)
-    att = np.degrees(np.linalg.norm(quat_to_rotvec(quat_multiply(q_true, quat_inverse(q_e))), axis=1))
-    vel = np.linalg.norm(v_e - truth.v_IinG, axis=1)
-    pos = np.linalg.norm(p_e - truth.p_IinG, axis=1)
-    final[label] = (att[-1], vel[-1], pos[-1])
-    for ax, y in zip(axes, (att, vel, pos)):
-        ax.semilogy(imu_noisy.t[1:], y[1:], label=label)
-for ax, name in zip(axes, ("attitude error [deg]", "velocity error [m/s]", "position error [m]")):
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel(name)
-    ax.grid(True, which="both", alpha=0.3)
-axes[0].legend()
-fig.suptitle("IMU-only propagation on boxes_like with the thesis's Boxes biases")
-fig.tight_layout()
+    errors[label] = (np.degrees(np.linalg.norm(quat_to_rotvec(quat_multiply(q_true, quat_inverse(q_e))), axis=1)),
+                     np.linalg.norm(v_e - truth.v_IinG, axis=1),  # attitude [deg], velocity [m/s], position [m]
+                     np.linalg.norm(p_e - truth.p_IinG, axis=1))
+plot_pose_errors(imu_noisy.t, errors, title="IMU-only propagation on boxes_like with the thesis's Boxes biases")
 plt.show()
-for label, (a_deg, v_err, p_err) in final.items():
+i3 = np.searchsorted(imu_noisy.t, 3.0 - 1e-9)  # the sample at 3 s
+final = {label: (att[-1], vel[-1], pos[-1], pos[i3]) for label, (att, vel, pos) in errors.items()}
+for label, (a_deg, v_err, p_err, p_3s) in final.items():
     print(f"{label:>22}: after {DURATION:g} s attitude {a_deg:6.2f} deg, velocity {v_err:6.2f} m/s, "
-          f"position {p_err:7.2f} m")
+          f"position {p_err:7.2f} m (after 3 s: {p_3s:.2f} m)")
+att_rate = final["no bias correction"][0] / imu_noisy.t[-1]
+print(f"attitude error rate {att_rate:.2f} deg/s; total gyroscope bias |b_g| = "
+      f"{np.degrees(np.linalg.norm(true_b_g)):.2f} deg/s")
 assert final["no bias correction"][2] > 10 * final["with bias correction"][2]
+assert abs(att_rate / np.degrees(np.linalg.norm(true_b_g)) - 1) < 0.15  # attitude error ≈ |b_g| t
+assert final["no bias correction"][3] > 1.0 and (FAST or final["no bias correction"][2] > 10)  # m after 3 s, tens after 10
+assert final["with bias correction"][3] < 0.1 and (FAST or 0.2 < final["with bias correction"][2] < 1.0)
 
 # %% [markdown]
-# Without correction the attitude error grows about linearly (the total gyroscope bias here is ~0.05 rad/s, close to
-# 3 deg per second), and the position is metres off after three seconds and tens of metres after ten, like the
-# thesis's Fig. 19 (Boxes) and Fig. 21 (Camp Atterbury). Knowing the biases does not make the IMU good enough on its own either (Figs. 20 and 22): the white
-# noise and the bias random walk still make the error grow, only more slowly.
+# Without correction the attitude error grows linearly at the rate of the total gyroscope bias (~0.043 rad/s here,
+# about 2.5 deg per second), and the position is more than a metre off after three seconds and tens of metres after
+# ten (full mode), like the thesis's Fig. 19 (Boxes) and Fig. 21 (Camp Atterbury). Knowing the biases does not make
+# the IMU good enough on its own either (Figs. 20 and 22): the white noise and the bias random walk still make the
+# error grow, only more slowly, to a few centimetres after 3 s and about half a metre after 10 s.
 #
 # **Why these powers of t?** A constant accelerometer bias is a wrong acceleration: the velocity error grows like
 # $\mathbf b_a t$ and the position error like $\tfrac12\mathbf b_a t^2$. A gyroscope bias is worse: the attitude error grows
@@ -350,11 +361,17 @@ plot_error_growth(imu_true.t, growth, loglog=True, guides=guides,
                   title="position error from a single constant bias (perfect IMU otherwise)")
 plt.show()
 assert abs(slopes["accel bias 0.1 m/s² only"] - 2.0) < 0.2 and abs(slopes["gyro bias 0.01 rad/s only"] - 3.0) < 0.3
+t_cross = 3 * 0.1 / (9.81 * 0.01)  # ½ b_a t² = ⅙ g b_g t³  ->  t = 3 b_a / (g b_g)
+ratio_end = growth["gyro bias 0.01 rad/s only"][-1] / growth["accel bias 0.1 m/s² only"][-1]
+print(f"the laws cross at t = 3 b_a / (g b_g) = {t_cross:.2f} s; after {DURATION:g} s gyro / accel error = "
+      f"{ratio_end:.2f} (the laws: t / t_cross = {DURATION / t_cross:.2f})")
+assert abs(ratio_end / (DURATION / t_cross) - 1) < 0.2
 
 # %% [markdown]
 # The curves follow the two laws closely (the body turns during the trajectory, so the bias direction in $G$ changes
-# and the match is not exact). A gyroscope bias of only 0.01 rad/s (0.6 deg/s) costs more position than an
-# accelerometer bias of 0.1 m/s² within a few seconds. This is why the MSCKF keeps both biases in its state and
+# and the match is not exact). A gyroscope bias of only 0.01 rad/s (0.6 deg/s) costs as much position as an
+# accelerometer bias of 0.1 m/s² after about 3 s (where $\tfrac12 b_a t^2 = \tfrac16 g\,b_g t^3$), and after that ever
+# more: three times as much after 10 s in full mode. This is why the MSCKF keeps both biases in its state and
 # lets the camera estimate them, and why a good **initial** gyroscope bias matters.
 #
 # ## 6. Static initialisation
@@ -395,11 +412,12 @@ print(f"gyro bias error {np.linalg.norm(b_g_init - b_g_rest):.2e} rad/s (expecte
       f"{np.sqrt(3) * sigma_mean:.1e})")
 print(f"tilt error {tilt:.3f} deg; expected from the horizontal accel bias: {np.degrees(horizontal_ba / 9.81):.3f} deg")
 assert np.linalg.norm(b_g_init - b_g_rest) < 5e-4
+assert 1 / 3 < np.linalg.norm(b_g_init - b_g_rest) / (np.sqrt(3) * sigma_mean) < 3  # the size averaging predicts
 assert abs(tilt - np.degrees(horizontal_ba / 9.81)) < 0.05
 
 # %% [markdown]
-# The gyroscope bias error is about 1e-4 rad/s, as the averaging of $M$ samples predicts, and the tilt error is almost
-# entirely the accelerometer bias seen as a tilt.
+# The gyroscope bias error is of the order of 1e-4 rad/s, within a factor of three of what the averaging of $M$
+# samples predicts, and the tilt error is almost entirely the accelerometer bias seen as a tilt.
 #
 # **On the real EuRoC recording** (V1_01_easy: a micro aerial vehicle standing on the ground with its rotors
 # spinning for the first seconds), when the data folder is present next to the repository. The ground truth comes
@@ -460,12 +478,15 @@ if euroc_dir is not None:
     plt.yscale("log")
     plt.show()
     assert euroc_err["ground-truth biases"][-1] < euroc_err["no biases"][-1] / 5
+    assert 10 < euroc_err["no biases"][-1] < 25 and euroc_err["ground-truth biases"][-1] < 1.0  # ~16 m -> < 1 m
+    assert euroc_err["static-init b_g"][-1] < 0.15 * euroc_err["no biases"][-1]  # most of the damage is the gyro bias
+    assert 1.0 < euroc_err["static-init b_g"][-1] < 1.6  # about 1.3 m left
 else:
     print("EuRoC slice not found: skipped.")
 
 # %% [markdown]
 # On the real IMU the good biases take the error after 5 s from about 16 m down to under a metre. The static
-# gyroscope bias alone already removes most of the damage, because the gyroscope bias drives the cubic term. What is
+# gyroscope bias alone already removes most of the damage (about 1.3 m left), because the gyroscope bias drives the cubic term. What is
 # left comes from the accelerometer bias and from vibration, which a camera must correct: that is the MSCKF of the
 # next lessons.
 #
@@ -480,7 +501,8 @@ else:
 # * With perfect data, dead reckoning is accurate to < 1 mm over 10 s at 1 kHz; the error shrinks like $h^2$ because of
 #   the linear interpolation between samples.
 # * Uncorrected biases make the position error grow like $t^2$ (accelerometer) and $t^3$ (gyroscope, through gravity);
-#   without a camera, even corrected biases leave metres of error within seconds.
+#   without a camera, even corrected biases leave about half a metre after 10 s (white noise and the bias random
+#   walk), and uncorrected ones tens of metres.
 # * At rest, averaging gives the gyroscope bias and the gravity direction (roll and pitch); yaw and the accelerometer
 #   bias are not observable there.
 #
