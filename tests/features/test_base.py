@@ -293,3 +293,41 @@ def test_register_detector_rejects_bad_input(clean_registry):
 def test_feature_detector_is_abstract():
     with pytest.raises(TypeError):
         FeatureDetector()  # type: ignore[abstract]
+
+
+# ---------------------------------------------------------------------------------------------- every listed name loads
+def _textured_image() -> np.ndarray:
+    """Return a 96x128 uint8 image with corners (squares on a ramp), the same on every run."""
+    image = np.tile(np.linspace(40, 90, 128, dtype=np.float64), (96, 1))
+    for y, x in ((10, 12), (40, 60), (60, 20), (20, 95), (65, 90)):
+        image[y:y + 18, x:x + 22] = 230.0
+    return image.astype(np.uint8)
+
+
+@pytest.mark.parametrize("name", available_detectors())
+def test_every_available_detector_constructs_and_detects(name):
+    """available_detectors() promises create_detector(name) works with no options (issue 17: 'superpoint' did not)."""
+    det = create_detector(name, max_keypoints=50)
+    assert isinstance(det, FeatureDetector) and det.max_keypoints == 50
+    features = det.detect_and_describe(_textured_image())
+    assert isinstance(features, Features) and 0 < len(features) <= 50
+    assert np.all((features.keypoints >= -0.5) & (features.keypoints <= [127.5, 95.5]))
+
+
+def test_superpoint_is_the_best_shipped_network():
+    from evio_lib.features.superpoint import shipped_weights
+
+    assert base.SUPERPOINT_DEFAULT_WEIGHTS in shipped_weights()
+    default = create_detector("superpoint", max_keypoints=100, inference="fused")
+    assert default.weights_path.name == base.SUPERPOINT_DEFAULT_WEIGHTS + ".pt"
+    named = create_detector(base.SUPERPOINT_DEFAULT_WEIGHTS, max_keypoints=100, inference="fused")
+    image = _textured_image()
+    a, b = default.detect_and_describe(image), named.detect_and_describe(image)  # the same network, the same output
+    np.testing.assert_array_equal(a.keypoints, b.keypoints)
+    np.testing.assert_array_equal(a.descriptors, b.descriptors)
+    other = create_detector("superpoint", weights="pretrained_detdesc_round2_cpu")  # explicit weights still win
+    assert other.weights_path.name == "pretrained_detdesc_round2_cpu.pt"
+    untrained = create_detector("superpoint", weights=None, allow_random=True)
+    assert untrained.weights_path is None
+    with pytest.raises(FileNotFoundError, match=r"SuperPoint weights 'no_such_net' not found"):
+        create_detector("superpoint", weights="no_such_net")
