@@ -146,5 +146,8 @@ def read_aedat4(path: str | Path, *, load_frames: bool = True) -> Sequence:
         frame_times = us_to_seconds(np.array(frame_t, dtype=np.int64)[order])
     else:
         frames, frame_times = np.zeros((0, height, width), dtype=np.uint8), np.zeros(0)
-    return Sequence(name=path.stem, camera=None, events=events, frame_times=frame_times, frames=frames, imu=imu,
-                    metadata=metadata)
+    try:  # the Sequence checks every field (e.g. strictly increasing IMU and frame times): name the file
+        return Sequence(name=path.stem, camera=None, events=events, frame_times=frame_times, frames=frames, imu=imu,
+                        metadata=metadata)
+    except ValueError as exc:
+        raise DataFileError(f"{name}: the recording is not a valid sequence ({exc})") from None

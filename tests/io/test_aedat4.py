@@ -55,3 +55,46 @@ def test_missing_and_invalid_files(tmp_path):
     bad.write_bytes(b"#!AER-DAT2.0\r\n" + bytes(100))
     with pytest.raises(DataFileError, match=r"bad.aedat4: not a readable AEDAT4 file"):
         read_aedat4(bad)
+
+
+class _FakeDecoder:
+    """Stands in for aedat.Decoder: one event stream (8 x 6 sensor) and the packets given to the test."""
+
+    packets: list = []
+
+    def __init__(self, path):
+        self.path = path
+
+    def id_to_stream(self):
+        return {0: {"type": "events", "width": 8, "height": 6}, 1: {"type": "imus"}}
+
+    def __iter__(self):
+        return iter(self.packets)
+
+
+def _imu_packet(t_us):
+    fields = ["t"] + [f"{s}_{a}" for s in ("accelerometer", "gyroscope") for a in "xyz"] + ["temperature"]
+    imus = np.zeros(len(t_us), dtype=[(f, "<u8" if f == "t" else "<f4") for f in fields])
+    imus["t"], imus["accelerometer_z"] = t_us, 1.0
+    return {"stream_id": 1, "imus": imus}
+
+
+def _event_packet(t_us):
+    events = np.zeros(len(t_us), dtype=[("t", "<u8"), ("x", "<u2"), ("y", "<u2"), ("on", "?")])
+    events["t"], events["on"] = t_us, True
+    return {"stream_id": 0, "events": events}
+
+
+def test_decoded_recording_that_is_no_valid_sequence_names_the_file(tmp_path, monkeypatch):
+    aedat = pytest.importorskip("aedat")
+    monkeypatch.setattr(aedat, "Decoder", _FakeDecoder)
+    path = tmp_path / "dup.aedat4"
+    path.write_bytes(b"not read by the fake decoder")
+    monkeypatch.setattr(_FakeDecoder, "packets", [_event_packet([30, 10, 20]), _imu_packet([1000, 2000, 2000])])
+    with pytest.raises(DataFileError, match=r"dup.aedat4: the recording is not a valid sequence \(imu.t must be strictly "
+                                            r"increasing; got imu.t\[2\] = 0.002 after imu.t\[1\] = 0.002\)"):
+        read_aedat4(path)
+    monkeypatch.setattr(_FakeDecoder, "packets", [_event_packet([30, 10, 20]), _imu_packet([1000, 2000, 3000])])
+    seq = read_aedat4(path)  # out-of-order events are sorted (and said so), the rest is valid
+    assert seq.events["t"].tolist() == [1e-5, 2e-5, 3e-5] and seq.metadata["events_resorted"] is True
+    seq.validate()
