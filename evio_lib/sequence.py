@@ -308,7 +308,18 @@ class Sequence:
         p_CinI: (3,) camera centre in I [m], or None when unknown.
         metadata: free-form JSON-like dict (IMU noise densities under "imu_noise", source files, units notes...).
 
+    Construction and every later assignment check each field (ValueError naming it and the expected form): events
+    must already be an EVENT_DTYPE array sorted by t (a list, an (N, 4) float array, another dtype or unsorted
+    events are refused; build them with :func:`evio_lib.events.array.make_events`), times strictly increasing,
+    R_CtoI a (3, 3) rotation, p_CinI of shape (3,); frames must match frame_times and the camera. So slicing by
+    time (binary search) is always right. :meth:`validate` adds events inside the sensor and unit quaternions.
+    Inputs are stored as given (no copy) and never modified.
+
     >>> from evio_lib.events.array import make_events
+    >>> Sequence("bad", events=[(0.0, 1, 2, 1)])
+    Traceback (most recent call last):
+    ...
+    ValueError: events must be a 1-D NumPy array of dtype EVENT_DTYPE (t float64 [s], x and y uint16, p int8 +1/-1) sorted by t; build one with evio_lib.events.array.make_events(t, x, y, p); got list
     >>> seq = Sequence("demo", events=make_events([0.0, 0.5, 1.0], [1, 2, 3], [0, 0, 0], [1, -1, 1]),
     ...                frames=np.zeros((0, 4, 5), np.uint8))
     >>> seq.validate(); seq.sensor_size, len(seq.slice_time(0.0, 0.6).events)
