@@ -30,11 +30,11 @@ the algebraic residual approximates the Sampson distance), and kept when it lowe
 A match whose compensated displacement D = |g1 - f2| is below the threshold fits every t (its Sampson distance is at
 most D), and one that moves a little more constrains the direction of its epipolar line only to within about
 threshold / D radians. Only "moving" matches, D >= 3 threshold, tell hypotheses apart; each hypothesis pairs a moving
-match with any other, and since two moving matches always fit some t, the translation counts as observed only when at
-least three moving matches agree with it. Otherwise (pure rotation, a translation too small for the depth of the
-scene, or a lone match that moved far: on a repeated texture, say) t is unobservable and the matches are classified
-by their displacement alone: inliers move less than 3 threshold (msckf_vio does the same when the mean displacement
-is below one pixel).
+match with any other. Two moving matches always fit some t, and a few random outliers can line up with one, so the
+translation counts as observed only when at least three moving matches, and at least half of them, agree with it.
+Otherwise (pure rotation, a translation too small for the depth of the scene, or a few matches that moved far: on a
+repeated texture, say) t is unobservable and the matches are classified by their displacement alone: inliers move
+less than 3 threshold (msckf_vio does the same when the mean displacement is below one pixel).
 
 With ``n`` hypotheses, an all-inlier pair is drawn with probability ``1 - (1 - w^2)^n`` for an inlier ratio w; the
 default n = 100 gives 99 % down to w = 0.21.
@@ -68,8 +68,8 @@ class TwoPointRansacResult:
             (fewer than 3 matches, or the degenerate case).
         residuals_px: (K,) Sampson distance of each match to the final model in pixels (the compensated
             displacement |g1 - f2| in pixels in the degenerate case).
-        degenerate: True when the translation was unobservable (fewer than three moving matches agree with one t)
-            and the matches were classified by their displacement.
+        degenerate: True when the translation was unobservable (fewer than three, or fewer than half, of the moving
+            matches agree with one t) and the matches were classified by their displacement.
     """
 
     inliers: NDArray[np.bool_]
@@ -268,6 +268,7 @@ def two_point_ransac(
             break
         t_best, d_best, cost_best = Vt[-1], d_refit, cost_refit
     inliers = d_best < threshold
-    if np.count_nonzero(inliers[moving]) < _MIN_MOVING:  # two moving matches always fit: a third must confirm
+    moving_inliers = np.count_nonzero(inliers[moving])
+    if moving_inliers < max(_MIN_MOVING, 0.5 * moving.shape[0]):  # confirmed by a third, and most, moving matches
         return unobservable
     return TwoPointRansacResult(inliers, t_best / np.linalg.norm(t_best), d_best * focal_px, False)
