@@ -308,3 +308,12 @@ def test_real_slice_camera_names(real_data_dir):
         read_euroc(real_data_dir / EUROC, camera="cam1", load_frames=False)
     seq = read_euroc(real_data_dir / EUROC, camera="cam0", load_frames=False)
     assert seq.metadata["camera_name"] == "cam0" and seq.camera.width == 752
+
+
+def test_camera_without_calibration_loads_frames_and_says_so(tmp_path):
+    root = _euroc_folder(tmp_path)
+    (root / "mav0" / "cam0" / "sensor.yaml").unlink()
+    with pytest.warns(UserWarning, match=r"mav0/cam0/sensor.yaml not found: cam0 has no calibration \(camera=None, no extrinsics\)"):
+        seq = read_euroc(root)
+    assert seq.camera is None and seq.R_CtoI is None and seq.frames.shape == (2, 12, 16)
+    seq.validate()
