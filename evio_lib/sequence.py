@@ -312,8 +312,9 @@ class Sequence:
     must already be an EVENT_DTYPE array sorted by t (a list, an (N, 4) float array, another dtype or unsorted
     events are refused; build them with :func:`evio_lib.events.array.make_events`), times strictly increasing,
     R_CtoI a (3, 3) rotation, p_CinI of shape (3,); frames must match frame_times and the camera. So slicing by
-    time (binary search) is always right. :meth:`validate` adds events inside the sensor and unit quaternions.
-    Inputs are stored as given (no copy) and never modified.
+    time (binary search) is right; only an in-place edit of an array can break the order, which :meth:`validate`
+    (and slice_time, for IMU and ground-truth times) re-checks. :meth:`validate` also checks events inside the
+    sensor and unit quaternions. Arrays are stored as given (no copy) and never modified.
 
     >>> from evio_lib.events.array import make_events
     >>> Sequence("bad", events=[(0.0, 1, 2, 1)])
