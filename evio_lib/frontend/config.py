@@ -2,6 +2,12 @@
 
 Defaults follow the thesis (§3.3.5: N = 60 features, a 4 x 5 grid with N / 20 per cell, two-point RANSAC) and, for
 the KLT option, msckf_vio's image processor (15 px window, 3 pyramid levels, 30 iterations, epsilon 0.01).
+
+``match_radius_px`` (15 px) bounds the flow left after the gyroscope's rotation is removed, i.e. the flow of the
+translation: at most 11 px between 24 Hz frames over the whole boxes_like preset (measured with the simulator's depth).
+Descriptor matching over a wider window lets repeated textures through (a copy 20-40 px away wins when the true
+detection is missing), which two-point RANSAC cannot always reject while the translation is small. Without a
+rotation prior the rotation's flow must fit in the radius too: widen it (e.g. 60 px) or set None.
 """
 from __future__ import annotations
 
@@ -37,11 +43,12 @@ class FrontendConfig:
     max_features: int = _param(60, "", "N, the most features kept per frame (thesis §3.3.5)")
     grid_rows: int = _param(4, "", "rows of the feature grid")
     grid_cols: int = _param(5, "", "columns of the feature grid (cap per cell: max_features // (rows cols))")
-    detector_max_keypoints: int = _param(300, "", "candidates the detector returns per frame (before the grid)")
+    detector_max_keypoints: int = _param(1000, "", "candidates the detector returns per frame (before the grid; "
+                                                   "enough that weakly textured cells get some)")
     nms_radius: int = _param(4, "px", "non-maximum suppression radius of the detector")
     min_distance_px: float = _param(5.0, "px", "a new feature is at least this far from every tracked one")
-    match_radius_px: float | None = _param(40.0, "px", "guided matching: detections within this radius of the "
-                                           "rotation-predicted position (None: the whole image)")
+    match_radius_px: float | None = _param(15.0, "px", "guided matching: detections within this radius of the "
+                                           "rotation-predicted position (None: anywhere)")
     ratio: float | None = _param(0.8, "", "Lowe's ratio test of descriptor matches (None: off)")
     max_descriptor_distance: float | None = _param(None, "", "absolute gate on the match distance (None: off)")
     ransac: bool = _param(True, "", "reject outliers with two-point RANSAC")

@@ -6,8 +6,9 @@ Hamming bits for packed binary ones), a pair (i, j) is a match when
 0. optionally (guided matching) only pairs allowed by a mask are considered, e.g. detections within a radius of the
    position predicted for feature i by the gyroscope's rotation;
 1. j is i's nearest neighbour and i is j's nearest neighbour (mutual, the cross-check of ``cv2.BFMatcher``);
-2. Lowe's ratio test: dist(i, j) < ratio * dist(i, j2), with j2 the second nearest detection of i (an ambiguous
-   match, e.g. on a repeated texture, fails it); with a single detection the test passes;
+2. Lowe's ratio test: dist(i, j) < ratio * dist(i, j2), with j2 the nearest other detection anywhere in the image
+   (an ambiguous match, e.g. on a repeated texture, fails it; so does the wrong detection left in the window when the
+   right one was not detected); with a single detection the test passes;
 3. dist(i, j) <= max_distance (optional absolute gate).
 
 Reference: Lowe, "Distinctive image features from scale-invariant keypoints", IJCV 2004, §7.1 (ratio 0.8);
@@ -44,8 +45,9 @@ def match_mutual_ratio(
         ratio: Lowe's ratio in (0, 1], or None to skip the test.
         max_distance: largest accepted descriptor distance (L2, or bits), or None.
         allowed: optional (N1, N2) bool mask of the pairs that may match (guided matching, e.g. detections within
-            a radius of each feature's predicted position); nearest neighbours, the mutual check and the ratio
-            test only consider allowed pairs (a feature with one allowed candidate passes the ratio test).
+            a radius of each feature's predicted position); nearest neighbours and the mutual check only consider
+            allowed pairs, while the ratio test compares with the second nearest detection in the whole image, so
+            a match must be distinctive, not merely alone in its window.
 
     Rows are sorted by i_prev.
 
@@ -55,7 +57,10 @@ def match_mutual_ratio(
     [[1, 0]]
     >>> match_mutual_ratio(prev, curr, ratio=None).tolist()
     [[0, 1], [1, 0]]
-    >>> match_mutual_ratio(prev, curr, allowed=[[False, True, False], [True, True, True]]).tolist()   # guided
+    >>> window = [[False, True, False], [True, True, True]]   # guided: feature 0 may only match detection 1
+    >>> match_mutual_ratio(prev, curr, allowed=window).tolist()      # ... still ambiguous with detection 2
+    [[1, 0]]
+    >>> match_mutual_ratio(prev, curr, allowed=window, ratio=None).tolist()
     [[0, 1], [1, 0]]
     """
     if ratio is not None and (isinstance(ratio, bool) or not isinstance(ratio, Real) or not 0.0 < ratio <= 1.0):
@@ -64,6 +69,7 @@ def match_mutual_ratio(
                                      or not math.isfinite(max_distance) or max_distance < 0):
         raise ValueError(f"max_distance must be a finite number >= 0 or None; got {max_distance!r}")
     distances = descriptor_distances(desc_prev, desc_curr, binary)
+    all_distances = distances
     n1, n2 = distances.shape
     if allowed is not None:
         mask = np.asarray(allowed)
@@ -79,9 +85,10 @@ def match_mutual_ratio(
     best = distances[rows, nn12]
     keep = (nn21[nn12] == rows) & np.isfinite(best)  # mutual: i -> j -> i
     if ratio is not None and n2 >= 2:
-        second = np.partition(distances, 1, axis=1)[:, 1]  # second smallest distance of each row
-        with np.errstate(invalid="ignore"):
-            keep &= best < ratio * second  # d1 < ratio d2 (d2 = inf: a single allowed candidate)
+        others = all_distances.copy()
+        others[rows, nn12] = np.inf
+        second = others.min(axis=1)  # the nearest other detection anywhere in the image
+        keep &= best < ratio * second  # d1 < ratio d2
     if max_distance is not None:
         keep &= best <= max_distance
     return np.column_stack([rows[keep], nn12[keep]]).astype(np.int64)

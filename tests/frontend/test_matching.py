@@ -5,14 +5,15 @@ import pytest
 from evio_lib.frontend.matching import match_mutual_ratio
 
 
-def _brute_force(d, ratio, allowed):
-    d = np.where(allowed, d, np.inf)
+def _brute_force(d_all, ratio, allowed):
+    """Mutual nearest neighbours among allowed pairs; ratio against the second nearest detection anywhere."""
+    d = np.where(allowed, d_all, np.inf)
     out = []
     for i in range(d.shape[0]):
         j = int(np.argmin(d[i]))
         if not np.isfinite(d[i, j]) or int(np.argmin(d[:, j])) != i:
             continue
-        others = np.delete(d[i], j)
+        others = np.delete(d_all[i], j)
         if ratio is not None and others.size and not d[i, j] < ratio * others.min():
             continue
         out.append([i, j])
@@ -30,6 +31,14 @@ def test_equals_the_definition_on_random_descriptors(ratio):
     got = match_mutual_ratio(a, b, ratio=ratio, allowed=allowed)
     assert got.tolist() == _brute_force(d, ratio, allowed)
     assert got.dtype == np.int64
+
+
+def test_the_ratio_test_looks_beyond_the_window():
+    prev = np.array([[1.0, 0.0]])
+    curr = np.array([[0.9, 0.1], [0.91, 0.09], [0.0, 1.0]])  # two near-copies of feature 0
+    alone = np.array([[True, False, True]])  # only one copy in the window
+    assert match_mutual_ratio(prev, curr, allowed=alone).shape == (0, 2)  # still ambiguous
+    assert match_mutual_ratio(prev, curr, allowed=alone, ratio=None).tolist() == [[0, 0]]
 
 
 def test_true_pairs_survive_and_the_distance_gate_applies():
