@@ -83,6 +83,8 @@ fov_x_true = np.degrees(np.arccos(left @ right))
 fov_y_true = np.degrees(np.arccos(top @ bottom))
 print(f"pinhole FOV  : {fov_x_pinhole:.1f} deg x {fov_y_pinhole:.1f} deg")
 print(f"with the lens: {fov_x_true:.1f} deg x {fov_y_true:.1f} deg  (barrel distortion squeezes a wider view in)")
+assert round(fov_x_pinhole) == 62 and round(fov_y_pinhole) == 49  # the summary's 62 x 49 degrees
+assert fov_x_true > fov_x_pinhole and fov_y_true > fov_y_pinhole
 
 # %% [markdown]
 # ### Projecting by hand
@@ -134,6 +136,7 @@ print("P / |P| of the third point:      ", (points_C[2] / np.linalg.norm(points_
 
 # %%
 print("dist_coeffs (k1, k2, p1, p2, k3):", cam.dist_coeffs)
+assert round(cam.dist_coeffs[0], 2) == -0.37  # k1: strong barrel distortion
 
 
 def distort_by_hand(xy, k1, k2, p1, p2, k3):
@@ -155,9 +158,15 @@ assert np.allclose(distort_by_hand(xy, *cam.dist_coeffs), cam.distort_normalized
 
 # %%
 samples_per_line = 50 if FAST else 200
-# a grid that covers the sensor: corner pixels see about x = +-0.85, y = +-0.72
+# a grid that covers the sensor: its corners see x from -0.86 to 0.69 and y from -0.72 to 0.44
+# (not symmetric: the principal point is right of and below the image centre)
+sensor_corners = cam.unproject(np.array([[-0.5, -0.5], [cam.width - 0.5, -0.5], [-0.5, cam.height - 0.5],
+                                         [cam.width - 0.5, cam.height - 0.5]]))
+print("normalised coordinates of the sensor corners:\n", sensor_corners.round(2))
 x_values = np.linspace(-0.9, 0.9, 7 if FAST else 13)
 y_values = np.linspace(-0.75, 0.75, 5 if FAST else 11)
+assert x_values.min() < sensor_corners[:, 0].min() and sensor_corners[:, 0].max() < x_values.max()
+assert y_values.min() < sensor_corners[:, 1].min() and sensor_corners[:, 1].max() < y_values.max()
 along_x = np.linspace(-0.9, 0.9, samples_per_line)
 along_y = np.linspace(-0.75, 0.75, samples_per_line)
 
@@ -199,6 +208,11 @@ fig.colorbar(q, ax=ax, label="displacement [px]")
 ax.legend(loc="lower right")
 plt.show()
 print(f"largest displacement on this grid: {np.linalg.norm(shift, axis=1).max():.1f} px")
+r = np.linalg.norm(xy_ideal, axis=1)
+far = r > 0.3  # away from the centre, where the r^3 law is measurable
+cubic_fit = np.polyfit(np.log(r[far]), np.log(np.linalg.norm(shift, axis=1)[far]), 1)[0]
+print(f"displacement ~ r^{cubic_fit:.1f} (log-log slope)")
+assert 2.5 < cubic_fit < 3.5  # roughly r^3
 
 # %% [markdown]
 # ## 3. Removing the distortion
@@ -246,7 +260,8 @@ ax.legend()
 plt.show()
 print(f"after 5 iterations: fixed point {fixed_point_errors[4]:.1e}, Newton {newton_errors[4]:.1e} "
       f"(normalised units; x fx = {fixed_point_errors[4] * cam.fx:.2f} px for the fixed point)")
-assert newton_errors[-1] < 1e-12 < fixed_point_errors[4]
+assert newton_errors[4] < 1e-14  # Newton: machine precision after 5 steps
+assert 1e-4 < fixed_point_errors[4] < 5e-4 and fixed_point_errors[4] * cam.fx < 0.1  # ~2e-4, hundredths of a px
 
 # %% [markdown]
 # The claim of this section: `unproject` (pixel → ray) and `normalized_to_pixels` (ray → pixel) are exact
@@ -262,12 +277,30 @@ print(f"{len(all_pixels)} pixels, worst round-trip error {round_trip_error:.1e} 
 assert round_trip_error < 1e-8
 
 # %% [markdown]
+# ### The ray of every pixel at once: `normalized_grid()`
+#
+# Renderers and dense methods need the ray of *every* pixel. `normalized_grid()` returns them as an
+# $H \times W \times 2$ array: entry `[v, u]` holds the undistorted normalised coordinates $(x, y)$ of pixel
+# $(u, v)$, so the ray through it is $[x, y, 1]^\top$ in frame $C$. It is computed once per camera (with
+# `unproject`) and kept read-only; the scene renderer of lesson 03 casts exactly these rays.
+
+# %%
+grid = cam.normalized_grid()
+rays_C = np.concatenate([grid, np.ones((*grid.shape[:2], 1))], axis=2)  # (H, W, 3) rays [x, y, 1]
+print("normalized_grid():", grid.shape, "| ray of the top-left pixel:", rays_C[0, 0].round(3))
+assert grid.shape == (cam.height, cam.width, 2) and not grid.flags.writeable
+assert np.allclose(grid[all_pixels[:, 1].astype(int), all_pixels[:, 0].astype(int)], cam.unproject(all_pixels))
+assert np.allclose(cam.normalized_to_pixels(grid.reshape(-1, 2)).reshape(grid.shape)[10, 20], [20.0, 10.0])
+
+# %% [markdown]
 # `undistort_points` does the same but returns pixels of an *ideal* camera with the same $K$ — handy to see how
 # far each measured pixel really is from where a perfect lens would have put it.
 
 # %%
 corners = np.array([[0.0, 0.0], [cam.width - 1.0, 0.0], [0.0, cam.height - 1.0], [cam.width - 1.0, cam.height - 1.0]])
-print(np.c_[corners, cam.undistort_points(corners)].round(1))
+corner_shift = np.linalg.norm(cam.undistort_points(corners) - corners, axis=1)
+print(np.c_[corners, cam.undistort_points(corners), corner_shift].round(1))
+assert corner_shift.min() > 20  # the lens moves every corner pixel by tens of pixels
 
 # %% [markdown]
 # ## 4. Undistorting a whole image
@@ -314,6 +347,7 @@ valid = cam.in_image(sampled_at, border=1.0).reshape(cam.height, cam.width)
 error = np.abs(recovered - ideal_image)[valid]
 print(f"valid pixels {valid.mean():.0%}, mean abs error {error.mean():.3f}, "
       f"pixels off by more than 0.25: {(error > 0.25).mean():.1%}")
+assert valid.all()  # every output pixel finds something to sample
 assert error.mean() < 0.05 and (error > 0.25).mean() < 0.1
 
 # %% [markdown]
@@ -328,8 +362,8 @@ assert error.mean() < 0.05 and (error > 0.25).mean() < 0.1
 # * Distorting is a formula; undistorting is an iteration. Newton's method reaches machine precision in a few
 #   steps, where the fixed-point scheme used by OpenCV by default stops short.
 # * Whole images are undistorted by a backward lookup plus interpolation (`undistort_image`), and
-#   `normalized_grid()` gives the ray of every pixel at once — the scene renderer of the next lessons casts exactly
-#   these rays.
+#   `normalized_grid()` gives the ray of every pixel at once (section 3) — the scene renderer of lesson 03 casts
+#   exactly these rays.
 #
 # ## Exercises
 #
