@@ -11,6 +11,12 @@
 # %% [markdown]
 # # 05 — Classical feature detectors: Harris, FAST, SIFT, ORB, FREAK
 #
+# Lesson 04 (`04_event_reconstruction`) turned a stream of events into **image frames**: count images, time surfaces
+# and reconstructed intensity. From here on the pipeline treats those frames like the pictures of an ordinary camera
+# (an APS frame skips the reconstruction step altogether), and the next question is which points of a frame to
+# follow. This lesson answers it on ordinary photographs, where every detector is easy to see at work; lesson 08
+# runs the same detectors on event frames.
+#
 # A visual odometry front end does not track every pixel. It picks a few hundred **features** — small image
 # regions it can find again in the next frame — measures where they moved, and feeds those measurements to the
 # motion estimator (lessons 02 and, later, the MSCKF). A good feature is (thesis §2.1.3):
@@ -48,6 +54,15 @@ from skimage.color import rgb2gray
 from evio_lib.features.base import available_detectors, create_detector, to_float_image, to_uint8_image
 from evio_lib.features.classical import fast_score, harris_response
 from evio_lib.features.evaluate import repeatability
+from evio_lib.evaluation.plots_features import (
+    plot_binary_descriptors,
+    plot_fast_circle,
+    plot_keypoints,
+    plot_repeatability_bars,
+    plot_repeatability_pair,
+    plot_scale_space,
+    plot_structure_tensor_classes,
+)
 from evio_lib.geometry.homography import sample_homography, warp_image, warp_points
 
 FAST = os.environ.get("EVIO_FAST", "0") == "1"  # CI sets EVIO_FAST=1: smaller images, fewer image pairs
@@ -114,19 +129,10 @@ kind = np.zeros(image.shape, int)  # 0 flat
 kind[(lam1 > strong) & (lam2 <= strong)] = 1  # edge: one large eigenvalue
 kind[lam2 > strong] = 2  # corner: both large
 
-fig, axes = plt.subplots(1, 3, figsize=(14, 4.6))
-axes[0].imshow(image, cmap="gray")
-axes[0].set_title("image")
-lim = np.abs(R_opencv).max() * 0.05
-axes[1].imshow(R_opencv, cmap="coolwarm", vmin=-lim, vmax=lim)
-axes[1].set_title("Harris response R (clipped)")
-axes[2].imshow(kind, cmap=plt.matplotlib.colors.ListedColormap(["black", "tab:blue", "tab:orange"]))
-axes[2].set_title("flat (black) / edge (blue) / corner (orange)")
-for ax in axes:
-    ax.axis("off")
-plt.tight_layout()
+fig = plot_structure_tensor_classes(image, R_opencv, kind)
 plt.show()
 print(f"pixels: {np.mean(kind == 0):.1%} flat, {np.mean(kind == 1):.1%} edge, {np.mean(kind == 2):.1%} corner")
+assert np.all(R_numpy[kind == 2] > R_numpy[kind == 1].min())  # corners score above the weakest edge
 
 # %% [markdown]
 # The library's `HarrisDetector` keeps the 3 x 3 local maxima of $R$ above $10^{-5} \max R$, then applies the
@@ -146,13 +152,8 @@ cols, rows = shi.keypoints[:, 0].astype(int), shi.keypoints[:, 1].astype(int)
 assert np.allclose(shi.scores, lam2[rows, cols], rtol=1e-3, atol=1e-6)
 print(f"Harris: {len(harris)} keypoints, Shi-Tomasi: {len(shi)} keypoints (best 300 after NMS 4)")
 
-fig, axes = plt.subplots(1, 2, figsize=(11, 5.5))
-for ax, feats, title in zip(axes, (harris, shi), ("Harris", "Shi-Tomasi")):
-    ax.imshow(image, cmap="gray")
-    ax.scatter(*feats.keypoints.T, s=10, c=np.arange(len(feats)), cmap="autumn")
-    ax.set_title(f"{title}: {len(feats)} keypoints (yellow = weaker)")
-    ax.axis("off")
-plt.tight_layout()
+fig = plot_keypoints(image, {"Harris (yellow = weaker)": harris.keypoints,
+                             "Shi-Tomasi (yellow = weaker)": shi.keypoints}, ncols=2, ranked=True)
 plt.show()
 
 # %% [markdown]
@@ -180,25 +181,38 @@ print(f"strongest FAST corner at (x, y) = ({px}, {py}): score by hand {score_by_
       f"library {fast_score(image, fast.keypoints[:1])[0]:.0f}")
 assert score_by_hand == fast_score(image, fast.keypoints[:1])[0] == np.floor(fast.scores[0])
 
-fig, axes = plt.subplots(1, 2, figsize=(11, 5))
-patch = image[py - 5 : py + 6, px - 5 : px + 6]
-axes[0].imshow(patch, cmap="gray", extent=(-5.5, 5.5, 5.5, -5.5))
-colours = np.where(d > score_by_hand, "tab:red", np.where(d < -score_by_hand, "tab:blue", "white"))
-axes[0].scatter(circle[:, 0], circle[:, 1], s=120, facecolors="none", edgecolors=colours, linewidths=2)
-axes[0].plot(0, 0, "g+", ms=14, mew=2)
-axes[0].set_title("the 16-pixel circle (red brighter, blue darker by > s)")
-axes[1].imshow(image, cmap="gray")
-axes[1].scatter(*fast.keypoints.T, s=10, c="tab:orange")
-axes[1].set_title(f"FAST: {len(fast)} keypoints")
-axes[1].axis("off")
-plt.tight_layout()
+fig = plot_fast_circle(image, (px, py), circle, score_by_hand, fast.keypoints)
 plt.show()
 
 # %% [markdown]
-# FAST fires on L-shaped corners but **not** on the X-junctions of a checkerboard: there the circle alternates
-# between four short bright and dark arcs, none of them 9 pixels long. Harris, which only asks for gradients in
-# two directions, finds both.
+# ### L-corners and X-junctions
 #
+# The segment test has a blind spot. At the corner of a bright square (an **L-corner**) about three quarters of the
+# circle lies in the dark background: one long dark arc, so FAST fires. At an **X-junction** of a checkerboard the
+# circle alternates between four short bright and dark arcs of about four pixels each, none of them 9 long, so FAST
+# stays silent. Harris and Shi-Tomasi only ask for strong gradients in two directions, which both kinds of corner
+# have. A drawn test image shows it: a square with four L-corners and a 4 x 4 checkerboard with nine inner
+# X-junctions (its outer corners are L-corners again).
+
+# %%
+drawing = np.full((120, 200), 60, np.uint8)
+drawing[30:90, 20:80] = 200  # a bright square: four L-corners
+board = np.kron(np.indices((4, 4)).sum(axis=0) % 2, np.ones((16, 16), int))  # 4 x 4 squares of 16 px
+drawing[28:92, 110:174] = np.where(board > 0, 200, 60)
+l_corners = np.array([[19.5, 29.5], [79.5, 29.5], [19.5, 89.5], [79.5, 89.5]])  # between pixel centres
+x_junctions = np.array([[110 + 16 * i - 0.5, 28 + 16 * j - 0.5] for i in (1, 2, 3) for j in (1, 2, 3)])
+found_on_drawing = {}
+for name in ("fast", "harris", "shi_tomasi"):
+    kp = create_detector(name, max_keypoints=100, nms_radius=4).detect_and_describe(drawing).keypoints
+    near = lambda corners: int((np.linalg.norm(corners[:, None] - kp[None], axis=2).min(axis=1) <= 2).sum())
+    found_on_drawing[name] = (near(l_corners), near(x_junctions), kp)
+    print(f"{name:10s}: {near(l_corners)} of 4 L-corners, {near(x_junctions)} of 9 X-junctions (within 2 px)")
+fig = plot_keypoints(drawing, {name: kp for name, (_, _, kp) in found_on_drawing.items()}, ncols=3, size=25)
+plt.show()
+assert found_on_drawing["fast"][:2] == (4, 0)  # FAST: every L-corner, no X-junction
+assert found_on_drawing["harris"][:2] == (4, 9) and found_on_drawing["shi_tomasi"][:2] == (4, 9)  # Harris: both
+
+# %% [markdown]
 # ## 3. SIFT: blobs in scale space
 #
 # Corners detected at one pixel scale are not found again when the camera moves closer. SIFT searches over
@@ -218,20 +232,11 @@ blurred = [cv2.GaussianBlur(img01, (0, 0), s) for s in sigmas]
 dogs = [b2 - b1 for b1, b2 in zip(blurred, blurred[1:])]  # D = G(k sigma) * I - G(sigma) * I
 sift = create_detector("sift", max_keypoints=300, nms_radius=4).detect_and_describe(image)
 
-fig, axes = plt.subplots(1, 4, figsize=(16, 4.3))
-for ax, dog, s in zip(axes, dogs, sigmas):
-    lim = np.abs(dog).max()
-    ax.imshow(dog, cmap="coolwarm", vmin=-lim, vmax=lim)
-    ax.set_title(f"DoG, sigma = {s:.2f}")
-    ax.axis("off")
-axes[3].imshow(image, cmap="gray")
-axes[3].scatter(*sift.keypoints.T, s=10, c="tab:orange")
-axes[3].set_title(f"SIFT: {len(sift)} keypoints")
-axes[3].axis("off")
-plt.tight_layout()
+fig = plot_scale_space(dogs, sigmas[:-1], image, sift.keypoints)
 plt.show()
 print("SIFT descriptors:", sift.descriptors.shape, sift.descriptors.dtype,
       "| row norms:", np.linalg.norm(sift.descriptors, axis=1)[:3].round(4))
+assert sift.descriptors.shape[1] == 4 * 4 * 8  # a 4 x 4 grid of 8-bin histograms
 assert np.allclose(np.linalg.norm(sift.descriptors, axis=1), 1.0, atol=1e-5)
 
 # %% [markdown]
@@ -264,11 +269,8 @@ hamming_opencv = cv2.norm(orb.descriptors[0], orb.descriptors[1], cv2.NORM_HAMMI
 print(f"Hamming distance between ORB descriptors 0 and 1: by hand {hamming_by_hand}, OpenCV {hamming_opencv:.0f}")
 assert hamming_by_hand == hamming_opencv
 
-fig, ax = plt.subplots(figsize=(12, 2.4))
-ax.imshow(bits[:12], cmap="gray_r", aspect="auto", interpolation="nearest")
-ax.set_xlabel("bit")
-ax.set_ylabel("keypoint")
-ax.set_title("ORB descriptors of the 12 strongest keypoints (black = 1)")
+assert orb.descriptors.shape[1] * 8 == 256 and freak.descriptors.shape[1] * 8 == 512  # 32 and 64 bytes
+fig = plot_binary_descriptors(bits, 12, "ORB descriptors of the 12 strongest keypoints (black = 1)")
 plt.show()
 
 # %% [markdown]
@@ -293,17 +295,24 @@ for name in names:
     # the same image as float gives the same result
     assert np.array_equal(detector.detect_and_describe(to_float_image(image_240)).keypoints, f.keypoints)
 
-fig, axes = plt.subplots(2, 3, figsize=(15, 7.5))
-for ax, name in zip(axes.ravel(), names):
-    ax.imshow(image_240, cmap="gray")
-    ax.scatter(*features[name].keypoints.T, s=6, c="tab:orange")
-    ax.set_title(f"{name}: {len(features[name])}")
-    ax.axis("off")
-plt.tight_layout()
+fig = plot_keypoints(image_240, {name: features[name].keypoints for name in names}, ncols=3, size=6)
 plt.show()
 
+
+def border_distance(keypoints, shape):
+    """Smallest distance of any keypoint to the image border, in pixels."""
+    h, w = shape
+    return float(np.min([keypoints[:, 0], keypoints[:, 1], w - 1 - keypoints[:, 0], h - 1 - keypoints[:, 1]]))
+
+
+print(f"closest to the border: FAST {border_distance(features['fast'].keypoints, image_240.shape):.0f} px, "
+      f"FAST-FREAK {border_distance(features['fast_freak'].keypoints, image_240.shape):.0f} px")
+assert all(len(features[name]) < 300 for name in ("sift", "orb", "fast_freak"))  # below the quota of 300
+assert border_distance(features["fast_freak"].keypoints, image_240.shape) > 2 * border_distance(
+    features["fast"].keypoints, image_240.shape)  # FREAK keeps away from the border
+
 # %% [markdown]
-# Not every detector fills its quota of 300: SIFT finds fewer blobs above its contrast threshold, ORB's points come
+# Not every detector fills its quota of 300 (the table above): SIFT finds fewer blobs above its contrast threshold, ORB's points come
 # from several pyramid levels and partly coincide, and FREAK drops the FAST points whose sampling pattern does not
 # fit inside the image, so FAST-FREAK keeps away from the border.
 #
@@ -351,18 +360,7 @@ kp1_in_2 = warp_points(H, f1.keypoints)
 h, w = shape
 seen = (kp1_in_2[:, 0] >= -0.5) & (kp1_in_2[:, 0] < w - 0.5) & (kp1_in_2[:, 1] >= -0.5) & (kp1_in_2[:, 1] < h - 0.5)
 nearest = np.linalg.norm(kp1_in_2[seen][:, None] - f2.keypoints[None], axis=-1).min(axis=1)
-fig, axes = plt.subplots(1, 2, figsize=(13, 5))
-axes[0].imshow(image_240, cmap="gray")
-axes[0].scatter(*f1.keypoints[seen].T, s=12, c=np.where(nearest <= 3, "lime", "red"))
-axes[0].set_title("image 1: Harris points (green: found again within 3 px)")
-axes[1].imshow(warped, cmap="gray")
-axes[1].scatter(*f2.keypoints.T, s=12, c="tab:orange", label="detected in image 2")
-axes[1].scatter(*kp1_in_2[seen].T, s=30, facecolors="none", edgecolors="cyan", label="image-1 points warped by H")
-axes[1].legend(loc="lower right", fontsize=8)
-axes[1].set_title("image 2 = image 1 warped by a random homography")
-for ax in axes:
-    ax.axis("off")
-plt.tight_layout()
+fig = plot_repeatability_pair(image_240, warped, kp1_in_2[seen], f2.keypoints, nearest <= 3, f1.keypoints[seen], 3)
 plt.show()
 
 # %% [markdown]
@@ -410,38 +408,39 @@ for name in names:
     assert np.all(np.diff(v) >= 0) and np.all(np.diff(i) >= 0)  # a looser eps can only find more
 
 # %%
-fig, axes = plt.subplots(1, 2, figsize=(13, 4), sharey=True)
-x = np.arange(len(names))
-for ax, split in zip(axes, ("viewpoint", "illumination")):
-    for k, eps in enumerate(eps_list):
-        ax.bar(x + (k - 1) * 0.27, [table[n][split][k] for n in names], width=0.27, label=f"eps = {eps} px")
-    ax.set_xticks(x, names, rotation=20)
-    ax.set_title(f"{split} changes")
-    ax.set_ylim(0, 1)
-axes[0].set_ylabel("repeatability")
-axes[0].legend()
-plt.tight_layout()
+fig = plot_repeatability_bars(table, eps_list)
 plt.show()
+
+at = lambda split, k: {name: table[name][split][k] for name in names}  # repeatability of every detector
+corner_detectors = ("harris", "shi_tomasi", "fast", "fast_freak")  # FAST-FREAK detects with FAST
+assert min(at("viewpoint", 1)[n] for n in corner_detectors) > max(at("viewpoint", 1)[n] for n in ("sift", "orb"))
+assert min(at("viewpoint", 2)[n] for n in corner_detectors) > at("viewpoint", 2)["sift"]
+assert all(at("viewpoint", 1)[n] - at("viewpoint", 0)[n] > 0.1 for n in corner_detectors)  # eps = 1 px costs
+assert max(at("illumination", 0).values()) < 0.9  # the same geometry, yet points are lost
 
 # %% [markdown]
 # What to read from this (your numbers depend on the images; the thesis's HPatches results are in its Table 2):
 #
-# * The corner detectors (Harris, Shi-Tomasi, FAST) are the most repeatable for moderate viewpoint changes at
-#   $\varepsilon = 3$-$5$ px — in the thesis, Harris has the best viewpoint repeatability of all methods.
-# * At $\varepsilon = 1$ px all of them lose much: integer-pixel corners and the resampling of the warp move points
-#   by a pixel or so.
+# * The corner detectors (Harris, Shi-Tomasi, FAST, and FAST-FREAK, which detects with FAST) are more repeatable
+#   than SIFT and ORB for moderate viewpoint changes at $\varepsilon = 3$ px, and more than SIFT at 5 px — in the
+#   thesis, Harris has the best viewpoint repeatability of all methods.
+# * At $\varepsilon = 1$ px every detector scores lower, the corner detectors by more than 0.1 on the viewpoint
+#   pairs: integer-pixel corners and the resampling of the warp move points by a pixel or so.
 # * SIFT is less repeatable by this measure: its blobs are spread over scales, and a blob's centre is less
 #   precisely defined than a corner. Repeatability ignores what SIFT is good at, its descriptor.
-# * Under illumination changes the geometry is identical, yet every detector loses points: thresholds and the
-#   ranking of the best 300 depend on contrast. This is where the learned detector of lessons 06-08 gains most.
+# * Under illumination changes the geometry is identical, yet every detector loses points (none reaches 0.9 at 1 px):
+#   thresholds and the ranking of the best 300 depend on contrast. Lesson 08 asks whether the learned detector of
+#   lessons 06-07 does better here.
 #
 # ## Summary
 #
 # * The structure tensor $M$ summarises the gradients around a pixel; its eigenvalues separate flat regions, edges
 #   and corners. Harris scores corners with $R = \det M - k(\operatorname{tr} M)^2$, Shi-Tomasi with
 #   $\lambda_{\min}$. Our few NumPy lines reproduce `cv2.cornerHarris` exactly.
-# * FAST decides with a segment test on a 16-pixel circle — very cheap, no gradients, no X-junctions.
-# * SIFT finds blobs in a difference-of-Gaussian scale space and describes them with 128-bin gradient histograms;
+# * FAST decides with a segment test on a 16-pixel circle — very cheap, no gradients; it finds L-corners but not the
+#   X-junctions of a checkerboard (section 2).
+# * SIFT finds blobs in a difference-of-Gaussian scale space and describes them with a 4 x 4 grid of 8-bin gradient
+#   histograms (128 numbers);
 #   ORB and FREAK use bit strings of intensity comparisons, matched with the Hamming distance.
 # * All detectors share one interface in `evio_lib.features` — `create_detector(name, max_keypoints, nms_radius)`
 #   and `detect_and_describe(image) -> Features` — and the same box NMS.
@@ -452,8 +451,8 @@ plt.show()
 #
 # 1. Change Harris's $k$ between 0.02 and 0.2. Which corners disappear first, and why does a large $k$ reject
 #    more edge-like points? (Hint: write $R$ in terms of $\lambda_1$ and $\lambda_2$.)
-# 2. Build a synthetic checkerboard, run Harris, Shi-Tomasi and FAST, and count how many X-junctions each finds.
-#    Explain FAST's result with the circle picture of section 2.
+# 2. Blur the drawing of section 2 with a Gaussian of $\sigma$ = 0.7 and 1.5 px (`cv2.GaussianBlur`) and run FAST
+#    again. Where do its points land now, near the X-junctions too? Explain with the circle picture of section 2.
 # 3. Rotate the image by 30 degrees (a homography with `sample_homography(..., translation=False, scaling=False,
 #    perspective=False)` or `cv2.getRotationMatrix2D`). Which detectors stay repeatable? Then match descriptors
 #    with mutual nearest neighbours: why do the upright SIFT descriptors of Harris points fail where SIFT's own

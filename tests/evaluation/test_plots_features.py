@@ -1,0 +1,136 @@
+"""Tests of evio_lib.evaluation.plots_features: every figure renders to Agg with the expected panels; bad input is
+refused with a message naming the expected form."""
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from evio_lib.evaluation.plots_features import (  # noqa: E402
+    plot_binary_descriptors,
+    plot_detections,
+    plot_fast_circle,
+    plot_keypoints,
+    plot_matches,
+    plot_repeatability_bars,
+    plot_repeatability_pair,
+    plot_scale_space,
+    plot_structure_tensor_classes,
+    plot_training_curve,
+)
+
+FAST_CIRCLE = np.array([(0, 3), (1, 3), (2, 2), (3, 1), (3, 0), (3, -1), (2, -2), (1, -3),
+                        (0, -3), (-1, -3), (-2, -2), (-3, -1), (-3, 0), (-3, 1), (-2, 2), (-1, 3)])
+
+
+@pytest.fixture(autouse=True)
+def close_figures():
+    yield
+    plt.close("all")
+
+
+@pytest.fixture
+def image(rng: np.random.Generator) -> np.ndarray:
+    return rng.random((40, 60)).astype(np.float32)
+
+
+def _render(fig) -> np.ndarray:
+    """Draw the figure on the Agg canvas and return its pixels (fails on any drawing error)."""
+    fig.canvas.draw()
+    return np.asarray(fig.canvas.buffer_rgba())
+
+
+def test_structure_tensor_classes_renders_three_panels(image: np.ndarray) -> None:
+    classes = (image > 0.5).astype(int) + (image > 0.9)
+    fig = plot_structure_tensor_classes(image, image - 0.5, classes)
+    assert len(fig.axes) == 3 and _render(fig).size > 0
+    with pytest.raises(ValueError, match="share one shape"):
+        plot_structure_tensor_classes(image, image[:10], classes)
+
+
+def test_keypoints_panels_titles_and_counts(image: np.ndarray, rng: np.random.Generator) -> None:
+    sets = {"harris": rng.uniform(0, 40, (7, 2)), "fast": np.zeros((0, 2)), "sift": rng.uniform(0, 40, (3, 2))}
+    fig = plot_keypoints(image, sets, ncols=2, ranked=True)
+    titles = [ax.get_title() for ax in fig.axes if ax.get_title()]
+    assert titles == ["harris: 7", "fast: 0", "sift: 3"]
+    assert len(fig.axes) == 4  # 2 x 2 grid, the last panel empty
+    _render(fig)
+    with pytest.raises(ValueError, match=r"\(N, 2\)"):
+        plot_keypoints(image, {"bad": np.zeros((3, 3))})
+    with pytest.raises(ValueError, match="2-D grayscale"):
+        plot_keypoints(np.zeros((4, 4, 3)), {"a": np.zeros((1, 2))})
+
+
+def test_fast_circle_colours_follow_the_segment_test() -> None:
+    square = np.full((21, 21), 50, np.uint8)
+    square[10:, 10:] = 200  # the centre (10, 10) is the corner of a bright square
+    fig = plot_fast_circle(square, (10, 10), FAST_CIRCLE, 20.0, np.array([[10.0, 10.0]]))
+    colours = fig.axes[0].collections[0].get_edgecolors()
+    darker = np.sum(np.all(np.isclose(colours[:, :3], matplotlib.colors.to_rgb("tab:blue")), axis=1))
+    d = square[10 + FAST_CIRCLE[:, 1], 10 + FAST_CIRCLE[:, 0]].astype(int) - 200
+    assert darker == np.sum(d < -20) > 0  # the dark background pixels of the circle are drawn blue
+    _render(fig)
+    with pytest.raises(ValueError, match="at least 5 px inside"):
+        plot_fast_circle(square, (2, 10), FAST_CIRCLE, 20.0)
+
+
+def test_scale_space_binary_and_repeatability_figures(image: np.ndarray, rng: np.random.Generator) -> None:
+    fig = plot_scale_space([image - 0.5, 0.5 - image], [1.6, 2.0], image, rng.uniform(0, 40, (5, 2)))
+    assert [ax.get_title() for ax in fig.axes] == ["DoG, sigma = 1.60", "DoG, sigma = 2.00", "SIFT: 5 keypoints"]
+    with pytest.raises(ValueError, match="equal length"):
+        plot_scale_space([image], [1.6, 2.0], image, np.zeros((0, 2)))
+
+    bits = np.unpackbits(rng.integers(0, 256, (20, 32), dtype=np.uint8), axis=1)
+    fig = plot_binary_descriptors(bits, 12, "ORB")
+    assert fig.axes[0].images[0].get_array().shape == (12, 256)
+    with pytest.raises(ValueError, match="zeros and ones"):
+        plot_binary_descriptors(np.full((2, 8), 3))
+
+    points = rng.uniform(0, 40, (6, 2))
+    fig = plot_repeatability_pair(image, image, points, points, np.arange(6) % 2 == 0, points, 3)
+    assert len(fig.axes) == 2 and "3 px" in fig.axes[0].get_title()
+    with pytest.raises(ValueError, match="one row per point"):
+        plot_repeatability_pair(image, image, points, points, [True], points, 3)
+
+    table = {"harris": {"viewpoint": [0.5, 0.7, 0.8], "illumination": [0.6, 0.7, 0.9]},
+             "sift": {"viewpoint": [0.4, 0.6, 0.7], "illumination": [0.5, 0.6, 0.8]}}
+    fig = plot_repeatability_bars(table, (1, 3, 5))
+    heights = sorted(round(p.get_height(), 3) for p in fig.axes[0].patches)
+    assert heights == sorted([0.5, 0.7, 0.8, 0.4, 0.6, 0.7])  # one bar per detector and eps, at its value
+    with pytest.raises(ValueError, match="one value per eps"):
+        plot_repeatability_bars(table, (1, 3))
+
+
+def test_training_curve_and_matches(image: np.ndarray) -> None:
+    losses = np.linspace(4.0, 1.0, 40)
+    fig = plot_training_curve(losses, [{"step": 20, "loss": 2.0}, {"step": 40, "loss": 1.5}],
+                              reference=(np.log(65), "log 65"), log_scale=True)
+    lines = fig.axes[0].lines
+    assert len(lines) == 4 and fig.axes[0].get_yscale() == "log"
+    np.testing.assert_allclose(lines[1].get_ydata(), np.convolve(losses, np.ones(2) / 2, mode="valid"))
+    with pytest.raises(ValueError, match="non-empty 1-D"):
+        plot_training_curve([], [])
+
+    kp = np.array([[5.0, 5.0], [10.0, 20.0]])
+    fig = plot_matches(image, image, {"untrained": (kp, kp, np.array([[0, 0], [1, 1]]), np.array([True, False])),
+                                      "trained": (kp, kp, np.zeros((0, 2), int), np.zeros(0, bool))})
+    assert [ax.get_title().split(":")[0] for ax in fig.axes] == ["untrained", "trained"]
+    assert len(fig.axes[0].lines) == 2 and fig.axes[0].lines[0].get_xdata()[1] == 5.0 + image.shape[1]
+    _render(fig)
+    with pytest.raises(ValueError, match="one shape"):
+        plot_matches(image, image[:10], {})
+
+
+def test_detections_grid_rows_are_detectors(image: np.ndarray) -> None:
+    labels = [np.array([[5.0, 5.0]]), np.zeros((0, 2))]
+    found = {"untrained": [np.array([[1.0, 1.0]]), np.array([[2.0, 2.0], [3.0, 3.0]])],
+             "trained": [np.array([[5.0, 5.0]]), np.zeros((0, 2))]}
+    fig = plot_detections([image, image], labels, found, titles=["cube", "star"])
+    assert [ax.get_title() for ax in fig.axes] == ["untrained: cube", "untrained: star", "trained: cube", "trained: star"]
+    red = fig.axes[1].collections[1].get_offsets()
+    np.testing.assert_allclose(red, found["untrained"][1])  # the detections of that detector on that image
+    _render(fig)
+    with pytest.raises(ValueError, match="one \\(M, 2\\) array per image"):
+        plot_detections([image, image], labels, {"a": [np.zeros((0, 2))]})
