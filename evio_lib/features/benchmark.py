@@ -785,24 +785,38 @@ def _lookup_eps(values: dict[Any, float], eps: float) -> float:
 # ---------------------------------------------------------------------------------------------- command line
 def add_benchmark_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     """Return ``parser`` with the options of ``python -m evio_lib features-benchmark`` added."""
+    from evio_lib.cli_args import add_force_argument, integer
+
     parser.add_argument("--detectors", nargs="+", metavar="NAME",
-                        help="detector names (create_detector); default: every available detector")
+                        help="detector names (create_detector); default: every available detector. A named detector "
+                             "that fails ends the command with an error unless --keep-going")
+    parser.add_argument("--keep-going", action="store_true",
+                        help="skip a detector that fails (report it) instead of stopping with an error")
     parser.add_argument("--dataset", choices=["heldout", "events", "hpatches"], default="heldout",
                         help="heldout: HPatches-style pairs of the held-out test images (default); events: event "
                              "frames from --event-frames and warped copies; hpatches: the real HPatches folder")
     parser.add_argument("--hpatches-root", type=Path, help="HPatches folder with i_*/v_* scenes (--dataset hpatches)")
     parser.add_argument("--event-frames", type=Path,
                         help=".npy (N, H, W) or .npz (array 'frames') of event frames (--dataset events)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the image pool and the random changes (default 0)")
-    parser.add_argument("--n-images", type=int, help="use only the first N images / frames / scenes per split")
-    parser.add_argument("--pairs-per-image", type=int, default=5, help="pairs per image and split (default 5)")
+    parser.add_argument("--seed", type=integer(minimum=0), default=0,
+                        help="seed of the image pool and the random changes, >= 0 (default 0)")
+    parser.add_argument("--n-images", type=integer(minimum=1), default=None,
+                        help="use only the first N images / frames / scenes per split (default: all; 2 with --fast)")
+    parser.add_argument("--pairs-per-image", type=integer(minimum=1), default=None,
+                        help="pairs per image and split (default 5; 1 with --fast)")
     parser.add_argument("--settings", choices=["thesis-hpatches", "thesis-events"],
                         help="evaluation settings (default: thesis-events for --dataset events, else thesis-hpatches)")
-    parser.add_argument("--speed-shapes", nargs="*", default=["180x240", "240x320"], metavar="HxW",
-                        help="also time detect_and_describe at these resolutions (default 180x240 240x320)")
-    parser.add_argument("--speed-frames", type=int, default=20, help="timed frames per resolution (default 20)")
-    parser.add_argument("--out", type=Path, help="folder to write results.json and tables.md into")
-    parser.add_argument("--fast", action="store_true", help="tiny run: 2 images, 1 pair each, 5 timed frames")
+    parser.add_argument("--speed-shapes", nargs="*", default=None, metavar="HxW",
+                        help="also time detect_and_describe at these resolutions (default 180x240 240x320; give the "
+                             "option with no value to skip the timing)")
+    parser.add_argument("--speed-frames", type=integer(minimum=1), default=None,
+                        help="timed frames per resolution (default 20; 5 with --fast)")
+    parser.add_argument("--out", type=Path,
+                        help="folder to write results.json and tables.md into (new or empty unless --force; written "
+                             "when the run is complete)")
+    add_force_argument(parser)
+    parser.add_argument("--fast", action="store_true",
+                        help="tiny run: 2 images, 1 pair each, 5 timed frames (values given explicitly win)")
     parser.add_argument("--weights", default=None,
                         help="weights of the 'superpoint' detector: a shipped name (evio_lib/weights/NAME.pt) or a .pt "
                              "path (default: the shipped default weights); the row is named after them")
@@ -882,49 +896,100 @@ def main_benchmark(args: argparse.Namespace | Sequence[str] | None = None) -> in
     """Run the benchmark from the command line; print the tables; return the exit code.
 
     ``args`` is the namespace of a parser that ``add_benchmark_arguments`` set up, or an argument list (parsed
-    here). Writes ``results.json`` (everything but the per-pair records) and ``tables.md`` into ``--out``.
+    here). Writes ``results.json`` (everything but the per-pair records) and ``tables.md`` into ``--out``, atomically,
+    once every detector has run. ``--fast`` fills in only the options the user left unset. Exit codes: 0 done; 2 a
+    mistake in the arguments (one line ``error: ...``, found before the benchmark starts); 1 a detector failed
+    (without ``--keep-going``) or none could be run.
     """
+    from evio_lib.features.base import available_detectors, create_detector
+    from evio_lib.io.output_dir import atomic_output_dir, check_output_dir
+
     if args is None or not isinstance(args, argparse.Namespace):
         parser = add_benchmark_arguments(argparse.ArgumentParser(prog="python -m evio_lib features-benchmark",
                                                                  description=__doc__.split("\n")[0]))
         args = parser.parse_args(None if args is None else list(args))
-    try:
+    args = argparse.Namespace(**vars(args))  # resolved below; the caller's namespace stays as it was
+    fast, args.fast = bool(getattr(args, "fast", False)), False  # _benchmark_pairs must see only the resolved values
+    if args.n_images is None and fast:
+        args.n_images = 2
+    if args.pairs_per_image is None:
+        args.pairs_per_image = 1 if fast else 5
+    if args.speed_frames is None:
+        args.speed_frames = 5 if fast else 20
+    if args.speed_shapes is None:
+        args.speed_shapes = ["180x240", "240x320"]
+    if args.settings is None:
+        args.settings = "thesis-events" if args.dataset == "events" else "thesis-hpatches"
+    force, keep_going = getattr(args, "force", False), getattr(args, "keep_going", False)
+    weights = getattr(args, "weights", None)
+    names = list(args.detectors) if args.detectors else available_detectors()
+
+    def options_of(detector_name: str) -> dict[str, Any]:
+        return {"weights": weights} if weights is not None and detector_name == "superpoint" else {}
+
+    failed: list[str] = []
+    try:  # every check before the first pair is evaluated
+        if args.out is not None:
+            check_output_dir(args.out, force)
+        shapes = [_parse_shape(text) for text in args.speed_shapes]
+        if weights is not None:
+            from evio_lib.features.superpoint import load_checkpoint, resolve_weights
+
+            try:
+                load_checkpoint(resolve_weights(weights))
+            except (ValueError, FileNotFoundError) as error:
+                raise ValueError(f"--weights {weights}: {error}") from error
+            except Exception as error:  # torch.load on a file that is no checkpoint: pickle, zip or EOF errors
+                detail = (str(error).strip().splitlines() or [""])[0].split(". ")[0][:120]  # torch's first sentence
+                raise ValueError(f"--weights {weights}: not a readable SuperPoint checkpoint (torch.load: "
+                                 f"{type(error).__name__}{': ' + detail if detail else ''})") from error
+        frames_file = args.event_frames if args.dataset == "events" else None
+        if frames_file is not None and Path(frames_file).is_file():
+            try:  # the header only (memory-mapped .npy, lazy .npz): a file that is not NumPy's fails here
+                loaded = np.load(frames_file, mmap_mode="r")
+                if isinstance(loaded, np.lib.npyio.NpzFile):
+                    loaded.close()
+            except (ValueError, OSError, EOFError) as error:
+                raise ValueError(f"--event-frames {frames_file}: not a NumPy .npy or .npz file of (N, H, W) frames "
+                                 f"({type(error).__name__})") from error
+        for detector_name in list(names):  # an unknown name or option fails now, not after an hour of other rows
+            try:
+                create_detector(detector_name, **options_of(detector_name))
+            except (ImportError, RuntimeError) as error:
+                if not keep_going:
+                    raise ValueError(f"detector {detector_name} cannot be created: {error} "
+                                     f"(--keep-going skips it)") from error
+                print(f"skipping {detector_name} (--keep-going): {error}", file=sys.stderr)
+                failed.append(detector_name)
+                names.remove(detector_name)
         pairs, counts, timing_images = _benchmark_pairs(args)
-        shapes = [_parse_shape(s) for s in args.speed_shapes]
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
-    if args.settings is None:
-        args.settings = "thesis-events" if args.dataset == "events" else "thesis-hpatches"
-    if args.settings == "thesis-events":
-        settings = BenchmarkSettings.thesis_event_frames()
-    else:
-        settings = BenchmarkSettings.thesis_hpatches()
-    if args.detectors:
-        names = list(args.detectors)
-    else:
-        from evio_lib.features.base import available_detectors
-
-        names = available_detectors()
+    settings = (BenchmarkSettings.thesis_event_frames() if args.settings == "thesis-events"
+                else BenchmarkSettings.thesis_hpatches())
     print(f"{args.dataset} benchmark: {sum(counts.values())} pairs {counts}, settings {args.settings}, "
           f"detectors {names}")
     rows = []
-    weights = getattr(args, "weights", None)
     for detector_name in names:
-        options = {"weights": weights} if weights is not None and detector_name == "superpoint" else {}
+        options = options_of(detector_name)
         row_name = Path(str(weights)).stem if options else None
         try:
             row = run_benchmark(detector_name, pairs, settings, name=row_name, detector_options=options or None,
                                 progress=not args.quiet)
             for shape in shapes:
                 key = f"{shape[0]}x{shape[1]}"
-                row["speed"][key] = measure_speed(detector_name, timing_images, shape,
-                                                  n_frames=5 if args.fast else args.speed_frames,
+                row["speed"][key] = measure_speed(detector_name, timing_images, shape, n_frames=args.speed_frames,
                                                   max_keypoints=settings.repeatability_keypoints,
                                                   nms_radius=settings.repeatability_nms,
                                                   detector_options=options or None)
         except (ValueError, ImportError, FileNotFoundError, RuntimeError) as error:
-            print(f"skipping {detector_name}: {error}", file=sys.stderr)
+            if not keep_going:
+                print(f"error: detector {detector_name} failed: {error} (--keep-going skips a failing detector)",
+                      file=sys.stderr)
+                return 1
+            print(f"skipping {detector_name} (--keep-going): {error}", file=sys.stderr)
+            failed.append(detector_name)
             continue
         rows.append(row)
     if not rows:
@@ -940,11 +1005,13 @@ def main_benchmark(args: argparse.Namespace | Sequence[str] | None = None) -> in
             continue
     text = "\n".join(sections)
     print(text)
+    if failed:
+        print(f"skipped after an error (--keep-going): {', '.join(failed)}", file=sys.stderr)
     if args.out is not None:
-        args.out.mkdir(parents=True, exist_ok=True)
-        summary = [{k: v for k, v in r.items() if k != "per_pair"} for r in rows]
-        (args.out / "results.json").write_text(json.dumps(summary, indent=2, default=_json_default))
-        (args.out / "tables.md").write_text(text)
+        with atomic_output_dir(args.out, force) as tmp:
+            summary = [{k: v for k, v in r.items() if k != "per_pair"} for r in rows]
+            (tmp / "results.json").write_text(json.dumps(summary, indent=2, default=_json_default))
+            (tmp / "tables.md").write_text(text)
         print(f"wrote {args.out / 'results.json'} and {args.out / 'tables.md'}")
     return 0
 

@@ -1105,25 +1105,40 @@ def _parse_set(text: str) -> tuple[str, Any]:
 
 def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     """Add the ``features-train`` options to a parser and return it (the lead wires it into the CLI)."""
+    from evio_lib.cli_args import integer, real
+
     parser.add_argument("variants", nargs="*", metavar="VARIANT",
                         help="variant names (configs in evio_lib/features/configs) or config file paths")
     parser.add_argument("--list", action="store_true", help="list the shipped variants and exit")
-    parser.add_argument("--chain", action="store_true", help="also train the variants each one depends on, in order")
-    parser.add_argument("--steps", type=int, dest="max_steps", help="total optimiser steps (overrides the config)")
-    parser.add_argument("--epochs", type=int, help="epochs (used when the config has no max_steps)")
-    parser.add_argument("--batch-size", type=int, dest="batch_size")
-    parser.add_argument("--image-size", type=_parse_size, dest="image_size", help="HxW, multiples of 8")
-    parser.add_argument("--device", choices=["auto", "cpu", "cuda"])
-    parser.add_argument("--seed", type=int)
-    parser.add_argument("--num-workers", type=int, dest="num_workers")
-    parser.add_argument("--threads", type=int, dest="num_threads", help="torch CPU threads (default: torch's)")
-    parser.add_argument("--max-minutes", type=float, dest="max_minutes",
+    parser.add_argument("--chain", action="store_true",
+                        help="also train the variants each one depends on, in order (finished ones are reused)")
+    parser.add_argument("--steps", type=integer(minimum=1), dest="max_steps",
+                        help="total optimiser steps, >= 1 (overrides the config)")
+    parser.add_argument("--epochs", type=integer(minimum=1), help="epochs, >= 1 (used when the config has no max_steps)")
+    parser.add_argument("--batch-size", type=integer(minimum=1), dest="batch_size",
+                        help="images per optimiser step, >= 1 (default: the config's)")
+    parser.add_argument("--image-size", type=_parse_size, dest="image_size",
+                        help="training image size HxW, multiples of 8 (default: the config's)")
+    parser.add_argument("--device", choices=["auto", "cpu", "cuda"],
+                        help="where to train: auto takes CUDA when available (default: the config's)")
+    parser.add_argument("--seed", type=integer(minimum=0),
+                        help="seed of the initialisation, the data and the augmentation, >= 0 (default: the config's)")
+    parser.add_argument("--num-workers", type=integer(minimum=0), dest="num_workers",
+                        help="data-loading worker processes, >= 0 (0: load in the training process)")
+    parser.add_argument("--threads", type=integer(minimum=1), dest="num_threads",
+                        help="torch CPU threads, >= 1 (default: torch's)")
+    parser.add_argument("--max-minutes", type=real(above=0.0), dest="max_minutes",
                         help="stop each training call after this many minutes (validate and save first); "
                              "--resume continues")
-    parser.add_argument("--out", type=str, dest="checkpoint_dir", help="checkpoint folder (default runs/features)")
+    parser.add_argument("--out", type=str, dest="checkpoint_dir",
+                        help="checkpoint folder (default runs/features); each variant trains into OUT/VARIANT, "
+                             "which must be new or empty unless --resume or --force")
     parser.add_argument("--set", type=_parse_set, action="append", default=[], metavar="KEY=VALUE",
                         help="any other config field, VALUE in JSON (repeatable), e.g. --set n_homographies=20")
     parser.add_argument("--resume", action="store_true", help="continue from <out>/<variant>/last.pt")
+    parser.add_argument("--force", action="store_true",
+                        help="train the named variants from scratch even if OUT/VARIANT holds a run; the old run is "
+                             "deleted once the new training returns (restored if it fails)")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
     parser.add_argument("--select-snapshots", action="store_true", dest="select_snapshots",
                         help="train nothing: score the variant's step_*.pt snapshots on the validation benchmark and "
@@ -1132,7 +1147,18 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentPar
 
 
 def main_train(args: argparse.Namespace | Sequence[str] | None = None) -> int:
-    """Run ``features-train`` from parsed arguments (or an argument list); return the exit code."""
+    """Run ``features-train`` from parsed arguments (or an argument list); return the exit code.
+
+    A named variant whose run folder ``OUT/VARIANT`` already holds files is refused (exit 2, before any training)
+    unless ``--resume`` (continue it) or ``--force`` (train it anew: the old folder is moved aside, deleted when the
+    training returns, put back when it raises).
+    """
+    import os
+    import secrets
+    import shutil
+
+    from evio_lib.io.output_dir import OutputExistsError, check_output_dir
+
     if args is None or not isinstance(args, argparse.Namespace):
         parser = add_train_arguments(argparse.ArgumentParser(prog="python -m evio_lib features-train"))
         args = parser.parse_args(None if args is None else list(args))
@@ -1155,12 +1181,33 @@ def main_train(args: argparse.Namespace | Sequence[str] | None = None) -> int:
                                                "num_workers", "num_threads", "checkpoint_dir", "max_minutes")}
     overrides.update(dict(args.set))
     overrides = {k: v for k, v in overrides.items() if v is not None}
+    force = bool(getattr(args, "force", False)) and not args.resume
+    set_aside: list[tuple[Path, Path]] = []  # (run folder, where its old content waits) for --force
     try:
+        for name in args.variants:  # before any training: the named variants' run folders
+            run_dir = load_config(name, **overrides).run_dir
+            try:
+                check_output_dir(run_dir, force=force or args.resume)
+            except OutputExistsError as error:
+                raise OutputExistsError(f"{error}, or --resume to continue that run") from None
+        for name in dict.fromkeys(args.variants):  # each run folder once, even when named twice
+            run_dir = load_config(name, **overrides).run_dir
+            if force and run_dir.is_dir() and any(run_dir.iterdir()):
+                aside = run_dir.parent / f".{run_dir.name}.old-{secrets.token_hex(4)}"
+                os.rename(run_dir, aside)
+                set_aside.append((run_dir, aside))
         results = run_chain(list(args.variants), with_dependencies=args.chain, resume=args.resume,
                             progress=not args.quiet, **overrides)
-    except (ValueError, FileNotFoundError) as error:
-        print(f"error: {error}", file=sys.stderr)
-        return 2
+    except BaseException as error:
+        for run_dir, aside in reversed(set_aside):  # put the old runs back
+            shutil.rmtree(run_dir, ignore_errors=True)
+            os.rename(aside, run_dir)
+        if isinstance(error, (ValueError, FileNotFoundError)):
+            print(f"error: {error}", file=sys.stderr)
+            return 2
+        raise
+    for _, aside in set_aside:
+        shutil.rmtree(aside, ignore_errors=True)
     for result in results:
         metrics = result.best_metrics or {}
         print(f"{result.name}: {result.steps} steps in {result.seconds:.0f} s, best step {result.best_step} "

@@ -586,12 +586,17 @@ def run_vio_sim(
 # ==================================================================================================== command line
 def add_vio_sim_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of ``python -m evio_lib vio-sim`` to ``parser``."""
+    from evio_lib.cli_args import add_force_argument, integer, real
+
     parser.add_argument("preset", choices=list(PRESETS), help="simulated preset trajectory and scene")
-    parser.add_argument("--duration", type=float, default=None,
-                        help="seconds to simulate (default: the preset's, 60 s boxes_like, 40 s aerial_like)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of every random stream (default 0)")
-    parser.add_argument("--features", type=int, default=60, help="tracked features per image (default 60)")
-    parser.add_argument("--pixel-noise", type=float, default=1.0, help="pixel noise std of the tracks (default 1)")
+    parser.add_argument("--duration", type=real(at_least=2.0), default=None,
+                        help="seconds to simulate, >= 2 (default: the preset's, 60 s boxes_like, 40 s aerial_like)")
+    parser.add_argument("--seed", type=integer(minimum=0), default=0,
+                        help="seed of every random stream, >= 0 (default 0)")
+    parser.add_argument("--features", type=integer(minimum=1), default=60,
+                        help="tracked features per image, >= 1 (default 60)")
+    parser.add_argument("--pixel-noise", type=real(at_least=0.0), default=1.0,
+                        help="pixel noise std of the tracks, >= 0 px (default 1)")
     parser.add_argument("--no-oc", action="store_true", help="plain EKF instead of the observability-constrained one")
     parser.add_argument("--noise-model", choices=list(NOISE_MODELS), default="per_observation",
                         help="feature noise model of the filter (default per_observation: each observation's own "
@@ -599,24 +604,37 @@ def add_vio_sim_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--oc-update", choices=["projected", "eq86"], default="projected",
                         help="update side of the OC-EKF: constraint on the projected feature Jacobian (default) or the "
                              "thesis's Eq. 86")
-    parser.add_argument("--gate", type=float, default=0.99,
-                        help="chi-square gate probability of the filter (default 0.99: the simulated tracks hold no "
-                             "outliers; the library default 0.95 is for real tracks)")
+    parser.add_argument("--gate", type=real(above=0.0, below=1.0), default=0.99,
+                        help="chi-square gate probability of the filter, in (0, 1) (default 0.99: the simulated tracks "
+                             "hold no outliers; the library default 0.95 is for real tracks)")
     parser.add_argument("--imu-only", action="store_true", help="propagate only (no visual updates)")
     parser.add_argument("--no-baselines", action="store_true", help="skip the IMU-only baseline rows")
     parser.add_argument("--out", type=Path, default=None,
-                        help="folder for trajectory.txt and groundtruth.txt (TUM, IMU body; created)")
+                        help="folder for trajectory.txt and groundtruth.txt (TUM, IMU body; created, must be new or "
+                             "empty unless --force; written when the run is complete)")
+    add_force_argument(parser)
 
 
 def main_vio_sim(args: argparse.Namespace) -> int:
-    """Run the experiment for parsed ``vio-sim`` arguments, print the report; return the exit code (0)."""
+    """Run the experiment for parsed ``vio-sim`` arguments, print the report; return the exit code (0).
+
+    ``--out`` is checked before the run (a non-empty folder is refused unless ``--force``) and written atomically
+    at the end (:func:`evio_lib.io.output_dir.atomic_output_dir`).
+    """
+    from evio_lib.io.output_dir import atomic_output_dir, check_output_dir
+
+    force = getattr(args, "force", False)
+    if args.out is not None:
+        check_output_dir(args.out, force)
     config = VioSimConfig(preset=args.preset, duration=args.duration, seed=args.seed, features=args.features,
                           oc=not args.no_oc, imu_only=args.imu_only, pixel_noise_px=args.pixel_noise,
                           noise_model=getattr(args, "noise_model", "per_observation"),
                           gate_probability=getattr(args, "gate", 0.99),
                           msckf_overrides=(("oc_update", getattr(args, "oc_update", "projected")),))
-    result = run_vio_sim_config(config, baselines=not args.no_baselines, out_dir=args.out)
+    result = run_vio_sim_config(config, baselines=not args.no_baselines)
     print(result.report())
     if args.out is not None:
+        with atomic_output_dir(args.out, force) as tmp:
+            result.write_tum(tmp)
         print(f"wrote {Path(args.out) / 'trajectory.txt'} and {Path(args.out) / 'groundtruth.txt'}")
     return 0

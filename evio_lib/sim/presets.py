@@ -143,22 +143,29 @@ class CameraPoseTable:
         return R, p
 
 
-def simulate_sequence(config: SimulationConfig, progress: bool = False) -> Sequence:
+def simulate_sequence(config: SimulationConfig, progress: bool = False,
+                      timings: dict[str, float] | None = None) -> Sequence:
     """Return a simulated recording (events, APS frames, IMU, ground truth, calibration) for ``config``.
 
     Args:
         config: the preset, duration, seed and sensor settings.
         progress: show progress bars and print the time each sensor took.
+        timings: when given, filled with the wall-clock seconds of each sensor (``imu_s``, ``events_s``,
+            ``frames_s``). They are kept out of the recording's metadata, so that equal configs (seeds) give equal
+            recordings, byte for byte once written.
 
     The random streams of the IMU, the event camera and the APS frames are independent children of ``config.seed``
     (``numpy.random.SeedSequence.spawn``), so switching one sensor off does not change the others.
+    ``metadata["timings"]`` holds only what does not depend on the machine: ``event_renders``, the number of scene
+    renders of the adaptive event sampling.
     """
     seed_imu, seed_events, seed_aps = np.random.SeedSequence(config.seed).spawn(3)  # the scene and trajectory use the seed too
     trajectory = trajectory_from_preset(config.preset, duration=config.motion_duration(), seed=config.seed)
     scene = scene_from_preset(config.preset, seed=config.seed)
     camera = config.camera
     pose_at = _pose_function(trajectory, config.extrinsics)
-    timings: dict[str, float] = {}
+    timings = {} if timings is None else timings
+    counts: dict[str, float] = {}
 
     start = time.perf_counter()
     imu = synthesize_imu(trajectory, rate_hz=config.imu_rate_hz, noise=config.imu_noise,
@@ -190,7 +197,7 @@ def simulate_sequence(config: SimulationConfig, progress: bool = False) -> Seque
                                                params=config.events, rng=np.random.default_rng(seed_events),
                                                progress=progress, change_quantile=config.event_change_quantile)
         timings["events_s"] = time.perf_counter() - start
-        timings["event_renders"] = float(len(sample_times))
+        counts["event_renders"] = float(len(sample_times))
 
     frame_times = np.zeros(0)
     frames = np.zeros((0, camera.height, camera.width), dtype=np.uint8)
@@ -203,7 +210,7 @@ def simulate_sequence(config: SimulationConfig, progress: bool = False) -> Seque
                                    progress=progress)
         timings["frames_s"] = time.perf_counter() - start
     if progress:
-        print("simulation timings: " + ", ".join(f"{k}={v:.1f}" for k, v in timings.items()))
+        print("simulation timings: " + ", ".join(f"{k}={v:.1f}" for k, v in (timings | counts).items()))
 
     metadata = {
         "source": "evio simulator",
@@ -214,7 +221,7 @@ def simulate_sequence(config: SimulationConfig, progress: bool = False) -> Seque
                    "aps": asdict(config.aps)},
         "imu_noise": config.imu_noise.to_dict(),
         "gravity_G": GRAVITY_G.tolist(),
-        "timings": timings,
+        "timings": counts,  # deterministic counts only; wall-clock seconds go to the `timings` argument
     }
     return Sequence(
         name=f"{config.preset}_seed{config.seed}",

@@ -1,0 +1,71 @@
+"""Argument types of the command line: numbers checked where argparse reads them, with messages that name the option.
+
+``parser.add_argument("--seed", type=integer(minimum=0))`` makes ``--seed -5`` fail before any work with
+``error: --seed must be >= 0; got -5`` (the parser of :mod:`evio_lib.cli` prints the option name in front of the
+message). Every command's ``add_*_arguments`` uses these, so the rules read the same everywhere.
+
+>>> integer(minimum=0)("7"), real(above=0.0)("0.5")
+(7, 0.5)
+>>> real(above=0.0)("-1")
+Traceback (most recent call last):
+...
+argparse.ArgumentTypeError: must be > 0; got -1
+"""
+from __future__ import annotations
+
+import argparse
+import math
+from typing import Callable
+
+__all__ = ["integer", "real", "add_force_argument"]
+
+
+def _show(value: float) -> str:
+    """Return ``value`` as the user would type it (2.0 -> '2')."""
+    return str(int(value)) if float(value).is_integer() else repr(value)
+
+
+def integer(minimum: int | None = None) -> Callable[[str], int]:
+    """Return an argparse type: the text as an int, at least ``minimum`` when given."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            expected = f"an integer >= {minimum}" if minimum is not None else "an integer"
+            raise argparse.ArgumentTypeError(f"must be {expected}; got {text!r}") from None
+        if minimum is not None and value < minimum:
+            raise argparse.ArgumentTypeError(f"must be >= {minimum}; got {text}")
+        return value
+
+    parse.__name__ = "integer"
+    return parse
+
+
+def real(*, above: float | None = None, at_least: float | None = None, below: float | None = None) -> Callable[[str], float]:
+    """Return an argparse type: the text as a finite float, > ``above``, >= ``at_least`` and < ``below`` when given."""
+    bounds = [f"> {_show(above)}" if above is not None else "", f">= {_show(at_least)}" if at_least is not None else "",
+              f"< {_show(below)}" if below is not None else ""]
+    rule = " and ".join(b for b in bounds if b)
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be a number{' ' + rule if rule else ''}; got {text!r}") from None
+        if not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f"must be a finite number{' ' + rule if rule else ''}; got {text}")
+        if (above is not None and not value > above) or (at_least is not None and not value >= at_least) \
+                or (below is not None and not value < below):
+            raise argparse.ArgumentTypeError(f"must be {rule}; got {text}")
+        return value
+
+    parse.__name__ = "number"
+    return parse
+
+
+def add_force_argument(parser: argparse.ArgumentParser) -> None:
+    """Add ``--force``: replace an existing non-empty output folder (see :mod:`evio_lib.io.output_dir`)."""
+    parser.add_argument("--force", action="store_true",
+                        help="replace the output folder if it already holds files (without it the command refuses, "
+                             "before doing any work)")
