@@ -1,4 +1,5 @@
-"""Figures for the MSCKF lessons (notebooks 09-10): error growth, Monte-Carlo errors against 3-sigma bounds, covariance.
+"""Figures for the MSCKF lessons (notebooks 09-12): error growth, Monte-Carlo errors against 3-sigma bounds, covariance,
+NEES against its chi-square band, a filter run against the truth.
 
 Plotting only (plus :func:`correlation_matrix`, the normalised covariance the structure plot shows); the filter lives
 in :mod:`evio_lib.msckf`. Matplotlib is imported when a figure is made.
@@ -18,6 +19,9 @@ __all__ = [
     "plot_error_growth",
     "plot_monte_carlo_bounds",
     "plot_covariance_structure",
+    "plot_nees",
+    "plot_consistency",
+    "plot_trajectory_errors",
 ]
 
 _IMU_BLOCKS = ("δθ", "δb_g", "δv", "δb_a", "δp")  # error-state order of thesis Eq. 22 (evio_lib.msckf.state)
@@ -216,5 +220,172 @@ def plot_covariance_structure(P: ArrayLike, correlation: bool = True, title: str
     ax.set_yticks(centres)
     ax.set_yticklabels(names, fontsize=7)
     ax.set_title(title or f"error-state covariance, 15 + 6·{n_cam} = {n} states")
+    fig.tight_layout()
+    return fig
+
+
+def _series(t: np.ndarray, value: ArrayLike, name: str) -> np.ndarray:
+    """Return value as a float64 (T,) array like t; raise ValueError naming ``name`` otherwise."""
+    arr = np.asarray(value, dtype=np.float64)
+    if arr.shape != t.shape:
+        raise ValueError(f"{name} must have shape (T,) = {t.shape} like t; got {arr.shape}")
+    return arr
+
+
+def _band(band: tuple[float, float], name: str) -> tuple[float, float]:
+    """Return (lo, hi) as floats with 0 <= lo < hi; raise ValueError otherwise."""
+    try:
+        lo, hi = (float(b) for b in band)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be a (lo, hi) pair of numbers; got {band!r}") from exc
+    if not (0.0 <= lo < hi and np.isfinite(hi)):
+        raise ValueError(f"{name} must satisfy 0 <= lo < hi; got ({lo}, {hi})")
+    return lo, hi
+
+
+def plot_nees(t: ArrayLike, nees: ArrayLike, band: tuple[float, float], dof: int, n_runs: int,
+              title: str = "") -> "Figure":
+    """Return a figure of an average NEES curve against time with its expected value and 95 % chi-square band.
+
+    Args:
+        t: (T,) times [s].
+        nees: (T,) NEES averaged over the Monte-Carlo runs.
+        band: (lo, hi) 95 % band of the average NEES (``trajectory_metrics.chi2_bounds(dof, n_runs)``).
+        dof: degrees of freedom of one NEES value (its expected value); n_runs: runs in the average (for the labels).
+        title: figure title.
+
+    >>> import matplotlib; matplotlib.use("Agg")
+    >>> fig = plot_nees([0.0, 1.0], [5.0, 7.0], (4.6, 7.6), dof=6, n_runs=20)
+    >>> list(fig.axes[0].lines[1].get_ydata())      # the expected value
+    [6, 6]
+    """
+    import matplotlib.pyplot as plt
+
+    t = np.asarray(t, dtype=np.float64)
+    if t.ndim != 1 or t.shape[0] < 2:
+        raise ValueError(f"t must have shape (T,), T >= 2; got {t.shape}")
+    e = _series(t, nees, "nees")
+    lo, hi = _band(band, "band")
+    fig, ax = plt.subplots(figsize=(7, 3))
+    ax.plot(t, e, label=f"average NEES over {n_runs} runs")
+    ax.axhline(dof, color="k", lw=0.8, label=f"expected value ({dof})")
+    ax.fill_between(t, lo, hi, color="g", alpha=0.2, label="95 % χ² interval")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("NEES")
+    ax.legend(fontsize=8)
+    if title:
+        ax.set_title(title)
+    fig.tight_layout()
+    return fig
+
+
+def plot_consistency(t: ArrayLike, curves: Mapping[str, Mapping[str, ArrayLike]], pose_band: tuple[float, float],
+                     yaw_band: tuple[float, float], n_runs: int, title: str = "") -> "Figure":
+    """Return a figure comparing filter variants: average pose NEES, average yaw NEES and yaw standard deviation.
+
+    Args:
+        t: (T,) image times [s].
+        curves: variant label -> {"pose": (T,) average 6-DoF pose NEES, "yaw": (T,) average 1-DoF yaw NEES,
+            "yaw_sigma_deg": (T,) the filter's yaw standard deviation, averaged over the runs [deg]}.
+        pose_band, yaw_band: (lo, hi) 95 % bands of the averages (``chi2_bounds(6, n_runs)``, ``chi2_bounds(1, n_runs)``).
+        n_runs: Monte-Carlo runs in each average (for the labels).
+        title: figure title.
+
+    NEES panels are logarithmic with the band in grey; a yaw standard deviation that *falls* although nothing observes
+    yaw is spurious information (thesis §3.3.8).
+
+    >>> import matplotlib; matplotlib.use("Agg")
+    >>> c = {"OC on": {"pose": [6.0, 6.0], "yaw": [1.0, 1.0], "yaw_sigma_deg": [3.0, 3.0]}}
+    >>> fig = plot_consistency([0.0, 1.0], c, (4.6, 7.6), (0.5, 1.7), n_runs=20)
+    >>> [ax.get_title() for ax in fig.axes]
+    ['average pose NEES (6 DoF)', 'average yaw NEES (1 DoF)', 'yaw standard deviation']
+    """
+    import matplotlib.pyplot as plt
+
+    t = np.asarray(t, dtype=np.float64)
+    if t.ndim != 1 or t.shape[0] < 2:
+        raise ValueError(f"t must have shape (T,), T >= 2; got {t.shape}")
+    if not isinstance(curves, Mapping) or not curves:
+        raise ValueError(f"curves must be a non-empty mapping label -> {{'pose', 'yaw', 'yaw_sigma_deg'}}; "
+                         f"got {type(curves).__name__}")
+    keys = ("pose", "yaw", "yaw_sigma_deg")
+    data = {}
+    for label, c in curves.items():
+        missing = [k for k in keys if k not in c]
+        if missing:
+            raise ValueError(f"curves[{label!r}] lacks {missing}; expected the keys {list(keys)}")
+        data[label] = [_series(t, c[k], f"curves[{label!r}][{k!r}]") for k in keys]
+    bands = (_band(pose_band, "pose_band"), _band(yaw_band, "yaw_band"))
+    fig, axes = plt.subplots(1, 3, figsize=(14, 3.8))
+    for k, (label, (pose, yaw, sigma)) in enumerate(data.items()):
+        style = f"C{k}-"
+        axes[0].semilogy(t, pose, style, label=label)
+        axes[1].semilogy(t, yaw, style, label=label)
+        axes[2].plot(t, sigma, style, label=label)
+    for ax, (lo, hi), name in zip(axes[:2], bands, ("average pose NEES (6 DoF)", "average yaw NEES (1 DoF)")):
+        ax.axhspan(lo, hi, color="0.8", label=f"95 % band, {n_runs} runs")
+        ax.set(xlabel="t [s]", title=name)
+    axes[2].set(xlabel="t [s]", ylabel="σ_yaw [deg]", title="yaw standard deviation")
+    axes[2].set_ylim(bottom=0.0)
+    for ax in axes:
+        ax.legend(fontsize=8)
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
+def plot_trajectory_errors(t: ArrayLike, p_gt: ArrayLike, estimates: Mapping[str, ArrayLike], sigma: ArrayLike,
+                           n_sigma: float = 3.0, margin: float = 0.5) -> "Figure":
+    """Return a 2 x 3 figure: position per axis against the truth (top), the first estimate's error in cm with ±nσ (bottom).
+
+    Args:
+        t: (T,) times [s].
+        p_gt: (T, 3) true positions [m].
+        estimates: label -> (T, 3) estimated positions [m]; the first entry is the filter whose error is shown.
+        sigma: (T, 3) the first estimate's position standard deviations [m].
+        n_sigma: width of the error band; margin: the top row shows the truth's range ± margin [m] (estimates that
+            leave it, e.g. dead reckoning, are clipped by the axes).
+
+    >>> import matplotlib; matplotlib.use("Agg")
+    >>> t = np.linspace(0.0, 1.0, 5); p = np.zeros((5, 3))
+    >>> fig = plot_trajectory_errors(t, p, {"MSCKF": p + 0.01}, np.full((5, 3), 0.01))
+    >>> len(fig.axes)
+    6
+    """
+    import matplotlib.pyplot as plt
+
+    t = np.asarray(t, dtype=np.float64)
+    gt = np.asarray(p_gt, dtype=np.float64)
+    s = np.asarray(sigma, dtype=np.float64)
+    if t.ndim != 1 or t.shape[0] < 2:
+        raise ValueError(f"t must have shape (T,), T >= 2; got {t.shape}")
+    if gt.shape != (t.shape[0], 3):
+        raise ValueError(f"p_gt must have shape (T, 3) = ({t.shape[0]}, 3); got {gt.shape}")
+    if s.shape != gt.shape or np.any(s < 0) or not np.all(np.isfinite(s)):
+        raise ValueError(f"sigma must be finite standard deviations >= 0 of shape ({t.shape[0]}, 3); got {s.shape}")
+    if not isinstance(estimates, Mapping) or not estimates:
+        raise ValueError(f"estimates must be a non-empty mapping label -> (T, 3) positions; got {type(estimates).__name__}")
+    est = {}
+    for label, value in estimates.items():
+        arr = np.asarray(value, dtype=np.float64)
+        if arr.shape != gt.shape:
+            raise ValueError(f"estimates[{label!r}] must have shape (T, 3) = {gt.shape}; got {arr.shape}")
+        est[label] = arr
+    fig, axes = plt.subplots(2, 3, figsize=(12, 5.5), sharex=True)
+    first = next(iter(est))
+    styles = ["C0--", "C3:", "C2-.", "C4--"]
+    for j, name in enumerate("xyz"):
+        axes[0, j].plot(t, gt[:, j], "k-", label="ground truth")
+        for k, (label, p) in enumerate(est.items()):
+            axes[0, j].plot(t, p[:, j], styles[k % len(styles)], label=label)
+        axes[0, j].set_ylim(gt[:, j].min() - margin, gt[:, j].max() + margin)
+        axes[0, j].set_title(f"position {name} [m]")
+        axes[1, j].plot(t, 100 * (est[first][:, j] - gt[:, j]), "C0-", label=f"{first} error")
+        axes[1, j].fill_between(t, -100 * n_sigma * s[:, j], 100 * n_sigma * s[:, j], color="C0", alpha=0.2,
+                                label=f"±{n_sigma:g}σ")
+        axes[1, j].set(xlabel="t [s]", ylabel=f"error {name} [cm]")
+    axes[0, 0].legend(fontsize=8)
+    axes[1, 0].legend(fontsize=8)
     fig.tight_layout()
     return fig

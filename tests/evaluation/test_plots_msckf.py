@@ -9,9 +9,12 @@ import pytest  # noqa: E402
 
 from evio_lib.evaluation.plots_msckf import (  # noqa: E402
     correlation_matrix,
+    plot_consistency,
     plot_covariance_structure,
     plot_error_growth,
     plot_monte_carlo_bounds,
+    plot_nees,
+    plot_trajectory_errors,
 )
 
 
@@ -133,3 +136,72 @@ def test_plot_covariance_structure_shows_correlations_and_blocks(rng):
 def test_plot_covariance_structure_rejects_non_msckf_size():
     with pytest.raises(ValueError, match=r"P must have shape \(15 \+ 6N, 15 \+ 6N\); got \(16, 16\)"):
         plot_covariance_structure(np.eye(16))
+
+
+def test_plot_nees_draws_curve_expected_value_and_band():
+    t = np.linspace(0.0, 2.0, 21)
+    nees = 6.0 + np.sin(t)
+    fig = plot_nees(t, nees, (4.58, 7.61), dof=6, n_runs=20)
+    ax = fig.axes[0]
+    np.testing.assert_allclose(ax.lines[0].get_ydata(), nees)
+    assert list(ax.lines[1].get_ydata()) == [6, 6]
+    band = ax.collections[0].get_paths()[0].vertices[:, 1]
+    assert band.min() == pytest.approx(4.58) and band.max() == pytest.approx(7.61)
+    _render(fig)
+
+
+def test_plot_nees_rejects_bad_input():
+    t = np.linspace(0.0, 1.0, 4)
+    with pytest.raises(ValueError, match=r"nees must have shape \(T,\) = \(4,\)"):
+        plot_nees(t, np.ones(3), (1.0, 2.0), 6, 5)
+    with pytest.raises(ValueError, match=r"band must satisfy 0 <= lo < hi"):
+        plot_nees(t, np.ones(4), (2.0, 1.0), 6, 5)
+
+
+def test_plot_consistency_one_line_per_variant_and_bands():
+    t = np.linspace(0.0, 3.0, 31)
+    curves = {"OC on": {"pose": 6 + 0 * t, "yaw": 1 + 0 * t, "yaw_sigma_deg": 2.9 - 0.1 * t},
+              "OC off": {"pose": 8 + t, "yaw": 1 + t, "yaw_sigma_deg": 2.9 - 0.4 * t}}
+    fig = plot_consistency(t, curves, (4.6, 7.6), (0.5, 1.7), n_runs=20)
+    pose_ax, yaw_ax, sigma_ax = fig.axes
+    assert pose_ax.get_yscale() == "log" and sigma_ax.get_yscale() == "linear"
+    for ax, key in ((pose_ax, "pose"), (yaw_ax, "yaw"), (sigma_ax, "yaw_sigma_deg")):
+        assert len(ax.lines) == 2
+        np.testing.assert_allclose(ax.lines[1].get_ydata(), curves["OC off"][key])
+    band = yaw_ax.patches[0]  # axhspan: a Rectangle from lo to hi in data coordinates
+    assert band.get_y() == pytest.approx(0.5) and band.get_y() + band.get_height() == pytest.approx(1.7)
+    _render(fig)
+
+
+def test_plot_consistency_rejects_bad_input():
+    t = np.linspace(0.0, 1.0, 3)
+    with pytest.raises(ValueError, match=r"curves\['a'\] lacks \['yaw_sigma_deg'\]"):
+        plot_consistency(t, {"a": {"pose": t, "yaw": t}}, (1, 2), (0.1, 2), 3)
+    with pytest.raises(ValueError, match=r"curves\['a'\]\['yaw'\] must have shape \(T,\)"):
+        plot_consistency(t, {"a": {"pose": t, "yaw": t[:2], "yaw_sigma_deg": t}}, (1, 2), (0.1, 2), 3)
+    with pytest.raises(ValueError, match=r"curves must be a non-empty mapping"):
+        plot_consistency(t, {}, (1, 2), (0.1, 2), 3)
+
+
+def test_plot_trajectory_errors_shows_first_estimate_error_in_cm(rng):
+    t = np.linspace(0.0, 1.0, 11)
+    gt = rng.standard_normal((11, 3))
+    est = gt + 0.02
+    fig = plot_trajectory_errors(t, gt, {"MSCKF": est, "IMU only": gt + 5.0}, np.full((11, 3), 0.01))
+    assert len(fig.axes) == 6
+    top, bottom = fig.axes[0], fig.axes[3]
+    assert len(top.lines) == 3  # truth + two estimates
+    np.testing.assert_allclose(bottom.lines[0].get_ydata(), 2.0)  # 0.02 m = 2 cm
+    band = bottom.collections[0].get_paths()[0].vertices[:, 1]
+    assert band.max() == pytest.approx(3.0)  # 3 sigma = 3 cm
+    _render(fig)
+
+
+def test_plot_trajectory_errors_rejects_bad_input():
+    t = np.linspace(0.0, 1.0, 3)
+    with pytest.raises(ValueError, match=r"p_gt must have shape \(T, 3\)"):
+        plot_trajectory_errors(t, np.zeros((3, 2)), {"a": np.zeros((3, 3))}, np.ones((3, 3)))
+    with pytest.raises(ValueError, match=r"estimates\['a'\] must have shape \(T, 3\)"):
+        plot_trajectory_errors(t, np.zeros((3, 3)), {"a": np.zeros((2, 3))}, np.ones((3, 3)))
+    with pytest.raises(ValueError, match=r"sigma must be finite standard deviations >= 0"):
+        plot_trajectory_errors(t, np.zeros((3, 3)), {"a": np.zeros((3, 3))}, -np.ones((3, 3)))
