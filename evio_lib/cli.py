@@ -1,7 +1,7 @@
 """The evio command line: build and run the course, simulate recordings, benchmark and train feature detectors, and
 run the MSCKF on simulated tracks. Run a command with --help for its options. A mistake in the input ends the command
-with one line "error: ..." and exit status 2 (add --debug before the command for the full traceback); a command that
-writes a folder refuses a non-empty one unless given --force, and never leaves a half-written one behind."""
+with one line "error: ..." and exit status 2 (add --debug for the full traceback); a command that writes a folder
+refuses a non-empty one unless given --force, and never leaves a half-written one behind."""
 from __future__ import annotations
 
 import argparse
@@ -130,8 +130,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("features-benchmark", help="detector/descriptor benchmark (repeatability, homography; thesis Tables 2-5)",
                        description="Benchmark feature detectors and descriptors on image pairs with known homographies "
-                                   "(thesis Tables 2-5). The default run (every detector, all held-out images) takes "
-                                   "about 10 min on a 2-core CPU; --fast takes well under a minute per detector.")
+                                   "(thesis Tables 2-5). The default run (every detector on the 580 held-out pairs) "
+                                   "takes one to two hours on a 2-core CPU (extrapolated from a 40-pair run: about 4 s "
+                                   "of CPU per pair for SIFT and one network together); --fast (4 pairs) takes under a "
+                                   "minute; --detectors and --n-images choose a smaller run.")
     add_benchmark_arguments(p)
     p.set_defaults(func=main_benchmark)
 

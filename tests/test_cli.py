@@ -287,7 +287,7 @@ def test_help_texts_say_what_a_user_needs(capsys):
     assert "build/notebooks" in text and "about 2 min" in text and "about 6 min" in text and "--fast" in text
     assert cli.main(["features-benchmark", "--help"]) == 0
     text = " ".join(capsys.readouterr().out.split())
-    assert "default run" in text and "min on a 2-core CPU" in text and "--keep-going" in text and "--force" in text
+    assert "default run" in text and "two hours on a 2-core CPU" in text and "--keep-going" in text and "--force" in text
 
 
 # ---------------------------------------------------------------------------------------------- as a real process
