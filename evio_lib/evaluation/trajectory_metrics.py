@@ -12,6 +12,9 @@ VIO is unobservable in global position and yaw (4 DoF), so trajectories are also
 Umeyama's closed form (SE(3) or Sim(3)) or a position + yaw alignment (4 DoF), then the absolute trajectory error
 (ATE, RMSE of the aligned positions) and the relative pose error (RPE) over a distance or time step (Zhang &
 Scaramuzza, "A Tutorial on Quantitative Trajectory Evaluation for Visual(-Inertial) Odometry", IROS 2018).
+:func:`relative_errors_by_length` is the relative error of rpg_trajectory_evaluation: for sub-trajectory lengths
+of 10 ... 50 % of the path, every pair of poses that far apart along the ground truth, with translation, yaw and
+gravity-direction errors. The tests check the ATE and RPE against the ``evo`` package.
 
 Consistency: the normalised estimation error squared NEES_k = e_k^T P_k^-1 e_k of a consistent filter is chi-square
 with d degrees of freedom; averaged over n Monte-Carlo runs, n * mean NEES ~ chi2(n d), which gives the two-sided
@@ -42,6 +45,9 @@ __all__ = [
     "align_umeyama",
     "absolute_trajectory_error",
     "relative_pose_error",
+    "SubTrajectoryErrors",
+    "subtrajectory_lengths",
+    "relative_errors_by_length",
     "nees",
     "chi2_bounds",
     "orientation_errors",
@@ -333,6 +339,144 @@ def relative_pose_error(t: ArrayLike, R_est: ArrayLike, p_est: ArrayLike, R_gt: 
     return RelativePoseErrors(i=i, j=j, translation=np.linalg.norm(t_E, axis=1), rotation=_rotation_angle(R_E))
 
 
+@dataclass(frozen=True)
+class SubTrajectoryErrors:
+    """Relative errors of every pose pair (i, j) one sub-trajectory length apart (rpg_trajectory_evaluation).
+
+    Attributes:
+        length_m: the sub-trajectory length L, metres of ground-truth path.
+        i, j: (M,) int64 start and end indices of the pairs.
+        translation_m: (M,) |t(E)|, metres.
+        translation_percent: (M,) 100 |t(E)| / L.
+        yaw_rad: (M,) |yaw| of the error rotation expressed in the world frame (ZYX Euler angles).
+        tilt_rad: (M,) sqrt(pitch^2 + roll^2) of the same angles (rpg's "gravity" error).
+        rotation_rad: (M,) angle of the error rotation.
+    """
+
+    length_m: float
+    i: NDArray[np.int64]
+    j: NDArray[np.int64]
+    translation_m: NDArray[np.float64]
+    translation_percent: NDArray[np.float64]
+    yaw_rad: NDArray[np.float64]
+    tilt_rad: NDArray[np.float64]
+    rotation_rad: NDArray[np.float64]
+
+    def summary(self) -> dict[str, float]:
+        """Return the length, the pair count and the mean, median and RMSE of translation (m, %) and yaw (deg)."""
+        out: dict[str, float] = {"length_m": self.length_m, "pairs": float(self.i.shape[0])}
+        for key, values in (("translation_m", self.translation_m), ("translation_percent", self.translation_percent),
+                            ("yaw_deg", np.degrees(self.yaw_rad))):
+            empty = values.size == 0
+            out[f"{key}_mean"] = float("nan") if empty else float(np.mean(values))
+            out[f"{key}_median"] = float("nan") if empty else float(np.median(values))
+            out[f"{key}_rmse"] = float("nan") if empty else float(np.sqrt(np.mean(values ** 2)))
+        return out
+
+
+def subtrajectory_lengths(p_gt: ArrayLike, percentages: Sequence[float] = (10, 20, 30, 40, 50)) -> NDArray[np.float64]:
+    """Return the sub-trajectory lengths (metres) that are ``percentages`` of the ground-truth path length.
+
+    rpg_trajectory_evaluation's preset uses 10, 20, 30, 40 and 50 % (and floors them to whole metres, which
+    leaves nothing for paths shorter than 10 m; these lengths are not rounded).
+
+    >>> subtrajectory_lengths([[0.0, 0, 0], [3.0, 4, 0], [3.0, 4, 10]]).tolist()
+    [1.5, 3.0, 4.5, 6.0, 7.5]
+    """
+    pct = np.asarray(percentages, dtype=np.float64)
+    if pct.ndim != 1 or pct.size == 0 or not np.isfinite(pct).all() or (pct <= 0).any():
+        raise ValueError(f"percentages must be a non-empty sequence of numbers > 0; got {percentages!r}")
+    return pct / 100.0 * distance_travelled(p_gt)
+
+
+def _zyx_yaw_tilt(R: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Return (|yaw|, sqrt(pitch^2 + roll^2)) of R = Rz(yaw) Ry(pitch) Rx(roll) for matrices (M, 3, 3)."""
+    yaw = np.arctan2(R[:, 1, 0], R[:, 0, 0])
+    pitch = np.arctan2(-R[:, 2, 0], np.hypot(R[:, 0, 0], R[:, 1, 0]))
+    roll = np.arctan2(R[:, 2, 1], R[:, 2, 2])
+    return np.abs(yaw), np.hypot(pitch, roll)
+
+
+def relative_errors_by_length(R_est: ArrayLike, p_est: ArrayLike, R_gt: ArrayLike, p_gt: ArrayLike,
+                              lengths: Sequence[float] | None = None,
+                              percentages: Sequence[float] = (10, 20, 30, 40, 50),
+                              max_length_diff: float = 0.2) -> list[SubTrajectoryErrors]:
+    """Return the relative errors over sub-trajectories of each length, as rpg_trajectory_evaluation computes them.
+
+    With d_k the ground-truth distance travelled from pose 0 to pose k, each pose i is paired with the first j >= i
+    whose d_j - d_i is closest to L, kept when |d_j - d_i - L| < max_length_diff L (rpg's
+    ``compute_comparison_indices_length``; evo's ``filter_pairs_by_path`` with all pairs and tol = 0.2 L). With
+    T = (R_ItoG, p_IinG), dT = T_i^-1 T_j and the error E = dT_gt^-1 dT_est (rpg's T_error_in_c2 with an identity
+    hand-eye transform; evo's RPE), the translation error is |t(E)| and the yaw and tilt are the ZYX Euler angles of
+    the error rotated into the world by the estimate's orientation at j, R_est,j R(E) R_est,j^T.
+
+    Pass an aligned estimate (``align_umeyama``): the world-frame yaw/tilt split uses its orientation, while the
+    translation error and the rotation angle do not depend on the alignment.
+
+    Args:
+        R_est, R_gt: (N, 3, 3) body-to-world orientations R_ItoG at the same times.
+        p_est, p_gt: (N, 3) positions, metres.
+        lengths: sub-trajectory lengths in metres; None: ``percentages`` of the ground-truth path length.
+        percentages: used when ``lengths`` is None (rpg's preset 10 ... 50 %).
+        max_length_diff: relative tolerance on the length of a pair (rpg and evo: 0.2).
+
+    Reference: Zhang & Scaramuzza, IROS 2018, §V (relative error); rpg_trajectory_evaluation
+    ``compute_relative_error``; Sturm et al., IROS 2012, Eq. 2.
+
+    >>> N = 11
+    >>> R = np.repeat(np.eye(3)[None], N, axis=0)
+    >>> p = np.stack([np.arange(N, dtype=float), np.zeros(N), np.zeros(N)], axis=1)
+    >>> out = relative_errors_by_length(R, p * 1.02, R, p, lengths=[5.0])[0]      # 2 % scale drift
+    >>> out.i.tolist(), np.round(out.translation_percent, 6).tolist()
+    ([0, 1, 2, 3, 4, 5], [2.0, 2.0, 2.0, 2.0, 2.0, 2.0])
+    """
+    Re, Rg = _rotations(R_est, "R_est"), _rotations(R_gt, "R_gt")
+    pe = _array(p_est, "p_est", (3,), "(N, 3)")
+    pg = _array(p_gt, "p_gt", (3,), "(N, 3)")
+    for arr, name in ((Rg, "R_gt"), (pe, "p_est"), (pg, "p_gt")):
+        _same_length(Re, arr, "R_est", name)
+    if isinstance(max_length_diff, bool) or not isinstance(max_length_diff, (int, float, np.integer, np.floating)) \
+            or not math.isfinite(max_length_diff) or max_length_diff <= 0:
+        raise ValueError(f"max_length_diff must be a finite number > 0 (a fraction of the length); got "
+                         f"{max_length_diff!r}")
+    if lengths is None:
+        lengths_m = subtrajectory_lengths(pg, percentages)
+    else:
+        lengths_m = np.asarray(lengths, dtype=np.float64)
+        if lengths_m.ndim != 1 or not np.isfinite(lengths_m).all() or (lengths_m <= 0).any():
+            raise ValueError(f"lengths must be a sequence of lengths > 0 in metres; got {lengths!r}")
+    along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pg, axis=0), axis=1))])  # d_k
+    n = along.shape[0]
+    results = []
+    for length in lengths_m.tolist():
+        target = along + length
+        # closest d_j to d_i + L among j >= i (d is non-decreasing): the first index at or above the target, or the
+        # first index of the value just below it (ties go to the earlier index, as rpg's and evo's argmin)
+        above = np.searchsorted(along, target, side="left")
+        below_value = along[np.clip(above - 1, 0, n - 1)]
+        below = np.maximum(np.searchsorted(along, below_value, side="left"), np.arange(n))
+        err_above = np.where(above < n, np.abs(along[np.minimum(above, n - 1)] - target), np.inf)
+        err_below = np.abs(along[below] - target)
+        j_all = np.where(err_below <= err_above, below, above)
+        err = np.minimum(err_below, err_above)
+        i = np.flatnonzero((err < max_length_diff * length) & (j_all > np.arange(n))).astype(np.int64)
+        j = j_all[i].astype(np.int64)
+        # dT = T_i^-1 T_j: dR = R_i^T R_j, dp = R_i^T (p_j - p_i); E = dT_gt^-1 dT_est
+        dR_gt = np.swapaxes(Rg[i], 1, 2) @ Rg[j]
+        dp_gt = np.einsum("nji,nj->ni", Rg[i], pg[j] - pg[i])
+        dR_est = np.swapaxes(Re[i], 1, 2) @ Re[j]
+        dp_est = np.einsum("nji,nj->ni", Re[i], pe[j] - pe[i])
+        R_E = np.swapaxes(dR_gt, 1, 2) @ dR_est  # R_E = dR_gt^T dR_est
+        t_E = np.einsum("nji,nj->ni", dR_gt, dp_est - dp_gt)  # t_E = dR_gt^T (dp_est - dp_gt)
+        R_E_world = Re[j] @ R_E @ np.swapaxes(Re[j], 1, 2)  # rpg's T_error_in_w (rotation part)
+        yaw, tilt = _zyx_yaw_tilt(R_E_world)
+        translation = np.linalg.norm(t_E, axis=1)
+        results.append(SubTrajectoryErrors(
+            length_m=float(length), i=i, j=j, translation_m=translation, translation_percent=100.0 * translation / length,
+            yaw_rad=yaw, tilt_rad=tilt, rotation_rad=_rotation_angle(R_E)))
+    return results
+
+
 # ==================================================================================================== orientation
 def orientation_errors(R_est: ArrayLike, R_gt: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64],
                                                                       NDArray[np.float64]]:
@@ -414,7 +558,8 @@ def summarize(t_est: ArrayLike, p_est: ArrayLike, t_gt: ArrayLike, p_gt: ArrayLi
     """Return a dict of the thesis's metrics for one run (positions in metres, % of distance in percent).
 
     Keys: name, n, distance_m (ground-truth path length over the estimate's time span), rmse_m, final_error_m,
-    mean_error_m, max_error_m, percent_of_distance, ate_4dof_m (ATE after a position + yaw alignment).
+    mean_error_m, max_error_m, percent_of_distance, ate_4dof_m (ATE after a position + yaw alignment), ate_se3_m
+    (ATE after an SE(3) alignment; NaN below 3 estimates).
 
     Args:
         t_est, p_est: (N,) times and (N, 3) estimated positions.
@@ -447,6 +592,8 @@ def summarize(t_est: ArrayLike, p_est: ArrayLike, t_gt: ArrayLike, p_gt: ArrayLi
         "percent_of_distance": percent_of_distance(errors, distance) if distance > 0 else float("nan"),
         "ate_4dof_m": (absolute_trajectory_error(p_est, p_gt_at, yaw_only=True) if norms.shape[0] >= 2
                        else float("nan")),
+        "ate_se3_m": (absolute_trajectory_error(p_est, p_gt_at, yaw_only=False) if norms.shape[0] >= 3
+                      else float("nan")),
     }
     return row
 

@@ -1,4 +1,4 @@
-"""Tests of evio_lib.evaluation.trajectory_metrics against closed forms, scipy and hand examples."""
+"""Tests of evio_lib.evaluation.trajectory_metrics against closed forms, scipy, hand examples and the evo package."""
 from __future__ import annotations
 
 import numpy as np
@@ -17,8 +17,10 @@ from evio_lib.evaluation.trajectory_metrics import (
     orientation_errors,
     percent_of_distance,
     position_errors,
+    relative_errors_by_length,
     relative_pose_error,
     rmse,
+    subtrajectory_lengths,
     summarize,
 )
 
@@ -271,3 +273,124 @@ def test_bad_input_raises() -> None:
         orientation_errors(np.eye(3), R)
     with pytest.raises(ValueError, match="rows\\[0\\] must be a dict"):
         format_table([[1, 2]])
+
+
+# ---------------------------------------------------------------------------------------------- cross-check with evo
+def _perturbed_trajectory(seed: int = 3, n: int = 400) -> tuple[np.ndarray, ...]:
+    """A 40 s helix-like ground truth (R_ItoG, p_IinG) and an estimate with a global SE(3) offset, a random-walk
+    drift in position and attitude, white noise and a 1 % scale error: what a VIO run looks like."""
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0.0, 40.0, n)
+    p_gt = np.stack([4.0 * np.cos(0.2 * t), 3.0 * np.sin(0.25 * t), 0.05 * t + 0.3 * np.sin(0.7 * t)], axis=1)
+    R_gt = Rotation.from_rotvec(np.stack([0.2 * np.sin(0.3 * t), 0.1 * np.cos(0.2 * t), 0.2 * t], axis=1)).as_matrix()
+    drift_p = np.cumsum(rng.normal(0.0, 0.01, (n, 3)), axis=0)
+    drift_R = Rotation.from_rotvec(np.cumsum(rng.normal(0.0, 0.002, (n, 3)), axis=0)).as_matrix()
+    offset = Rotation.from_rotvec([0.1, -0.05, 0.8]).as_matrix()
+    p_est = (1.01 * p_gt + drift_p + rng.normal(0.0, 0.02, (n, 3))) @ offset.T + [1.0, -2.0, 0.5]
+    R_est = offset @ drift_R @ R_gt
+    return t, R_est, p_est, R_gt, p_gt
+
+
+def _evo_trajectory(t: np.ndarray, R: np.ndarray, p: np.ndarray):
+    from evo.core import trajectory
+
+    q_xyzw = Rotation.from_matrix(R).as_quat()
+    return trajectory.PoseTrajectory3D(positions_xyz=p, orientations_quat_wxyz=np.roll(q_xyzw, 1, axis=1),
+                                       timestamps=t)
+
+
+@pytest.mark.parametrize("with_scale", [False, True])
+def test_ate_equals_evo_ape_after_alignment(with_scale: bool) -> None:
+    from evo.core import metrics
+
+    t, R_est, p_est, R_gt, p_gt = _perturbed_trajectory()
+    ref, est = _evo_trajectory(t, R_gt, p_gt), _evo_trajectory(t, R_est, p_est)
+    est.align(ref, correct_scale=with_scale)
+    ape = metrics.APE(metrics.PoseRelation.translation_part)
+    ape.process_data((ref, est))
+    ours = absolute_trajectory_error(p_est, p_gt, with_scale=with_scale, yaw_only=False)
+    assert ours == pytest.approx(ape.get_statistic(metrics.StatisticsType.rmse), rel=1e-9)
+    np.testing.assert_allclose(align_umeyama(p_est, p_gt, with_scale=with_scale).apply(p_est), est.positions_xyz,
+                               atol=1e-9)
+    # 4 DoF keeps roll and pitch: never below the SE(3) error, and a pure yaw + shift is undone exactly
+    assert absolute_trajectory_error(p_est, p_gt, yaw_only=True) >= ours - 1e-12
+    Rz = Rotation.from_rotvec([0.0, 0.0, 1.3]).as_matrix()
+    assert absolute_trajectory_error(p_gt @ Rz.T + [3.0, 1.0, -2.0], p_gt, yaw_only=True) < 1e-9
+
+
+def test_relative_errors_by_length_equal_evo_rpe_over_all_pairs() -> None:
+    from evo.core import metrics
+
+    t, R_est, p_est, R_gt, p_gt = _perturbed_trajectory()
+    fit = align_umeyama(p_est, p_gt)
+    ref, est = _evo_trajectory(t, R_gt, p_gt), _evo_trajectory(t, fit.apply_rotation(R_est), fit.apply(p_est))
+    results = relative_errors_by_length(fit.apply_rotation(R_est), fit.apply(p_est), R_gt, p_gt)
+    np.testing.assert_allclose([r.length_m for r in results], subtrajectory_lengths(p_gt))
+    for result in results:
+        for relation, ours in ((metrics.PoseRelation.translation_part, result.translation_m),
+                               (metrics.PoseRelation.rotation_angle_rad, result.rotation_rad)):
+            rpe = metrics.RPE(relation, delta=result.length_m, delta_unit=metrics.Unit.meters, rel_delta_tol=0.2,
+                              all_pairs=True, pairs_from_reference=True)
+            rpe.process_data((ref, est))
+            assert rpe.delta_ids == result.j.tolist()  # the same pairs (evo stores their end indices)
+            np.testing.assert_allclose(ours, rpe.error, rtol=1e-9, atol=1e-12)
+        assert result.i.size > 50
+        np.testing.assert_allclose(result.translation_percent, 100.0 * result.translation_m / result.length_m)
+    # the relative errors do not depend on a global alignment of the estimate
+    raw = relative_errors_by_length(R_est, p_est, R_gt, p_gt)
+    for a, b in zip(raw, results):
+        np.testing.assert_allclose(a.translation_m, b.translation_m, atol=1e-9)
+        np.testing.assert_allclose(a.rotation_rad, b.rotation_rad, atol=1e-9)
+
+
+def test_relative_errors_split_yaw_and_tilt_in_the_world_frame() -> None:
+    # the estimate turns 0.01 rad/m more slowly about the world z axis: a pure yaw drift, no tilt
+    n = 201
+    s = np.linspace(0.0, 20.0, n)  # metres along a straight line in x
+    p = np.stack([s, np.zeros(n), np.zeros(n)], axis=1)
+    R_gt = Rotation.from_rotvec(np.stack([0.2 * np.ones(n), np.zeros(n), 0.05 * s], axis=1)).as_matrix()
+    R_est = Rotation.from_rotvec(np.outer(-0.01 * s, [0.0, 0.0, 1.0])).as_matrix() @ R_gt  # dR = Rz(-0.01 s)
+    result = relative_errors_by_length(R_est, p, R_gt, p, lengths=[5.0])[0]
+    separation = s[result.j] - s[result.i]  # 5 m, and 4-5 m near the end (within the 20 % tolerance)
+    assert separation.min() > 4.0 and np.sum(np.isclose(separation, 5.0)) == 151
+    np.testing.assert_allclose(result.yaw_rad, 0.01 * separation, atol=1e-9)  # 0.01 rad/m
+    np.testing.assert_allclose(result.tilt_rad, 0.0, atol=1e-9)
+    np.testing.assert_allclose(result.rotation_rad, 0.01 * separation, atol=1e-9)
+    # positions agree, but the estimate's heading at i is off by 0.01 s_i, so the step p_j - p_i (horizontal),
+    # seen from pose i, turns by that angle: |t(E)| = 2 |p_j - p_i| sin(0.01 s_i / 2)
+    np.testing.assert_allclose(result.translation_m, 2.0 * separation * np.sin(0.005 * s[result.i]), atol=1e-12)
+    summary = result.summary()
+    assert summary["pairs"] == result.i.size
+    assert summary["yaw_deg_mean"] == pytest.approx(np.degrees(np.mean(0.01 * separation)))
+
+
+def test_relative_errors_pair_the_closest_length_within_tolerance() -> None:
+    # poses 1 m apart, then a 10 m jump: lengths of 3 m pair i with i + 3 until the jump breaks the tolerance
+    p = np.array([[float(x), 0.0, 0.0] for x in [0, 1, 2, 3, 4, 5, 15, 16, 17, 18]])
+    R = np.repeat(np.eye(3)[None], len(p), axis=0)
+    result = relative_errors_by_length(R, p, R, p, lengths=[3.0])[0]
+    assert list(zip(result.i.tolist(), result.j.tolist())) == [(0, 3), (1, 4), (2, 5), (6, 9)]
+    assert relative_errors_by_length(R, p, R, p, lengths=[50.0])[0].i.size == 0
+    assert np.isnan(relative_errors_by_length(R, p, R, p, lengths=[50.0])[0].summary()["translation_m_mean"])
+
+
+def test_summarize_reports_both_ates() -> None:
+    t, _, p_est, _, p_gt = _perturbed_trajectory()
+    row = summarize(t, p_est, t, p_gt)
+    assert row["ate_se3_m"] == pytest.approx(absolute_trajectory_error(p_est, p_gt, yaw_only=False))
+    assert row["ate_4dof_m"] == pytest.approx(absolute_trajectory_error(p_est, p_gt, yaw_only=True))
+    assert row["ate_se3_m"] <= row["ate_4dof_m"]
+
+
+def test_relative_errors_bad_input() -> None:
+    t, R_est, p_est, R_gt, p_gt = _perturbed_trajectory(n=20)
+    with pytest.raises(ValueError, match="lengths must be"):
+        relative_errors_by_length(R_est, p_est, R_gt, p_gt, lengths=[-1.0])
+    with pytest.raises(ValueError, match="percentages must be"):
+        relative_errors_by_length(R_est, p_est, R_gt, p_gt, percentages=[])
+    with pytest.raises(ValueError, match="max_length_diff"):
+        relative_errors_by_length(R_est, p_est, R_gt, p_gt, max_length_diff=0.0)
+    with pytest.raises(ValueError, match="R_est and p_gt must have the same length"):
+        relative_errors_by_length(R_est, p_est, R_gt, p_gt[:5])
+    with pytest.raises(ValueError, match=r"R_gt must have shape \(N, 3, 3\)"):
+        relative_errors_by_length(R_est, p_est, R_gt[:, :2], p_gt)
