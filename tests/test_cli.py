@@ -314,3 +314,25 @@ def test_simulate_from_the_shell_is_quiet_and_clean(tmp_path):
     assert done.returncode == 0, done.stderr
     assert done.stderr == ""  # no libpng warning, no progress bar
     assert done.stdout.splitlines()[-1] == "wrote o" and len(done.stdout.splitlines()) == 2
+
+
+# ---------------------------------------------------------------------------------------------- features-train
+@pytest.mark.parametrize("fails", [False, True])
+def test_train_force_replaces_a_run_only_when_training_returns(inputs, monkeypatch, capsys, fails):
+    from evio_lib.features import train
+
+    def run_chain(names, **kwargs):
+        run_dir = inputs / "runs" / "magicpoint"
+        assert not run_dir.exists()  # the old run is out of the way while the new one trains
+        run_dir.mkdir()
+        (run_dir / "last.pt").write_bytes(b"the new run")
+        if fails:
+            raise ValueError("bad config value")
+        return []
+
+    monkeypatch.setattr(train, "run_chain", run_chain)
+    code = cli.main(["features-train", "magicpoint", "--out", str(inputs / "runs"), "--force", "--quiet"])
+    expected = b"an earlier run" if fails else b"the new run"
+    assert code == (2 if fails else 0)
+    assert (inputs / "runs" / "magicpoint" / "last.pt").read_bytes() == expected
+    assert sorted(p.name for p in (inputs / "runs").iterdir()) == ["magicpoint"]  # nothing set aside is left
