@@ -94,6 +94,7 @@ BAD_INPUTS = [
     ("features-train magicpoint --image-size 120", "--image-size must look like 120x160"),
     ("features-train magicpoint --set steps", "--set must look like KEY=VALUE"),
     ("features-train magicpoint --device tpu", "--device: invalid choice: 'tpu'"),
+    ("features-train", "name the VARIANT(s) to train"),
     ("features-train magicpoint --out {d}/runs --steps 1",
      "output folder {d}/runs/magicpoint already exists and is not empty; use --force to replace it, or --resume"),
     # course and the command itself

@@ -1166,6 +1166,9 @@ def main_train(args: argparse.Namespace | Sequence[str] | None = None) -> int:
         for name in available_configs():
             cfg = load_config(name)
             print(f"{name:36s} {cfg.stage:10s} {cfg.description}")
+        if not args.list:
+            print("error: name the VARIANT(s) to train, e.g. magicpoint (the shipped variants are listed above)",
+                  file=sys.stderr)
         return 0 if args.list else 2
     if getattr(args, "select_snapshots", False):
         root = Path(args.checkpoint_dir) if args.checkpoint_dir else DEFAULT_CHECKPOINT_DIR
