@@ -116,9 +116,14 @@ def test_ecd_round_trip_of_a_simulated_sequence(tmp_path):
 def test_same_seed_same_recording_and_streams_are_independent():
     config = _ideal_config("aerial_like", duration=0.15, imu_noise=ImuNoiseParams(),
                            events=EventCameraParams())
-    a, b = simulate_sequence(config), simulate_sequence(config)
+    timings: dict[str, float] = {}
+    a, b = simulate_sequence(config, timings=timings), simulate_sequence(config)
     np.testing.assert_array_equal(a.events, b.events)
     np.testing.assert_array_equal(a.imu.gyro, b.imu.gyro)
+    assert set(timings) == {"imu_s", "events_s", "frames_s"} and all(v >= 0 for v in timings.values())
+    assert a.metadata == b.metadata  # wall-clock seconds stay out of the recording
+    assert a.metadata["timings"] == {"event_renders": float(a.metadata["timings"]["event_renders"])} \
+        and a.metadata["timings"]["event_renders"] > 0
     no_events = simulate_sequence(replace(config, with_events=False))
     np.testing.assert_array_equal(no_events.imu.gyro, a.imu.gyro)  # switching a sensor off changes no other sensor
     assert len(no_events.events) == 0
