@@ -99,10 +99,11 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     p = sub.add_parser("course", help="build and execute the course notebooks (build/notebooks/*.ipynb)",
-                       description="Convert the notebooks/NN_*.py lessons (jupytext) into build/notebooks/*.ipynb and "
-                                   "execute them in order, storing the outputs in the .ipynb files. On a 2-core CPU the "
-                                   "whole course takes about 6 min in full mode and about 2 min with --fast.")
-    p.add_argument("--only", nargs="+", metavar="NN", help="only notebooks whose names start with these prefixes, e.g. 01 02")
+                       description="Convert the notebooks/NN_*.py lessons (jupytext) into build/notebooks/*.ipynb "
+                                   "and execute them in order, storing the outputs in the .ipynb files. On a 2-core "
+                                   "CPU the whole course takes about 6 min in full mode and about 2 min with --fast.")
+    p.add_argument("--only", nargs="+", metavar="NN",
+                   help="only notebooks whose names start with these prefixes, e.g. 01 02")
     p.add_argument("--fast", action="store_true",
                    help="fast mode: tiny data and few iterations, the same lessons (about 2 min for the whole course "
                         "instead of about 6; the same as EVIO_FAST=1)")
@@ -112,11 +113,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("simulate", help="simulate a preset recording and write it in the ECD text layout",
                        description="Simulate a recording (events, APS frames, IMU, ground truth) of a preset scene and "
-                                   "trajectory and write it as an ECD folder. The same seed gives the same folder, byte "
-                                   "for byte.")
+                                   "trajectory and write it as an ECD folder. The same seed gives the same folder, "
+                                   "byte for byte.")
     p.add_argument("preset", choices=["boxes_like", "aerial_like"],
                    help="boxes_like: a textured room, hand-held motion; aerial_like: a downward camera over terrain")
-    p.add_argument("--out", type=Path, required=True, help="output folder (created; must be new or empty unless --force)")
+    p.add_argument("--out", type=Path, required=True,
+                   help="output folder (created; must be new or empty unless --force)")
     add_force_argument(p)
     p.add_argument("--duration", type=real(above=0.0), default=10.0, help="seconds to simulate, > 0 (default 10)")
     p.add_argument("--seed", type=integer(minimum=0), default=0, help="seed of every random stream, >= 0 (default 0)")
@@ -128,7 +130,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     from evio_lib.features.benchmark import add_benchmark_arguments, main_benchmark
 
-    p = sub.add_parser("features-benchmark", help="detector/descriptor benchmark (repeatability, homography; thesis Tables 2-5)",
+    p = sub.add_parser("features-benchmark",
+                       help="detector/descriptor benchmark (repeatability, homography; thesis Tables 2-5)",
                        description="Benchmark feature detectors and descriptors on image pairs with known homographies "
                                    "(thesis Tables 2-5). The default run (every detector on the 580 held-out pairs) "
                                    "takes one to two hours on a 2-core CPU (extrapolated from a 40-pair run: about 4 s "
@@ -147,7 +150,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     from evio_lib.msckf.experiment import add_vio_sim_arguments, main_vio_sim
 
-    p = sub.add_parser("vio-sim", help="MSCKF on simulated perfect-data-association tracks; TUM files and error metrics",
+    p = sub.add_parser("vio-sim",
+                       help="MSCKF on simulated perfect-data-association tracks; TUM files and error metrics",
                        description="Run the MSCKF on simulated tracks with perfect data association and print its "
                                    "error metrics (and those of IMU-only baselines).")
     add_vio_sim_arguments(p)
