@@ -8,9 +8,9 @@
         msckf.process_image(frame.t, frame.ids, frame.xy)
 
 Two-point RANSAC is ``evio_lib.frontend.two_point_ransac.two_point_ransac`` (the module keeps the name, so the package
-does not re-export the function). Modules: ``config`` (every parameter), ``tracker`` (the thesis's descriptor tracker and the shared output),
-``klt`` (the optical-flow baseline), ``matching``, ``two_point_ransac``, ``grid``, ``gyro_prior``.
-Reference: thesis §3.3.5.
+does not re-export the function). Modules: ``config`` (every parameter), ``tracker`` (the thesis's descriptor tracker
+and the shared output), ``klt`` (the optical-flow baseline), ``matching``, ``two_point_ransac``, ``grid``,
+``gyro_prior``. Reference: thesis §3.3.5.
 """
 from __future__ import annotations
 

@@ -71,7 +71,9 @@ def integrate_gyro(t: ArrayLike, gyro: ArrayLike, t0: float, t1: float,
 
 def camera_rotation_prior(t: ArrayLike, gyro: ArrayLike, t0: float, t1: float, R_CtoI: ArrayLike,
                           gyro_bias: ArrayLike | None = None) -> NDArray[np.float64]:
-    """Return R_C0toC1 (3, 3) = R_ItoC R_I0toI1 R_CtoI, the camera rotation from frame time t0 to t1 (X_C1 = R X_C0 + t).
+    """Return R_C0toC1 (3, 3) = R_ItoC R_I0toI1 R_CtoI, the camera rotation from frame time t0 to t1.
+
+    X_C1 = R_C0toC1 X_C0 + p_C0inC1 for a point X fixed in the world.
 
     Args:
         t, gyro, t0, t1, gyro_bias: as :func:`integrate_gyro`.

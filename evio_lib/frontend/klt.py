@@ -1,4 +1,4 @@
-"""KLT tracking baseline: pyramidal Lucas-Kanade optical flow with FAST detections (msckf_vio's and OpenVINS's front-end).
+"""KLT tracking baseline: pyramidal Lucas-Kanade optical flow with FAST corners (the front-end of msckf_vio, OpenVINS).
 
 Per frame:
 
@@ -23,7 +23,8 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from evio_lib.features.base import to_uint8_image
+from evio_lib.features.base import nms_keypoints, to_uint8_image
+from evio_lib.features.classical import FastDetector
 from evio_lib.frontend.tracker import FeatureTracker, TrackedFrame
 
 __all__ = ["KltTracker"]
@@ -33,7 +34,10 @@ class KltTracker(FeatureTracker):
     """Optical-flow tracker with the same interface and output as :class:`~evio_lib.frontend.tracker.DescriptorTracker`.
 
     Args: see :class:`~evio_lib.frontend.tracker.FeatureTracker` (``config.klt_*`` set the flow; the detector,
-    FAST by default, only supplies new features, its descriptors are not used).
+    FAST by default, only supplies new features). With the FAST detector the corners come straight from OpenCV
+    (``cv2.FastFeatureDetector`` with its 3 x 3 suppression, then the detector's radius NMS and keypoint budget), as
+    msckf_vio does, without the descriptors that ``detect_and_describe`` would compute and KLT does not use; any
+    other detector runs through ``detect_and_describe``.
 
     >>> from evio_lib.geometry.camera import PinholeRadtan
     >>> cam = PinholeRadtan(fx=100.0, fy=100.0, cx=31.5, cy=23.5, width=64, height=48)
@@ -47,6 +51,21 @@ class KltTracker(FeatureTracker):
     def reset(self) -> None:
         super().reset()
         self._image_prev: NDArray[np.uint8] | None = None
+
+    def _detect(self, img8: NDArray[np.uint8]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Return (keypoints (K, 2) pixels, scores (K,)) of new-feature candidates, strongest first."""
+        det = self.detector
+        if isinstance(det, FastDetector):
+            fast = cv2.FastFeatureDetector_create(det.threshold, True, cv2.FAST_FEATURE_DETECTOR_TYPE_9_16)
+            corners = fast.detect(img8)
+            if not corners:
+                return np.zeros((0, 2)), np.zeros(0)
+            points = np.array([c.pt for c in corners], dtype=np.float64)
+            scores = np.array([c.response for c in corners], dtype=np.float64)
+            keep = nms_keypoints(points, scores, det.nms_radius, img8.shape)[:det.max_keypoints]
+            return points[keep], scores[keep]
+        features = det.detect_and_describe(img8)
+        return features.keypoints.astype(np.float64), features.scores.astype(np.float64)
 
     def _flow(self, image_prev: NDArray[np.uint8], image: NDArray[np.uint8], points: NDArray[np.float64],
               guess: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
@@ -92,10 +111,9 @@ class KltTracker(FeatureTracker):
         detected = 0
         new_pixels, new_xy = np.zeros((0, 2)), np.zeros((0, 2))
         if (self.grid.counts(pixels) < self.grid.per_cell).any():  # detect only when some cell has room
-            features = self.detector.detect_and_describe(img8)
-            detected = len(features)
-            kp = features.keypoints.astype(np.float64)
-            chosen = self._select_new(kp, features.scores.astype(np.float64), pixels)
+            kp, scores = self._detect(img8)
+            detected = kp.shape[0]
+            chosen = self._select_new(kp, scores, pixels)
             new_pixels = kp[chosen]
             new_xy = self.camera.unproject(new_pixels) if chosen.size else np.zeros((0, 2))
         t_detect = time.perf_counter() - start
