@@ -472,7 +472,8 @@ def relative_errors_by_length(R_est: ArrayLike, p_est: ArrayLike, R_gt: ArrayLik
         yaw, tilt = _zyx_yaw_tilt(R_E_world)
         translation = np.linalg.norm(t_E, axis=1)
         results.append(SubTrajectoryErrors(
-            length_m=float(length), i=i, j=j, translation_m=translation, translation_percent=100.0 * translation / length,
+            length_m=float(length), i=i, j=j, translation_m=translation,
+            translation_percent=100.0 * translation / length,
             yaw_rad=yaw, tilt_rad=tilt, rotation_rad=_rotation_angle(R_E)))
     return results
 
