@@ -11,8 +11,10 @@
 # %% [markdown]
 # # 03 — Event cameras and a simulated world with ground truth
 #
-# Every later lesson needs event data **with** an IMU and a perfect ground truth. Real recordings with all three are
-# rare (and none are on these machines), so the course simulates them. This lesson opens the simulator up:
+# The pipeline this course builds needs event data **together with** an IMU and a perfect ground truth: lesson 04
+# turns events into image frames, lesson 08 tests detectors on event frames, and lessons 09-12 build and check the
+# filter on the simulator's trajectories, IMU signals and ground truth. Real recordings with all three are rare (and
+# none ship with the course), so the course simulates them. This lesson opens the simulator up:
 #
 # 1. **the principle**: a pixel of an event camera reports a change of its *log* intensity by a fixed contrast
 #    step, asynchronously (thesis §2.2.1, Fig. 4) — we reproduce Fig. 4 for a single pixel;
@@ -93,6 +95,7 @@ pixel = EventSimulator(1, 1, ideal)
 pixel.reset(np.full((1, 1), L_pixel(0.0)), t=0.0)
 pixel_events = concatenate_events([pixel.step(np.full((1, 1), L_pixel(t)), t) for t in t_grid[1:]])
 print(f"{len(pixel_events)} events, polarities: {pixel_events['p'].tolist()}")
+assert pixel_events["p"][:4].tolist() == [1] * 4 and pixel_events["p"][4:12].tolist() == [-1] * 8  # 4 ON, 8 OFF
 fig = plot_pixel_events(t_grid, L_pixel(t_grid), pixel_events, C)
 plt.show()
 
@@ -167,6 +170,7 @@ plt.legend()
 plt.title("per-pixel thresholds (mismatch)")
 plt.show()
 print(f"C+ mean {sim.thresholds_pos.mean():.3f}, std {sim.thresholds_pos.std():.3f}")
+assert abs(sim.thresholds_pos.mean() - 0.2) < 0.01 and abs(sim.thresholds_pos.std() - 0.03) < 0.005
 
 # %% [markdown]
 # **(b) Event times by linear interpolation.** The renderer gives samples $(t_0, L_0)$, $(t_1, L_1)$; between
@@ -265,6 +269,7 @@ print(f"noise events on a static scene in 2 s: {len(noise_events)} "
       f"(expected {expected:.0f} +- {np.sqrt(expected):.0f}); "
       f"ON fraction {np.mean(noise_events['p'] > 0):.2f} (expected {(1.0 + 0.5) / 2.5:.2f})")
 assert abs(len(noise_events) - expected) < 5 * np.sqrt(expected)
+assert abs(np.mean(noise_events["p"] > 0) - 0.6) < 0.03  # ON fraction: (background / 2 + leak) / total
 
 # %% [markdown]
 # ## 3. Adaptive sampling: how often to render?
@@ -291,6 +296,10 @@ ev, sample_times = simulate_events(tiny_render, 0.0, T_TINY, W, H, tiny_params, 
 image_speed = 30.0 * 0.6 * render_times  # fx |v| / z = 30 px * 0.6 t m/s / 1 m
 fig = plot_sample_intervals(sample_times, render_times, image_speed)
 plt.show()
+intervals = np.diff(sample_times)
+early, late = intervals[sample_times[1:] < 0.3].mean(), intervals[sample_times[1:] > 0.7].mean()
+print(f"mean render interval: {early * 1e3:.1f} ms for t < 0.3 s, {late * 1e3:.1f} ms for t > 0.7 s")
+assert late < 0.5 * early  # faster image motion, more renders
 fine, finer = counts[lambdas[-2]], counts[lambdas[-1]]
 assert abs(fine - finer) / finer < 0.02  # converged: halving lambda changes the count by < 2 %
 
@@ -352,8 +361,8 @@ for seq, wall in ((boxes, t_boxes), (aerial, t_aerial)):
 # An APS frame integrates light over its exposure (10 ms here), so everything that moves during it is smeared.
 # Events carry microsecond timestamps, so an image made of events can cover as short a time as we like. Like the
 # thesis (§4.1, Eq. 87) we build an **event frame** from a fixed number of events, $N_e = n\,H\,W$ (here
-# $n = 0.3$), the ones nearest to the frame's middle: in fast motion they span a millisecond or so, in slow motion
-# much longer — the image moves by about the same amount either way.
+# $n = 0.3$), the ones nearest to the frame's middle: in fast motion they span a few milliseconds, in calm motion
+# about a tenth of a second — the image moves by about the same amount either way.
 #
 # We take the frame of the boxes recording whose exposure saw the fastest rotation, its event frame, and an
 # instantaneous render (what an ideal camera with zero exposure would see). As a sharpness measure we use the
@@ -411,7 +420,7 @@ assert s_events > s_aps  # the event frame is sharper than the blurred frame
 
 # %%
 i_slow = int(np.argmin(w_frames))
-kept, s_event_frames = {}, {}
+kept, s_event_frames, spans = {}, {}, {}
 for label, i in (("calmest", i_slow), ("fastest", i_fast)):
     t_i = boxes.frame_times[i]
     blurred = aps_exposure(scenes["boxes_like"], camera, boxes_camera_poses, t_i, boxes_cfg.aps)
@@ -419,10 +428,12 @@ for label, i in (("calmest", i_slow), ("fastest", i_fast)):
     kept[label] = sharpness(blurred) / sharpness(scenes["boxes_like"].render_intensity(camera, R_i[0], p_i[0]))
     frame_i, span_i = event_frame_at(boxes.events, t_i)
     s_event_frames[label] = sharpness(frame_i)
+    spans[label] = span_i
     print(f"{label} frame (|w| = {w_frames[i]:.2f} rad/s): the exposure keeps {kept[label]:.0%} of the render's S; "
           f"event frame: S = {s_event_frames[label]:.2f} from {span_i * 1e3:.1f} ms of events")
 assert kept["fastest"] < kept["calmest"] - 0.1  # motion blur removes detail, more so in fast motion
 assert s_event_frames["fastest"] > 0.7 * s_event_frames["calmest"]  # the event frame stays about as sharp
+assert spans["fastest"] < 0.005 and spans["calmest"] > 0.05  # a few ms of events in fast motion, ~0.1 s in calm
 
 # %% [markdown]
 # ### Events in space-time
@@ -495,17 +506,24 @@ print(f"boxes_like: {first / 1e6:.2f} Mev/s in the first quarter, {last / 1e6:.2
       f"({last / first:.1f}x); mean {boxes_per_px:.1f} events/pixel/s")
 print(f"aerial_like: mean {rates['aerial_like'][1].mean() / 1e6:.3f} Mev/s = {aerial_per_px:.1f} events/pixel/s "
       f"({boxes_per_px / aerial_per_px:.0f}x sparser than the room)")
+w_at_bins = np.interp(b_t, *motion["boxes_like"])  # the camera's angular speed at the rate bins
+rate_vs_motion = np.corrcoef(b_rate, w_at_bins)[0, 1]
+t_a, w_a = motion["aerial_like"]
+print(f"boxes_like: correlation of the event rate with the angular speed {rate_vs_motion:.2f}")
+print(f"aerial_like: rotation moves the image by {camera.fx * w_a.min():.0f}-{camera.fx * w_a.max():.0f} px/s, "
+      f"20 m/s of flight at 250 m by {camera.fx * 20 / 250:.0f} px/s")
 assert last > 3 * first  # more motion, more events
-assert aerial_per_px < 0.5 * boxes_per_px  # the aerial scene is sparser per pixel
+assert rate_vs_motion > 0.7  # the rate follows the angular speed
+assert 2 < boxes_per_px / aerial_per_px < 15  # the aerial scene is several times sparser per pixel
+assert camera.fx * w_a.max() >= camera.fx * 20 / 250  # at times rotation moves the image as fast as the flight
 
 # %% [markdown]
-# What we measured (full mode, DAVIS resolution, seed 0): in the room the rate follows the angular speed closely,
-# from about 0.7 Mev/s in the first quarter to about 5 Mev/s in the last (peaks near 11 Mev/s), 55 events per pixel
-# and second on average. The flight produces about 0.7 Mev/s, 17 events per pixel and second — three times fewer
-# per pixel than the room, comparable to its gentle start — and the rate there also follows the *rotation*: at
-# 250 m, 20 m/s of translation moves the image by ~16 px/s, while the turbulence and the roll into and out of the
-# banked turn (0.1-0.4 rad/s, i.e. 20-80 px/s) dominate. In fast mode (half resolution) the aerial recording looks
-# even sparser (about 9x), because bigger pixels average away the terrain's fine texture.
+# In the room the rate follows the angular speed closely (the printed correlation) and grows several-fold from
+# the gentle first quarter to the violent last one. The flight produces several times fewer events per pixel and
+# second than the room: about 3x at the DAVIS resolution of the full lesson, about 9x in fast mode, where bigger
+# pixels average away the terrain's fine texture. At 250 m, 20 m/s of translation moves the image by only ~16 px/s
+# (~8 px/s at half resolution), so there the aircraft's slow rotations — turbulence and banking, printed in px/s —
+# at times move the image as fast as its speed does, or faster.
 
 # %% [markdown]
 # ## 5. Files: the Event-Camera-Dataset layout
@@ -545,6 +563,13 @@ print(f"whole notebook so far: {time.perf_counter() - notebook_start:.0f} s")
 # * In fast motion the APS frame blurs while a few milliseconds of events stay sharp; the event rate follows the
 #   motion (room) and collapses over sparse, distant terrain (aerial) — the two regimes of the thesis (§4.1).
 # * IMU, frames, events and ground truth come from one trajectory; the recording round-trips through the ECD layout.
+#
+# ## What comes next
+#
+# Events are not yet something a feature detector or a filter can use: they are a stream of $(t, x, y, p)$ tuples,
+# not images. The next lesson, `04_event_reconstruction`, turns them into image frames — event count images, time
+# surfaces and reconstructed intensity (for instance by summing events as in section 2(c)) — from recordings like
+# these. Lesson 05 then finds features in such frames.
 #
 # ## Exercises
 #
