@@ -1,10 +1,10 @@
 """Feature-tracking front-end: frames in, feature tracks (ids + undistorted normalised coordinates) out.
 
-    from evio_lib.frontend import FrontendConfig, create_tracker, camera_rotation_prior
-    tracker = create_tracker(sequence.camera, FrontendConfig(detector="sift", max_features=60))
-    for image, t_prev, t in ...:
-        R = camera_rotation_prior(imu.t, imu.gyro, t_prev, t, sequence.R_CtoI)    # gyro prior (optional)
-        frame = tracker.process(image, t, R)
+    from evio_lib.frontend import FrontendConfig, create_tracker, camera_rotation_priors
+    tracker = create_tracker(seq.camera, FrontendConfig(detector="sift", max_features=60))   # or method="klt"
+    priors = camera_rotation_priors(seq.imu.t, seq.imu.gyro, seq.frame_times, seq.R_CtoI)   # gyro prior (optional)
+    for image, t, R in zip(seq.frames, seq.frame_times, priors):
+        frame = tracker.process(image, t, R)          # or tracker.track(seq.frames, seq.frame_times, priors)
         msckf.process_image(frame.t, frame.ids, frame.xy)
 
 Two-point RANSAC is ``evio_lib.frontend.two_point_ransac.two_point_ransac`` (the module keeps the name, so the package
@@ -17,14 +17,15 @@ from __future__ import annotations
 from evio_lib.features.base import FeatureDetector
 from evio_lib.frontend.config import TRACKING_METHODS, FrontendConfig
 from evio_lib.frontend.grid import FeatureGrid
-from evio_lib.frontend.gyro_prior import camera_rotation_prior, integrate_gyro
+from evio_lib.frontend.gyro_prior import camera_rotation_prior, camera_rotation_priors, integrate_gyro
 from evio_lib.frontend.klt import KltTracker
 from evio_lib.frontend.matching import match_mutual_ratio
 from evio_lib.frontend.tracker import DescriptorTracker, FeatureTracker, FrameStats, TrackedFrame, stats_table
 from evio_lib.geometry.camera import PinholeRadtan
 
 __all__ = [
-    "TRACKING_METHODS", "FrontendConfig", "FeatureGrid", "camera_rotation_prior", "integrate_gyro", "KltTracker",
+    "TRACKING_METHODS", "FrontendConfig", "FeatureGrid", "camera_rotation_prior", "camera_rotation_priors",
+    "integrate_gyro", "KltTracker",
     "match_mutual_ratio", "DescriptorTracker", "FeatureTracker", "FrameStats", "TrackedFrame", "stats_table",
     "create_tracker",
 ]

@@ -19,7 +19,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from evio_lib.geometry.rotation import so3_exp
 
-__all__ = ["integrate_gyro", "camera_rotation_prior"]
+__all__ = ["integrate_gyro", "camera_rotation_prior", "camera_rotation_priors"]
 
 
 def integrate_gyro(t: ArrayLike, gyro: ArrayLike, t0: float, t1: float,
@@ -89,3 +89,28 @@ def camera_rotation_prior(t: ArrayLike, gyro: ArrayLike, t0: float, t1: float, R
     if R.shape != (3, 3) or not np.isfinite(R).all() or np.abs(R @ R.T - np.eye(3)).max() > 1e-6:
         raise ValueError(f"R_CtoI must be a (3, 3) rotation matrix; got shape {R.shape}")
     return R.T @ integrate_gyro(t, gyro, t0, t1, gyro_bias) @ R  # R_C0toC1 = R_ItoC R_I0toI1 R_CtoI
+
+
+def camera_rotation_priors(t: ArrayLike, gyro: ArrayLike, frame_times: ArrayLike, R_CtoI: ArrayLike,
+                           gyro_bias: ArrayLike | None = None) -> NDArray[np.float64]:
+    """Return (F, 3, 3) rotations R_C(k-1)toC(k) between consecutive frames (the identity for frame 0).
+
+    The ``rotations`` argument of ``FeatureTracker.track``: entry k is :func:`camera_rotation_prior` from
+    frame_times[k - 1] to frame_times[k].
+
+    Args:
+        t, gyro, R_CtoI, gyro_bias: as :func:`camera_rotation_prior`.
+        frame_times: (F,) strictly increasing frame times, s.
+
+    >>> t = np.linspace(0.0, 1.0, 101); w = np.tile([0.0, 0.0, 1.0], (101, 1))
+    >>> R = camera_rotation_priors(t, w, [0.1, 0.2, 0.4], np.eye(3))
+    >>> R.shape, bool(np.allclose(R[2], so3_exp([0.0, 0.0, -0.2])))
+    ((3, 3, 3), True)
+    """
+    times = np.asarray(frame_times, dtype=np.float64)
+    if times.ndim != 1 or not np.isfinite(times).all() or np.any(np.diff(times) <= 0):
+        raise ValueError(f"frame_times must be a finite, strictly increasing (F,) array; got shape {times.shape}")
+    out = np.repeat(np.eye(3)[None], times.shape[0], axis=0)
+    for k in range(1, times.shape[0]):
+        out[k] = camera_rotation_prior(t, gyro, times[k - 1], times[k], R_CtoI, gyro_bias)
+    return out

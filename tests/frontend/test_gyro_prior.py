@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from evio_lib.frontend.gyro_prior import camera_rotation_prior, integrate_gyro
+from evio_lib.frontend.gyro_prior import camera_rotation_prior, camera_rotation_priors, integrate_gyro
 from evio_lib.geometry.rotation import so3_exp, so3_log
 from evio_lib.sim.rig import CameraImuExtrinsics
 from evio_lib.sim.trajectory import trajectory_from_preset
@@ -36,6 +36,20 @@ def test_camera_rotation_prior_matches_the_camera_poses(motion):
     R = camera_rotation_prior(t, sample.w_I, t[i0], t[i1], extrinsics.R_CtoI)
     assert np.linalg.norm(so3_log(R_true)) > 0.05  # a real rotation (> 3 deg)
     assert np.linalg.norm(so3_log(R.T @ R_true)) < 2e-6
+
+
+def test_priors_of_a_frame_sequence(motion):
+    t, sample = motion
+    extrinsics = CameraImuExtrinsics.default()
+    R_CtoG, _ = extrinsics.camera_pose(sample.R_ItoG, sample.p_IinG)
+    frames = np.arange(0, 1000, 42)  # 24 Hz frames on sample times
+    priors = camera_rotation_priors(t, sample.w_I, t[frames], extrinsics.R_CtoI)
+    assert priors.shape == (len(frames), 3, 3) and np.array_equal(priors[0], np.eye(3))
+    for k in range(1, len(frames)):
+        R_true = R_CtoG[frames[k]].T @ R_CtoG[frames[k - 1]]
+        assert np.linalg.norm(so3_log(priors[k].T @ R_true)) < 1e-5  # 2e-3 px at f = 199 px
+    with pytest.raises(ValueError, match="frame_times"):
+        camera_rotation_priors(t, sample.w_I, [0.2, 0.1], extrinsics.R_CtoI)
 
 
 def test_bias_is_subtracted_and_inputs_are_not_modified():

@@ -13,6 +13,7 @@ from evio_lib.frontend import (
     FrontendConfig,
     KltTracker,
     camera_rotation_prior,
+    camera_rotation_priors,
     create_tracker,
     stats_table,
 )
@@ -244,8 +245,7 @@ def test_tracks_on_real_euroc_images(real_data_dir: Path, method):
     seq = read_euroc(real_data_dir / "euroc_V1_01_easy_micro")
     n = 30
     times = seq.frame_times[:n]
-    priors = [None] + [camera_rotation_prior(seq.imu.t, seq.imu.gyro, times[k - 1], times[k], seq.R_CtoI)
-                       for k in range(1, n)]
+    priors = camera_rotation_priors(seq.imu.t, seq.imu.gyro, times, seq.R_CtoI)
     assert isinstance(seq.camera, PinholeRadtan)
     frames = create_tracker(seq.camera, FrontendConfig(method=method)).track(seq.frames[:n], times, priors)
     table = stats_table(frames)
