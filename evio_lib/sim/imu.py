@@ -6,7 +6,10 @@ Measurement model (thesis §3.3.4, Eq. 31; Kalibr/EuRoC noise conventions)::
     accel_k = R_GtoI(t_k) (a_IinG(t_k) - g_G) + b_a(t_k) + n_a,k   n_a,k ~ N(0, (σ_a sqrt(rate))^2)
     b(t_k+1) = b(t_k) + σ_b sqrt(Δt) ξ,  ξ ~ N(0, I)           (bias random walk)
 
-where σ_g, σ_a are the continuous white-noise densities and σ_b the bias random-walk densities.
+where σ_g, σ_a are the continuous white-noise densities and σ_b the bias random-walk densities. Optionally the
+readings saturate at the sensor's full scale, per axis, like a real MEMS IMU's ADC (``gyro_full_scale``,
+``accel_full_scale`` of :func:`synthesize_imu`; typical ranges ``MEMS_GYRO_FULL_SCALE`` ±2000 deg/s and
+``MEMS_ACCEL_FULL_SCALE`` ±16 g, the defaults of ``MsckfConfig``).
 """
 from __future__ import annotations
 
@@ -20,10 +23,15 @@ from numpy.typing import ArrayLike, NDArray
 from evio_lib.geometry.rotation import omega_matrix, quat_to_rot, rot_to_quat
 from evio_lib.sim.trajectory import Trajectory
 
-__all__ = ["GRAVITY_G", "ImuNoiseParams", "ImuData", "synthesize_imu", "integrate_imu_rk4"]
+__all__ = [
+    "GRAVITY_G", "MEMS_ACCEL_FULL_SCALE", "MEMS_GYRO_FULL_SCALE", "ImuNoiseParams", "ImuData", "synthesize_imu",
+    "integrate_imu_rk4",
+]
 
 GRAVITY_G = np.array([0.0, 0.0, -9.81])  # m/s^2, gravity in the world frame G (z up)
 GRAVITY_G.setflags(write=False)
+MEMS_ACCEL_FULL_SCALE = 16.0 * 9.80665  # m/s^2: ±16 g, the largest range of a typical MEMS accelerometer
+MEMS_GYRO_FULL_SCALE = math.radians(2000.0)  # rad/s: ±2000 deg/s, the largest range of a typical MEMS gyroscope
 
 
 @dataclass(frozen=True)
@@ -146,6 +154,8 @@ def synthesize_imu(
     t_start: float | None = None,
     t_end: float | None = None,
     gravity_G: ArrayLike = GRAVITY_G,
+    gyro_full_scale: float | None = None,
+    accel_full_scale: float | None = None,
 ) -> ImuData:
     """Return IMU samples (ImuData) at ``rate_hz`` measured along ``trajectory``, with optional noise and biases.
 
@@ -156,6 +166,9 @@ def synthesize_imu(
         rng: numpy Generator or integer seed; required unless the noise is zero.
         t_start, t_end: sample window, s (default: the trajectory's whole span).
         gravity_G: (3,) gravity in G, m/s^2.
+        gyro_full_scale, accel_full_scale: measurement range per axis (rad/s, m/s^2; > 0), e.g.
+            ``MEMS_GYRO_FULL_SCALE``; readings (noise and bias included) are clipped to ±full scale, as a saturating
+            sensor does. None (default): unlimited.
 
     Model (thesis Eq. 31): gyro = w_I + b_g + n_g; accel = R_GtoI (a_IinG - g_G) + b_a + n_a, white noise with
     std density * sqrt(rate_hz), biases drawn N(0, init_sigma^2) then random walks with per-sample increment std
@@ -181,6 +194,11 @@ def synthesize_imu(
     if n < 2:
         raise ValueError(f"the window [t_start, t_end] = [{t0:g}, {t1:g}] s must hold >= 2 samples at {rate_hz:g} Hz")
     g_G = _check_gravity(gravity_G)
+    for name, value in (("gyro_full_scale", gyro_full_scale), ("accel_full_scale", accel_full_scale)):
+        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float, np.integer,
+                                                                                    np.floating))
+                                  or math.isnan(value) or value <= 0):
+            raise ValueError(f"{name} must be None or a number > 0 (the range per axis); got {value!r}")
     noise = ImuNoiseParams.noise_free() if noise is None else noise
     if not isinstance(noise, ImuNoiseParams):
         raise ValueError(f"noise must be an ImuNoiseParams or None; got {type(noise).__name__}")
@@ -207,6 +225,10 @@ def synthesize_imu(
         # discrete white noise std = density sqrt(rate)
         gyro += bias_g + noise.gyro_noise_density * math.sqrt(rate_hz) * gen.standard_normal((n, 3))
         accel += bias_a + noise.accel_noise_density * math.sqrt(rate_hz) * gen.standard_normal((n, 3))
+    if gyro_full_scale is not None:  # the sensor saturates: reading = clip(signal, -range, +range) per axis
+        np.clip(gyro, -gyro_full_scale, gyro_full_scale, out=gyro)
+    if accel_full_scale is not None:
+        np.clip(accel, -accel_full_scale, accel_full_scale, out=accel)
     return ImuData(t=t, gyro=gyro, accel=accel, bias_gyro=bias_g, bias_accel=bias_a)
 
 

@@ -6,7 +6,15 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from evio_lib.geometry.rotation import so3_exp, so3_log
-from evio_lib.sim.imu import GRAVITY_G, ImuData, ImuNoiseParams, integrate_imu_rk4, synthesize_imu
+from evio_lib.sim.imu import (
+    GRAVITY_G,
+    MEMS_ACCEL_FULL_SCALE,
+    MEMS_GYRO_FULL_SCALE,
+    ImuData,
+    ImuNoiseParams,
+    integrate_imu_rk4,
+    synthesize_imu,
+)
 from evio_lib.sim.trajectory import Trajectory, TrajectorySample, aerial_like, boxes_like
 
 BOXES = boxes_like(duration=60.0, seed=0)
@@ -65,6 +73,25 @@ def test_noise_free_measurements_match_closed_form():
     expected = np.einsum("nji,j->ni", R_ItoG, a0 - np.array([0.0, 0.0, -9.81]))
     np.testing.assert_allclose(imu.accel, expected, atol=1e-12)
     assert np.all(imu.bias_gyro == 0) and np.all(imu.bias_accel == 0)
+
+
+def test_readings_saturate_at_the_full_scale_per_axis():
+    """A spin of 3000 deg/s about z and 20 g along x: the readings clip at ±2000 deg/s and ±16 g, per axis; the
+    axes within range and the run without limits are untouched (noise and bias included before the clip)."""
+    w, a0 = np.array([0.0, 0.1, np.radians(3000.0)]), np.array([20.0 * 9.80665, 0.0, 0.0])
+    traj = _SpinAndAccelerate(np.eye(3), w, a0, duration=0.1)
+    free = synthesize_imu(traj, rate_hz=1000.0, noise=ImuNoiseParams(), rng=3)
+    clipped = synthesize_imu(traj, rate_hz=1000.0, noise=ImuNoiseParams(), rng=3, gyro_full_scale=MEMS_GYRO_FULL_SCALE,
+                             accel_full_scale=MEMS_ACCEL_FULL_SCALE)
+    assert MEMS_GYRO_FULL_SCALE == pytest.approx(34.906585) and MEMS_ACCEL_FULL_SCALE == pytest.approx(156.9064)
+    np.testing.assert_array_equal(clipped.gyro[:, 2], MEMS_GYRO_FULL_SCALE)  # 52.4 rad/s > 34.9 rad/s
+    np.testing.assert_array_equal(clipped.gyro[:, :2], free.gyro[:, :2])
+    assert np.abs(free.accel).max() > MEMS_ACCEL_FULL_SCALE  # the spin turns the 20 g through x and y
+    np.testing.assert_array_equal(clipped.accel, np.clip(free.accel, -MEMS_ACCEL_FULL_SCALE, MEMS_ACCEL_FULL_SCALE))
+    np.testing.assert_array_equal(clipped.bias_gyro, free.bias_gyro)
+    for bad in (0.0, -1.0, float("nan"), True):
+        with pytest.raises(ValueError, match="gyro_full_scale must be None or a number > 0"):
+            synthesize_imu(traj, rate_hz=100.0, noise=None, gyro_full_scale=bad)
 
 
 def test_level_imu_at_rest_reads_plus_g_up():
