@@ -157,6 +157,24 @@ def build_parser() -> argparse.ArgumentParser:
     add_vio_sim_arguments(p)
     p.set_defaults(func=main_vio_sim)
 
+    from evio_lib.events.reconstruct_command import add_reconstruct_arguments, main_reconstruct
+
+    p = sub.add_parser("reconstruct", help="events of a recording -> image frames (images.txt + PNGs, ECD layout)",
+                       description="Reconstruct image frames from the events of an ECD folder or a simulated preset "
+                                   "with the shipped network (default), direct integration or the high-pass filter; "
+                                   "writes images.txt and images/frame_XXXXXXXX.png.")
+    add_reconstruct_arguments(p)
+    p.set_defaults(func=main_reconstruct)
+
+    from evio_lib.events.reconstruction_train import add_reconstruct_train_arguments, main_reconstruct_train
+
+    p = sub.add_parser("reconstruct-train", help="train a recurrent event-to-image network on simulated sequences",
+                       description="Train FireNet (default) or the E2VID-style UNet on the project's simulated planar "
+                                   "sequences; the default schedule (3000 steps) takes about an hour on a 2-core CPU. "
+                                   "Writes last.pt, best.pt and history.json; --resume continues a run.")
+    add_reconstruct_train_arguments(p)
+    p.set_defaults(func=main_reconstruct_train)
+
     for command in sub.choices.values():  # --debug is also accepted after the command name
         command.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
                              help="show the full Python traceback of an error instead of the one-line message")

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from typing import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +25,7 @@ from evio_lib.events.reconstruct import Reconstructor, reconstruct_at_times, rec
 from evio_lib.events.representations import count_windows, window_size_from_fraction
 
 __all__ = ["normalize_for_metrics", "image_quality", "EvalSequence", "simulated_eval_sequence", "score_windows",
-           "score_aps_frames", "score_at_frame_times"]
+           "score_aps_frames", "score_at_frame_times", "load_slider_slice", "quality_table", "THESIS_FRACTION"]
 
 #: The held-out stretches: (preset, start [s], duration [s], length of the preset's motion [s]). ``boxes_like`` grows
 #: violent towards the end of its motion: "fast" is its last stretch, "slow" its start.
@@ -173,3 +174,52 @@ def score_at_frame_times(reconstructor: Reconstructor, events: np.ndarray, frame
                  for r, f in zip(recon, np.asarray(frames)[inside])]
     return {"mse": float(np.mean([s["mse"] for s in per_frame])), "ssim": float(np.mean([s["ssim"] for s in per_frame])),
             "per_frame": per_frame, "reconstructions": recon}
+
+
+#: The thesis's window fraction per scene (§4.1): 0.7 on the textured boxes, 0.2 on the sparse aerial flight.
+THESIS_FRACTION = {"boxes_like_slow": 0.7, "boxes_like_fast": 0.7, "aerial_like": 0.2}
+#: The real slider_depth slice (read-only; never copied into the repository).
+REAL_DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "real"
+
+
+def load_slider_slice(folder: str | Path | None = None) -> dict[str, np.ndarray] | None:
+    """Return {"events", "frame_times", "frames"} of the real ECD slider_depth slice, or None when it is absent."""
+    from evio_lib.io.ecd import read_ecd_events
+
+    folder = Path(folder) if folder is not None else REAL_DATA / "ecd_slider_depth_slice"
+    if not (folder / "slider_seg.txt").is_file() or not (folder / "images.txt").is_file():
+        return None
+    import cv2
+
+    events = read_ecd_events(folder / "slider_seg.txt", sensor_size=(240, 180))
+    lines = [line.split() for line in (folder / "images.txt").read_text().splitlines() if line.strip()]
+    times = np.array([float(t) for t, _ in lines])
+    inside = np.flatnonzero(times <= events["t"][-1])
+    frames = np.stack([cv2.imread(str(folder / lines[i][1]), cv2.IMREAD_GRAYSCALE) for i in inside])
+    return {"events": events, "frame_times": times[inside], "frames": frames}
+
+
+def quality_table(methods: Sequence[str], stretches: Sequence[str] = tuple(EVAL_STRETCHES), duration: float | None = None,
+                  max_frames: int | None = 12, with_aps: bool = True, with_slider: bool = True) -> list[dict]:
+    """Return rows {method, sequence, mse, ssim, frames}: every method on every held-out stretch (at the thesis's n),
+    the blurred APS frames for reference, and the real slider frames (EVREAL protocol) when the real data is present."""
+    from evio_lib.events.reconstruct import create_reconstructor
+
+    rows = []
+    for stretch in stretches:
+        sequence = simulated_eval_sequence(stretch, duration=duration)
+        for method in methods:
+            rec = create_reconstructor(method, sequence.width, sequence.height)
+            rows.append({"method": method, "sequence": stretch,
+                         **score_windows(rec, sequence, THESIS_FRACTION[stretch], max_frames=max_frames)})
+        if with_aps and len(sequence.frame_times):
+            rows.append({"method": "APS frames (blurred)", "sequence": stretch, **score_aps_frames(sequence)})
+    slider = load_slider_slice() if with_slider else None
+    if slider is not None:
+        for method in methods:
+            rec = create_reconstructor(method, 240, 180)
+            score = score_at_frame_times(rec, slider["events"], slider["frame_times"], slider["frames"],
+                                         max_window_events=window_size_from_fraction(0.35, 240, 180))
+            rows.append({"method": method, "sequence": "real slider_depth (APS frames)", "mse": score["mse"],
+                         "ssim": score["ssim"], "frames": len(score["per_frame"])})
+    return rows

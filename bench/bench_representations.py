@@ -1,0 +1,51 @@
+"""Print events/s of every event representation on one core (goal: >= 10 M events/s for the voxel grid at 240x180).
+
+Usage:  python bench/bench_representations.py [--events N] [--repeats R]
+
+Events are uniform over a 240x180 sensor and 0.1 s, seed 0. The figure is the best of R runs (the least disturbed by
+other processes). Measured on this 2-core CPU (2026-11-25, machine shared with other jobs), 1 M events:
+see the README of docs/reconstruction.md for the latest figures.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+from evio_lib.events.array import make_events  # noqa: E402
+from evio_lib.events.representations import (adaptive_windows, polarity_frame, time_surface,  # noqa: E402
+                                             voxel_grid)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--events", type=int, default=1_000_000)
+    parser.add_argument("--repeats", type=int, default=5)
+    args = parser.parse_args()
+    rng = np.random.default_rng(0)
+    n, w, h = args.events, 240, 180
+    events = make_events(np.sort(rng.uniform(0, 0.1, n)), rng.integers(0, w, n), rng.integers(0, h, n),
+                         rng.choice([-1, 1], n))
+    cases = {
+        "polarity frame": lambda: polarity_frame(events, w, h),
+        "time surface (2 channels)": lambda: time_surface(events, w, h),
+        "voxel grid B=5 (normalised)": lambda: voxel_grid(events, w, h, 5),
+        "adaptive windows": lambda: adaptive_windows(events, w, h),
+    }
+    for name, run in cases.items():
+        best = min(_timed(run) for _ in range(args.repeats))
+        print(f"{name:30s} {n / best / 1e6:8.1f} M events/s  ({best * 1e3:.1f} ms for {n} events)")
+
+
+def _timed(run) -> float:
+    start = time.perf_counter()
+    run()
+    return time.perf_counter() - start
+
+
+if __name__ == "__main__":
+    main()
