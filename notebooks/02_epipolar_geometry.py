@@ -506,7 +506,8 @@ print("pure rotation: every pixel moves by the homography K R K^-1, whatever the
 
 # %%
 plane_rng = np.random.default_rng(8)  # its own generator: the same points in fast and full mode
-X_plane = np.column_stack([plane_rng.uniform(-2, 2, 100), plane_rng.uniform(-1.5, 1.5, 100), np.full(100, 5.0)])  # z = 5
+X_plane = np.column_stack([plane_rng.uniform(-2, 2, 100), plane_rng.uniform(-1.5, 1.5, 100),
+                           np.full(100, 5.0)])  # every point on the plane z = 5 m
 xy1_plane = cam.unproject(cam.project(X_plane))
 xy2_plane = cam.unproject(cam.project(X_plane @ R_C1toC2.T + p_C1inC2))  # noise-free
 A_plane = np.einsum("ni,nj->nij", np.column_stack([xy2_plane, np.ones(100)]),

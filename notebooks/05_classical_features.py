@@ -312,9 +312,9 @@ assert border_distance(features["fast_freak"].keypoints, image_240.shape) > 2 * 
     features["fast"].keypoints, image_240.shape)  # FREAK keeps away from the border
 
 # %% [markdown]
-# Not every detector fills its quota of 300 (the table above): SIFT finds fewer blobs above its contrast threshold, ORB's points come
-# from several pyramid levels and partly coincide, and FREAK drops the FAST points whose sampling pattern does not
-# fit inside the image, so FAST-FREAK keeps away from the border.
+# Not every detector fills its quota of 300 (the table above): SIFT finds fewer blobs above its contrast threshold,
+# ORB's points come from several pyramid levels and partly coincide, and FREAK drops the FAST points whose sampling
+# pattern does not fit inside the image, so FAST-FREAK keeps away from the border.
 #
 # ## 5. Repeatability
 #

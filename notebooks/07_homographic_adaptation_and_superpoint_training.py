@@ -47,7 +47,13 @@ torch.set_num_threads(1)
 _CACHE = tempfile.mkdtemp(prefix="evio07_cache_")
 os.environ["EVIO_CACHE_DIR"] = _CACHE  # exported labels go to a temporary folder, not into the repository
 
-from evio_lib.evaluation.plots_features import plot_detections, plot_matches, plot_training_curve
+from evio_lib.evaluation.plots_features import (
+    plot_cell_correspondences,
+    plot_detections,
+    plot_heatmap_row,
+    plot_matches,
+    plot_training_curve,
+)
 from evio_lib.features import train as training
 from evio_lib.features.adaptation import homographic_adaptation, heatmap_to_keypoints
 from evio_lib.features.augment import HOMOGRAPHIC_ADAPTATION, HOMOGRAPHIC_PAIR, homographic_augment
@@ -140,19 +146,10 @@ labels, _ = heatmap_to_keypoints(adapted.heatmap, threshold, nms_radius=4, borde
 print(f"{n_warps} warps; pixels seen by >= {n_warps // 2} views: {np.mean(adapted.counts >= n_warps // 2):.0%}; "
       f"{len(labels)} labels above {threshold:.4f}")
 
-fig, axes = plt.subplots(1, 4, figsize=(17, 3.4))
-axes[0].imshow(image, cmap="gray", vmin=0, vmax=1)
-axes[0].set_title("image (val pool)")
-axes[1].imshow(single, cmap="magma")
-axes[1].set_title(f"{base_name.split(' (')[0]}: one view")
-axes[2].imshow(adapted.heatmap, cmap="magma")
-axes[2].set_title(f"aggregate over N = {n_warps} warps")
-axes[3].imshow(image, cmap="gray", vmin=0, vmax=1)
-axes[3].scatter(labels[:, 0], labels[:, 1], s=20, facecolors="none", edgecolors="red")
-axes[3].set_title("exported labels (aggregate, NMS 4)")
-for ax in axes:
-    ax.axis("off")
-plt.tight_layout()
+fig = plot_heatmap_row([image, single, adapted.heatmap, image],
+                       ["image (val pool)", f"{base_name.split(' (')[0]}: one view",
+                        f"aggregate over N = {n_warps} warps", "exported labels (aggregate, NMS 4)"],
+                       ["gray", "magma", "magma", "gray"], points={3: labels})
 plt.show()
 
 # %% [markdown]
@@ -181,14 +178,10 @@ err_agg, corr_agg = compare(adapted_warped.heatmap, warp_image(adapted.heatmap, 
 print(f"one view : relative difference {err_single:.2f}, correlation {corr_single:.2f}")
 print(f"aggregate: relative difference {err_agg:.2f}, correlation {corr_agg:.2f}  ({shared.mean():.0%} of pixels)")
 
-fig, axes = plt.subplots(1, 3, figsize=(13, 3.4))
-for ax, img, title in zip(axes, (adapted_warped.heatmap, warp_image(adapted.heatmap, H),
-                                 np.abs(adapted_warped.heatmap - warp_image(adapted.heatmap, H)) * shared),
-                          ("F(H I): aggregate of the warped image", "H F(I): warped aggregate", "|difference| (shared)")):
-    ax.imshow(img, cmap="magma")
-    ax.set_title(title, fontsize=10)
-    ax.axis("off")
-plt.tight_layout()
+warped_aggregate = warp_image(adapted.heatmap, H)
+difference = np.abs(adapted_warped.heatmap - warped_aggregate) * shared
+fig = plot_heatmap_row([adapted_warped.heatmap, warped_aggregate, difference],
+                       ["F(H I): aggregate of the warped image", "H F(I): warped aggregate", "|difference| (shared)"])
 plt.show()
 assert err_agg < err_single  # averaging over warps makes the response more equivariant
 assert err_agg < 0.5 and corr_agg > 0.7  # and the two aggregates agree within a tolerance
@@ -248,21 +241,9 @@ print(f"cells whose warped centre lies 8 px inside image 2: {S_hand.sum(1)[well_
       f"(pi = {np.pi:.2f})")
 assert abs(S_hand.sum(1)[well_inside].mean() - np.pi) < 0.5  # about pi positives per cell away from the border
 
-fig, axes = plt.subplots(1, 3, figsize=(16, 3.8))
-axes[0].imshow(pair.image[0], cmap="gray", vmin=0, vmax=1)
-axes[1].imshow(pair.warped_image[0], cmap="gray", vmin=0, vmax=1)
-rows, cols = np.nonzero(S.numpy())
-colours = plt.cm.tab20(np.arange(len(rows)) % 20)
-axes[0].scatter(centres[rows, 0], centres[rows, 1], c=colours, s=25)
-axes[1].scatter(centres[cols, 0], centres[cols, 1], c=colours, s=25)
-axes[0].set_title("image 1: cells with a correspondence")
-axes[1].set_title("image 2 = H(image 1): the matching cells")
-for ax in axes[:2]:
-    ax.axis("off")
-axes[2].imshow(S, cmap="gray_r", interpolation="nearest")
-axes[2].set_title("S (Eq. 10): row = cell of image 1, col = cell of image 2", fontsize=9)
-plt.tight_layout()
+fig = plot_cell_correspondences(pair.image[0], pair.warped_image[0], centres, S.numpy())
 plt.show()
+rows, cols = np.nonzero(S.numpy())  # the corresponding cell pairs (i of image 1, j of image 2)
 
 # %% [markdown]
 # Now the loss by hand. Random descriptors (a seeded torch generator), L2-normalised; we write out a few terms of
@@ -336,7 +317,8 @@ losses = np.array(dd_result.train_loss)
 fig = plot_training_curve(losses, dd_result.validation, ylabel="total loss (Eq. 8)", log_scale=True)
 plt.show()
 head = max(1, len(losses) // 10)
-print(f"mean training loss: first {head} steps {losses[:head].mean():.2f}, last {head} steps {losses[-head:].mean():.2f}")
+print(f"mean training loss: first {head} steps {losses[:head].mean():.2f}, "
+      f"last {head} steps {losses[-head:].mean():.2f}")
 assert np.isfinite(losses).all() and losses[-head:].mean() < losses[:head].mean()  # the loss goes down
 
 # %% [markdown]

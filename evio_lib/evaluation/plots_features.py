@@ -24,6 +24,8 @@ __all__ = [
     "plot_training_curve",
     "plot_matches",
     "plot_detections",
+    "plot_heatmap_row",
+    "plot_cell_correspondences",
 ]
 
 
@@ -398,10 +400,12 @@ def plot_detections(images: Sequence[ArrayLike], labels: Sequence[ArrayLike],
     import matplotlib.pyplot as plt
 
     if len(images) == 0 or len(labels) != len(images):
-        raise ValueError(f"images and labels must be non-empty and of equal length; got {len(images)} and {len(labels)}")
+        raise ValueError(f"images and labels must be non-empty and of equal length; got {len(images)} and "
+                         f"{len(labels)}")
     for name, rows in detections.items():
         if len(rows) < len(images):
-            raise ValueError(f"detections[{name!r}] must hold one (M, 2) array per image ({len(images)}); got {len(rows)}")
+            raise ValueError(f"detections[{name!r}] must hold one (M, 2) array per image ({len(images)}); "
+                             f"got {len(rows)}")
     if titles is not None and len(titles) != len(images):
         raise ValueError(f"titles must hold one title per image ({len(images)}); got {len(titles)}")
     n_rows, n_cols = max(len(detections), 1), len(images)
@@ -416,5 +420,82 @@ def plot_detections(images: Sequence[ArrayLike], labels: Sequence[ArrayLike],
             ax.set_title(name if titles is None else f"{name}: {titles[col]}", fontsize=9)
             ax.axis("off")
     fig.suptitle("green circles: labels, red dots: detections")
+    fig.tight_layout()
+    return fig
+
+
+def plot_heatmap_row(images: Sequence[ArrayLike], titles: Sequence[str], cmaps: Sequence[str] | str = "magma",
+                     points: Mapping[int, ArrayLike] | None = None, panel_in: float = 4.2) -> "Figure":
+    """Return one row of image panels (e.g. an image, detector heatmaps), with keypoints circled on chosen panels.
+
+    Args:
+        images: K (H, W) arrays; grayscale panels (cmap "gray") are drawn on [0, 1].
+        titles: K panel titles.
+        cmaps: one colour map for every panel, or K of them.
+        points: panel index -> (N, 2) keypoints (x, y) to circle in red on that panel.
+        panel_in: width of one panel in inches.
+
+    >>> import matplotlib; matplotlib.use("Agg")
+    >>> fig = plot_heatmap_row([np.zeros((4, 4)), np.ones((4, 4))], ["a", "b"], ["gray", "magma"], {0: [[1.0, 2.0]]})
+    >>> [ax.get_title() for ax in fig.axes]
+    ['a', 'b']
+    """
+    import matplotlib.pyplot as plt
+
+    if len(images) == 0 or len(titles) != len(images):
+        raise ValueError(f"images and titles must be non-empty and of equal length; got {len(images)} and "
+                         f"{len(titles)}")
+    cmaps = [cmaps] * len(images) if isinstance(cmaps, str) else list(cmaps)
+    if len(cmaps) != len(images):
+        raise ValueError(f"cmaps must be one name or one per image ({len(images)}); got {len(cmaps)}")
+    points = dict(points or {})
+    if any(not 0 <= k < len(images) for k in points):
+        raise ValueError(f"points keys must be panel indices in [0, {len(images)}); got {sorted(points)}")
+    first = _image(images[0])
+    fig, axes = plt.subplots(1, len(images), figsize=(panel_in * len(images), panel_in * first.shape[0] / first.shape[1]
+                                                      + 0.5), squeeze=False)
+    for k, (ax, image, title, cmap) in enumerate(zip(axes[0], images, titles, cmaps)):
+        limits = dict(vmin=0, vmax=1) if cmap == "gray" else {}
+        ax.imshow(_image(image), cmap=cmap, **limits)
+        if k in points:
+            marks = _points(points[k])
+            ax.scatter(marks[:, 0], marks[:, 1], s=20, facecolors="none", edgecolors="red")
+        ax.set_title(title, fontsize=10)
+        ax.axis("off")
+    fig.tight_layout()
+    return fig
+
+
+def plot_cell_correspondences(image1: ArrayLike, image2: ArrayLike, centres: ArrayLike, S: ArrayLike) -> "Figure":
+    """Return the cell correspondences of a warped pair: matching cells in the same colour, and the matrix S itself.
+
+    Args:
+        image1, image2: (H, W) grayscale images in [0, 1], image 2 = image 1 warped by H.
+        centres: (Hc * Wc, 2) cell centres (x, y), row-major, the same grid in both images.
+        S: (Hc * Wc, Hc * Wc) 0/1 correspondences, rows = cells of image 1, columns = cells of image 2 (Eq. 10).
+
+    >>> import matplotlib; matplotlib.use("Agg")
+    >>> c = np.array([[3.5, 3.5], [11.5, 3.5]])
+    >>> len(plot_cell_correspondences(np.zeros((8, 16)), np.zeros((8, 16)), c, np.eye(2)).axes)
+    3
+    """
+    import matplotlib.pyplot as plt
+
+    centres, S = _points(centres, "centres"), np.asarray(S)
+    if S.shape != (len(centres), len(centres)):
+        raise ValueError(f"S must have shape (N, N) for N = {len(centres)} cell centres; got {S.shape}")
+    rows, cols = np.nonzero(S)
+    colours = plt.cm.tab20(np.arange(len(rows)) % 20)
+    fig, axes = plt.subplots(1, 3, figsize=(16, 3.8))
+    axes[0].imshow(_image(image1, "image1"), cmap="gray", vmin=0, vmax=1)
+    axes[1].imshow(_image(image2, "image2"), cmap="gray", vmin=0, vmax=1)
+    axes[0].scatter(centres[rows, 0], centres[rows, 1], c=colours, s=25)
+    axes[1].scatter(centres[cols, 0], centres[cols, 1], c=colours, s=25)
+    axes[0].set_title("image 1: cells with a correspondence")
+    axes[1].set_title("image 2 = H(image 1): the matching cells")
+    for ax in axes[:2]:
+        ax.axis("off")
+    axes[2].imshow(S, cmap="gray_r", interpolation="nearest")
+    axes[2].set_title("S (Eq. 10): row = cell of image 1, col = cell of image 2", fontsize=9)
     fig.tight_layout()
     return fig

@@ -10,8 +10,10 @@ import pytest  # noqa: E402
 
 from evio_lib.evaluation.plots_features import (  # noqa: E402
     plot_binary_descriptors,
+    plot_cell_correspondences,
     plot_detections,
     plot_fast_circle,
+    plot_heatmap_row,
     plot_keypoints,
     plot_matches,
     plot_repeatability_bars,
@@ -128,9 +130,29 @@ def test_detections_grid_rows_are_detectors(image: np.ndarray) -> None:
     found = {"untrained": [np.array([[1.0, 1.0]]), np.array([[2.0, 2.0], [3.0, 3.0]])],
              "trained": [np.array([[5.0, 5.0]]), np.zeros((0, 2))]}
     fig = plot_detections([image, image], labels, found, titles=["cube", "star"])
-    assert [ax.get_title() for ax in fig.axes] == ["untrained: cube", "untrained: star", "trained: cube", "trained: star"]
+    titles = ["untrained: cube", "untrained: star", "trained: cube", "trained: star"]
+    assert [ax.get_title() for ax in fig.axes] == titles
     red = fig.axes[1].collections[1].get_offsets()
     np.testing.assert_allclose(red, found["untrained"][1])  # the detections of that detector on that image
     _render(fig)
     with pytest.raises(ValueError, match="one \\(M, 2\\) array per image"):
         plot_detections([image, image], labels, {"a": [np.zeros((0, 2))]})
+
+
+def test_heatmap_row_and_cell_correspondences(image: np.ndarray) -> None:
+    fig = plot_heatmap_row([image, image * 2, image], ["image", "one view", "labels"], ["gray", "magma", "gray"],
+                           points={2: np.array([[3.0, 4.0], [10.0, 12.0]])})
+    assert [ax.get_title() for ax in fig.axes] == ["image", "one view", "labels"]
+    np.testing.assert_allclose(fig.axes[2].collections[0].get_offsets(), [[3.0, 4.0], [10.0, 12.0]])
+    assert not fig.axes[1].collections  # no points on the other panels
+    with pytest.raises(ValueError, match="panel indices"):
+        plot_heatmap_row([image], ["a"], points={3: np.zeros((1, 2))})
+
+    centres = np.array([[3.5, 3.5], [11.5, 3.5], [19.5, 3.5]])
+    S = np.array([[0, 1, 0], [0, 0, 1], [0, 0, 0]])
+    fig = plot_cell_correspondences(image, image, centres, S)
+    np.testing.assert_allclose(fig.axes[0].collections[0].get_offsets(), centres[[0, 1]])  # rows with a match
+    np.testing.assert_allclose(fig.axes[1].collections[0].get_offsets(), centres[[1, 2]])  # their partners
+    _render(fig)
+    with pytest.raises(ValueError, match=r"shape \(N, N\)"):
+        plot_cell_correspondences(image, image, centres, np.eye(2))
