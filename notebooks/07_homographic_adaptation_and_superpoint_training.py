@@ -64,6 +64,7 @@ from evio_lib.features.shapes import generate_shape_image
 from evio_lib.features.superpoint import (
     SuperPointDetector,
     inference_model,
+    load_checkpoint,
     load_model,
     logits_to_heatmap,
     pad_to_cells,
@@ -495,8 +496,19 @@ val_pairs = RealImages(image_pool("val", seed=0, size=val_cfg.image_size, n_imag
                                   render_zoom=val_cfg.render_zoom),
                        split="val", seed=0, pairs=True, augment=False, pair_homographic=val_cfg.pair_homographic())
 items = [val_pairs[k] for k in range(len(val_pairs))]  # each pair drawn once, shared by the networks
-names = sorted(shipped_weights())  # evio_lib/weights/*.pt
-assert names, "no shipped weights in evio_lib/weights"
+
+
+def is_superpoint(name: str) -> bool:
+    """True if a shipped weights file holds a SuperPoint network (evio_lib/weights also ships other models)."""
+    try:
+        load_checkpoint(resolve_weights(name))
+    except ValueError:
+        return False
+    return True
+
+
+names = [name for name in sorted(shipped_weights()) if is_superpoint(name)]  # evio_lib/weights/*.pt
+assert names, "no shipped SuperPoint weights in evio_lib/weights"
 chance = 3 / (val_cfg.image_size[0] * val_cfg.image_size[1] / 64)  # ~3 corresponding cells among all
 print(f"{len(items)} validation pairs; chance retrieval about {chance:.0%}")
 for name in names:  # loop over shipped networks
