@@ -879,8 +879,14 @@ def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") 
 
 
 def shipped_weights() -> list[str]:
-    """Return the names of the weights shipped in ``evio_lib/weights/`` (file stems of ``*.pt``), sorted."""
-    return sorted(p.stem for p in WEIGHTS_DIR.glob("*.pt")) if WEIGHTS_DIR.is_dir() else []
+    """Return the names of the SuperPoint-style weights shipped in ``evio_lib/weights/`` (file stems), sorted.
+
+    The folder also holds other networks' weights (``reconstruction_*.pt``, the event-to-image reconstructors of
+    :mod:`evio_lib.events.reconstruct`); they are not detectors and are left out.
+    """
+    if not WEIGHTS_DIR.is_dir():
+        return []
+    return sorted(p.stem for p in WEIGHTS_DIR.glob("*.pt") if not p.stem.startswith("reconstruction_"))
 
 
 def resolve_weights(weights: str | Path) -> Path:
