@@ -36,8 +36,7 @@ import numpy as np
 
 from evio_lib.events.representations import polarity_frame, time_surface, voxel_grid, window_size_from_fraction
 
-FAST = os.environ.get("EVIO_FAST", "0") == "1"  # CI sets EVIO_FAST=1: shorter simulated stretches, same lesson
-DURATION = 0.1 if FAST else None                 # seconds of each held-out stretch (None: the full 0.4 s)
+FAST = os.environ.get("EVIO_FAST", "0") == "1"  # CI sets EVIO_FAST=1: fewer scored frames, a shorter fast stretch
 
 # %% [markdown]
 # ## 1. Held-out simulated stretches
@@ -45,12 +44,14 @@ DURATION = 0.1 if FAST else None                 # seconds of each held-out stre
 # Three short stretches of the course's two simulated worlds (lesson 03), with a seed no training run used: the
 # textured room at the gentle start of its hand-held motion and at its violent end, and the aerial flight over sparse
 # terrain. Each comes with its events, its blurred APS frames and a renderer of the **sharp** intensity at any time:
-# the truth a reconstruction is scored against. The first run simulates and caches them (a few minutes in full mode).
+# the truth a reconstruction is scored against. The first run simulates and caches them (a few minutes: the violent
+# stretch alone has millions of events; fast mode keeps only its first 0.1 s).
 
 # %%
 from evio_lib.events.reconstruction_eval import EVAL_STRETCHES, simulated_eval_sequence
 
-stretches = {name: simulated_eval_sequence(name, duration=DURATION) for name in EVAL_STRETCHES}
+durations = {"boxes_like_slow": 0.4, "boxes_like_fast": 0.1 if FAST else 0.4, "aerial_like": 0.4}
+stretches = {name: simulated_eval_sequence(name, duration=durations[name]) for name in EVAL_STRETCHES}
 for name, seq in stretches.items():
     span = seq.events["t"][-1] - seq.events["t"][0]
     print(f"{name:16s} {seq.events.size:9d} events in {span:.2f} s = {seq.events.size / span / 1e6:5.2f} M events/s, "
@@ -194,9 +195,11 @@ for name in stretches:
     assert scores[name, "firenet"]["ssim"] > max(scores[name, "direct"]["ssim"], scores[name, "high_pass"]["ssim"]), name
 
 # %% [markdown]
-# On every stretch the learned network scores a higher SSIM than both classical integrators. Direct integration and
-# the high-pass filter only know where the log intensity changed, so flat regions stay at an arbitrary gray and old
-# noise lingers; the network has learned what images look like and fills them in.
+# On every stretch the learned network scores a higher SSIM than both classical integrators; the margin is wide on the
+# boxes and small over the sparse terrain, where little moves and everyone guesses. Direct integration and the
+# high-pass filter only know where the log intensity changed, so flat regions stay at an arbitrary gray and old noise
+# lingers; the network has learned what images look like and fills them in. Its MSE is not always lower: where it
+# guesses a brightness wrongly, it is wrong over a whole region.
 
 # %%
 from evio_lib.evaluation.plots_events import plot_image_grid
@@ -233,29 +236,48 @@ plot_ssim_vs_fraction(fractions, sweep, marks={"boxes_like_slow": 0.7, "aerial_l
 plt.show()
 best_n = {name: fractions[int(np.argmax(v))] for name, v in sweep.items()}
 print("best n:", best_n)
+for name, values in sweep.items():
+    assert values[0] < max(values), name      # too few events per frame: an incomplete image
 
 # %% [markdown]
-# ## 6. Fast motion: sharp events, blurred frames
+# Too few events per frame (the smallest n) always scores below the best: each frame sees only part of the edges. On
+# our simulated stretches the best n is printed above; compare it with the thesis's 0.7 and 0.2 (dotted lines), which
+# were chosen by eye on real recordings and for a network trained elsewhere. The rule, not the numbers, carries over:
+# measure n on your own scene. `adaptive_windows` (exercise 3) is one way to let the scene choose.
+
+# %% [markdown]
+# ## 6. Fast motion: blurred frames, sharper events
 #
-# At the violent end of the boxes motion the APS frames (lesson 03's camera, a few milliseconds of exposure) smear every
-# edge, while an event window of the same moment covers a fraction of a millisecond.
+# At the violent end of the boxes motion the APS frames (lesson 03's camera integrates light over its exposure) smear
+# every edge, while one event window of the same moment covers a few milliseconds of motion. The pictures show the
+# difference; the scores of section 4 say how much it matters on this simulator.
 
 # %%
 fast = stretches["boxes_like_fast"]
 k = len(fast.frame_times) // 2
 t_frame = float(fast.frame_times[k])
-rec = create_reconstructor("firenet", W, H)
 up_to = np.searchsorted(fast.events["t"], t_frame)
-n_e = window_size_from_fraction(0.7, W, H)
-bounds = count_windows(fast.events[:up_to], n_e)
-frames, times = reconstruct_windows(rec, fast.events[:up_to], bounds)
+bounds = count_windows(fast.events[:up_to], window_size_from_fraction(0.7, W, H))
+frames, times = reconstruct_windows(create_reconstructor("firenet", W, H), fast.events[:up_to], bounds)
 plot_image_grid({"APS frame (blurred)": fast.frames[k], "FireNet, n = 0.7": frames[-1],
                  "sharp truth": fast.render(t_frame)}, columns=3)
 plt.show()
-print(f"the last window spans {1e3 * (times[-1] - fast.events['t'][bounds[-1, 0]]):.2f} ms")
-assert scores["boxes_like_fast", "firenet"]["ssim"] > scores["boxes_like_fast", "APS"]["ssim"]
+window_ms = 1e3 * (times[-1] - fast.events["t"][bounds[-1, 0]])
+print(f"the last window spans {window_ms:.1f} ms")
+for name in ("boxes_like_slow", "boxes_like_fast"):
+    print(f"{name:16s} SSIM: APS {scores[name, 'APS']['ssim']:.3f}, FireNet {scores[name, 'firenet']['ssim']:.3f}")
+gap_slow = scores["boxes_like_slow", "APS"]["ssim"] - scores["boxes_like_slow", "firenet"]["ssim"]
+gap_fast = scores["boxes_like_fast", "APS"]["ssim"] - scores["boxes_like_fast", "firenet"]["ssim"]
+assert window_ms < 20 and gap_fast < gap_slow
 
 # %% [markdown]
+# Read the numbers honestly. On this simulator the APS frames still score the highest SSIM of all, even at the
+# violent end: a simulated APS camera has no noise worth the name beside the event camera's threshold mismatch, and a
+# reconstruction has to invent the brightness of everything that did not move. But the gap closes with speed: the
+# APS frames lose quality as the motion grows, while the network *gains* from it (more events per second fill its
+# state faster), so the gap shrinks several-fold from the gentle to the violent stretch. Real cameras add what the
+# simulator leaves out (low light, high dynamic range, rolling readout), which is where the thesis's event frames won.
+
 # ## 7. Real events
 #
 # The real recordings under `../shared/data/real/` (when present) test the network on a sensor it never saw. The ECD
