@@ -1,0 +1,26 @@
+"""Smoke tests of the lesson-04 figures: each helper returns a figure with the expected panels."""
+from __future__ import annotations
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from evio_lib.evaluation.plots_events import (plot_image_grid, plot_representations,  # noqa: E402
+                                              plot_ssim_vs_fraction, plot_training_history)
+
+
+def test_figures_have_their_panels():
+    rng = np.random.default_rng(0)
+    fig = plot_representations(rng.normal(size=(6, 8)), rng.uniform(size=(2, 6, 8)), rng.normal(size=(5, 6, 8)))
+    assert len(fig.axes) == 10
+    fig2 = plot_image_grid({"a": rng.uniform(size=(6, 8)), "b": np.zeros((6, 8), np.uint8)}, columns=2)
+    assert [ax.get_title() for ax in fig2.axes] == ["a", "b"]
+    fig3 = plot_ssim_vs_fraction([0.1, 0.2], {"x": [0.3, 0.4]}, marks={"x": 0.2})
+    assert fig3.axes[0].get_xscale() == "log"
+    fig4 = plot_training_history([{"step": 1, "val_ssim": 0.5, "val_loss": 0.9}, {"step": 2, "val_ssim": 0.6,
+                                                                                  "val_loss": 0.8}])
+    assert len(fig4.axes) == 2
+    plt.close("all")
