@@ -203,6 +203,7 @@ print(f"mean corner error: by hand {error_hand:.3f} px, library {corner_error(H_
 print("correct at eps = 1, 3, 5:", correct_hand)
 assert np.isclose(error_hand, corner_error(H_est, large.H, large.image1.shape))
 assert (correct_hand == homography_correctness(H_est, large.H, large.image1.shape, eps)).all()
+assert np.any((c_true < 0) | (c_true > [ww - 1.0, hh - 1.0]))  # image 1's corners land outside image 2 (a zoom)
 
 # %%
 order = [0, 1, 3, 2, 0]  # walk the corners around the quadrilateral
@@ -297,6 +298,9 @@ plt.show()
 for (split, name), (good, total) in qualitative.items():
     print(f"{split:12s} {name:10s}: {good:4d} correct of {total:4d} mutual matches")
     assert 0 <= good <= total
+view = {name: qualitative[("viewpoint", name)] for name in ("sift", "orb", "fast_freak")}
+assert all(view["sift"][0] > v[0] and view["sift"][0] / view["sift"][1] > v[0] / v[1] for n, v in view.items() if n != "sift")
+assert all(qualitative[("illumination", n)][1] < view[n][1] for n in view)  # fewer mutual matches under illumination
 
 # %% [markdown]
 # Pure nearest-neighbour matching always produces some wrong matches (red); RANSAC has to reject them. On the
@@ -304,7 +308,8 @@ for (split, name), (good, total) in qualitative.items():
 # ones; the binary descriptors (ORB, FREAK, compared by Hamming distance) give fewer, as in the thesis's
 # Appendix B. On the illumination pair every correct match is a horizontal line (H = I): the geometry is trivial,
 # and all the difficulty lies in detecting the same points under a different tone curve, shading and exposure and
-# in describing them alike. The counts printed under the figure show how few mutual matches survive such a change.
+# in describing them alike. The counts printed under the figure show how few mutual matches survive such a change:
+# fewer than on the viewpoint pair for every method.
 #
 # ## 6. The event-frame split
 #
@@ -347,17 +352,21 @@ assert all(f.min() >= 0 and f.max() <= 1 and f.max() > 0 for f in frames)
 # rows are every classical detector and — when trained weights are shipped in `evio_lib/weights/` — the
 # project's CNN (one row per shipped weights file).
 #
-# *Sizes.* The full benchmark (58 held-out images x 5 pairs x 2 splits = 580 pairs, like HPatches) takes about
-# 15 minutes on this machine and is run from the command line:
+# *Sizes.* The full benchmark (58 held-out images x 5 pairs x 2 splits = 580 pairs, like HPatches) is run from the
+# command line; its results, with those of this notebook's full mode, are in
+# [docs/features_results.md](../docs/features_results.md):
 #
 # ```
 # python -m evio_lib features-benchmark --out DIR
 # python -m evio_lib features-benchmark --dataset events --event-frames FRAMES.npy --out DIR
 # ```
 #
-# This notebook runs a subset (about a minute in full mode): 8 held-out images x 2 pairs per split (about 30
-# pairs once the stripe textures are left out; the exact count is printed below) and 8 event-frame pairs, all six
-# classical detectors; in fast mode (CI) 2 images x 1 pair per split and 2 event-frame pairs with three detectors.
+# This notebook runs a subset: 8 held-out images x 2 pairs per split (about 30 pairs once the stripe textures are
+# left out; the exact count is printed below) and 8 event-frame pairs, all six classical detectors; in fast mode (CI)
+# 2 images x 1 pair per split and 2 event-frame pairs with three detectors. The CNN rows are the two networks shipped
+# with the library: `pretrained_detdesc_round1_gpu` (trained on a GPU, one round of homographic adaptation) and
+# `pretrained_detdesc_round2_cpu` (trained on this CPU, two rounds); notebook 07 and
+# [docs/features_training.md](../docs/features_training.md) tell how.
 # With so few pairs a single pair moves a homography score by several hundredths; read the tables as trends, not
 # as final results.
 
@@ -378,6 +387,7 @@ n_images, per_image = (2, 1) if FAST else (8, 2)
 bench_pairs = heldout_pairs(SEED, n_images=n_images, pairs_per_image=per_image)
 print(f"held-out benchmark: {len(bench_pairs)} pairs "
       f"({sum(p.split == 'viewpoint' for p in bench_pairs)} viewpoint, {sum(p.split == 'illumination' for p in bench_pairs)} illumination)")
+assert len(bench_pairs) == 4 if FAST else 25 <= len(bench_pairs) <= 32
 
 # %%
 event_settings = BenchmarkSettings.thesis_event_frames()
@@ -441,8 +451,9 @@ print("all metrics in [0, 1] and non-decreasing in eps")
 #
 # A VIO front end has to keep up with the camera. `measure_speed` times `detect_and_describe` (detection and
 # description together, one image at a time, after warm-up calls) at the DAVIS resolution 180 x 240 and at the
-# thesis's evaluation size 240 x 320. The issue's target for the CNN is at least 15 and 8 frames/s on this 2-core
-# CPU.
+# thesis's evaluation size 240 x 320. Compare each row with the camera: a front end that detects in every image of a
+# 20 Hz camera needs 20 frames/s, one that detects only in key frames and tracks in between needs fewer. The numbers
+# depend on the machine and on what else runs on it.
 
 # %%
 timing_images = [p.image1 for p in bench_pairs[: 2 if FAST else 4]]
@@ -475,8 +486,8 @@ display(Markdown(format_table(rows, "speed")))
 # descriptor makes it the best classical method for homography estimation, and ORB is the weakest at it. The
 # cell below prints the thesis's classical rows next to ours and checks the one ranking that our data should
 # reproduce robustly: on the viewpoint split, SIFT estimates homographies at least as well as ORB. The thesis's
-# trained networks mainly win on the **illumination** split, where a descriptor learned under photometric
-# augmentation copes better with a changed tone curve — the claim to check once the CNN rows appear above.
+# trained networks mainly win on the **illumination** split, where a detector and descriptor learned under
+# photometric augmentation cope better with a changed tone curve. The cell also checks that claim on the CNN rows.
 #
 # The event-frame split is easier than the held-out pairs (small rotations, the same frame on both sides, no
 # added noise), so its homography scores are close to 1 for most methods, as in the thesis's Table 5 at
@@ -508,12 +519,40 @@ for metric, split in (("repeatability", "viewpoint"), ("repeatability", "illumin
     print(f"best {metric:13s} on {split:12s} at eps = 3: {best['detector']} ({best[metric][split][3.0]:.3f})")
 if "sift" in by_name and "orb" in by_name:
     assert by_name["sift"]["homography"]["viewpoint"][3.0] >= by_name["orb"]["homography"]["viewpoint"][3.0]
+if cnn:
+    best = {}
+    for metric in ("repeatability", "homography"):
+        best[metric] = {kind: max(by_name[n][metric]["illumination"][3.0] for n in names)
+                        for kind, names in (("cnn", [w for w, _ in cnn]), ("classical", classical))}
+        print(f"illumination {metric} at eps = 3: best network {best[metric]['cnn']:.3f}, "
+              f"best classical {best[metric]['classical']:.3f}")
+    assert best["repeatability"]["cnn"] > best["repeatability"]["classical"]  # the thesis's claim holds here
+    assert best["homography"]["cnn"] <= best["homography"]["classical"]  # ... but not for homographies
+    event_rep = {row["detector"]: row["repeatability"]["event"][3.0] if "event" in row["repeatability"]
+                 else next(iter(row["repeatability"].values()))[3.0] for row in event_rows}
+    print("event-frame repeatability at eps = 3:", {n: round(v, 3) for n, v in event_rep.items()})
+    assert all(event_rep[w] < event_rep["harris"] for w, _ in cnn)  # Harris leads, as in the thesis
+    assert "pretrained_detdesc_round2_cpu" not in event_rep or \
+        event_rep["pretrained_detdesc_round2_cpu"] < 0.5 * event_rep["harris"]  # less than half of Harris
 
+# %% [markdown]
+# **The claim, checked.** On the illumination split the networks are the most repeatable detectors at
+# $\varepsilon = 3$, as in the thesis: the claim holds for repeatability. It does not carry over to homography
+# estimation: there the best classical method (Harris in these runs) estimates at least as many illumination
+# homographies correctly at $\varepsilon = 3$ as the best network. Repeating the same points is not enough; the
+# descriptors must also match them and the points must sit accurately enough for RANSAC, which section 10 looks at.
+#
+# **The event frames** (Table 3 above) tell a different story from the thesis's. There, Harris was also the most
+# repeatable at $\varepsilon = 3$, but the trained networks came within a few hundredths of it. Here they fall far
+# behind: the network trained on this CPU (`..._round2_cpu`) repeats less than half as many points as Harris, and the
+# GPU-trained one, about as repeatable as SIFT and FAST here, still trails Harris clearly (the values are printed
+# below). Neither network saw an event frame
+# in training (the thesis's event-tailored networks gained nothing from it either), and our simulated event frames are
+# thin, noisy edge maps, far from the photographs both were trained on. Why the gap is this large is not settled here.
 # %% [markdown]
 # ## 10. Why does the CNN lose the viewpoint split? Matching or localisation
 #
-# On the viewpoint split SIFT estimates more homographies correctly than the project's networks (Table 4 above and
-# the README). Two different failures give the same wrong $\hat H$:
+# On the viewpoint split SIFT estimates more homographies correctly than the project's networks (Table 4 above). Two different failures give the same wrong $\hat H$:
 #
 # * **matching**: too few correct matches among the mutual nearest neighbours, so RANSAC has nothing to fit;
 # * **localisation**: enough correct matches, but each keypoint sits a little off the true point. A homography
@@ -576,8 +615,7 @@ plt.show()
 
 # %% [markdown]
 # Read the table from left to right. The networks find correct matches on most pairs, but their keypoints sit
-# further from the true points than SIFT's (1.5 to 1.8 times as far on the 22 pairs of the full mode, 2 times on
-# the README's 30 validation pairs): SIFT fits each keypoint to a sub-pixel extremum of its
+# further from the true points than SIFT's (the ratio is printed below): SIFT fits each keypoint to a sub-pixel extremum of its
 # scale space, so a zoomed copy of a blob is found at the same scene point. A single-scale corner detector, the
 # network or Harris, fires a little inside or outside a corner depending on the zoom. The network also has a
 # fixed 8 x 8 cell grid: `bench/detector_localisation.py` shows that a shift by a whole cell (8 px) moves its
@@ -588,8 +626,37 @@ plt.show()
 # %%
 sift_error = np.nanmean(diagnoses["sift"][:, 2])
 for w, _ in cnn:
-    print(f"{w}: localisation error {np.nanmean(diagnoses[w][:, 2]):.2f} px vs SIFT {sift_error:.2f} px")
-    assert np.nanmean(diagnoses[w][:, 2]) > sift_error  # SIFT's correct matches are better localised
+    ratio = np.nanmean(diagnoses[w][:, 2]) / sift_error
+    print(f"{w}: localisation error {np.nanmean(diagnoses[w][:, 2]):.2f} px vs SIFT {sift_error:.2f} px ({ratio:.1f}x)")
+    assert 1.15 < ratio < 2.05  # SIFT's correct matches are better localised: 1.2 to 2 times
+
+# %% [markdown]
+# ## 11. From features to the filter
+#
+# The rest of the course builds the back end, the MSCKF, which turns feature tracks and IMU samples into a trajectory.
+# The benchmarks above grade detectors on pairs of images; the filter asks for something slightly different:
+#
+# * **tracks**, not pairs: the same scene point found again in several consecutive images (a track needs at least
+#   three observations to be used), so the front end matches each image to the previous one and keeps the track ids;
+# * **parallax**: a point seen from nearly the same place has an unknown depth, so long tracks over a moving camera are
+#   worth more than many short ones (notebook 11 triangulates them);
+# * **accuracy in pixels**: every observation enters the filter with an assumed noise of about one pixel. The
+#   localisation error of section 10 is therefore not a detail: keypoints that sit 1-2 px off the true point make the
+#   filter's noise model wrong, and notebook 11 shows what a wrong noise model does;
+# * **undistorted, normalised coordinates** $(X/Z, Y/Z)$ rather than pixels, each with its own noise covariance;
+# * **few outliers**: mutual nearest neighbours and RANSAC in the front end, a chi-square gate in the filter as the
+#   last line of defence;
+# * **speed**: the front end runs once per image, at the camera's rate (section 8).
+#
+# Between two images the filter does not need the camera at all: it integrates the IMU. Notebook 09 starts there.
+
+# %%
+from evio_lib.msckf.config import MsckfConfig
+
+filter_config = MsckfConfig()
+print(f"a track is used after >= {filter_config.min_track_length} observations; assumed noise "
+      f"{filter_config.pixel_noise_sigma:g} px at f = {filter_config.focal_length_px:g} px")
+assert filter_config.min_track_length == 3 and filter_config.pixel_noise_sigma == 1.0
 
 # %% [markdown]
 # ## Summary
@@ -606,7 +673,7 @@ for w, _ in cnn:
 #   `python -m evio_lib features-benchmark --out DIR`. One CNN row appears per weights file shipped in
 #   `evio_lib/weights/`.
 # * `diagnose_matches` tells a matching failure from a localisation failure. On the viewpoint split the networks'
-#   correct matches lie 1.5 to 2 times as far from the truth as SIFT's, and with the zoom of about 1.5x in these
+#   correct matches lie 1.2 to 2 times as far from the truth as SIFT's, and with the zoom of about 1.5x in these
 #   pairs (patch ratio 0.65) that alone costs them the 3 px threshold on many pairs.
 #
 # ## Exercises
@@ -620,8 +687,7 @@ for w, _ in cnn:
 #    degrade, and which one degrades least?
 # 4. Time `measure_speed` for SIFT at 480 x 640 and compare with 240 x 320. Is the cost proportional to the
 #    number of pixels?
-# 5. Do the shipped networks meet the issue's targets (at least SIFT's homography
-#    correctness at $\varepsilon = 3$ on the viewpoint split, better than every classical method on the
-#    illumination split)? Run the full benchmark from the command line.
+# 5. On the full benchmark from the command line, do the shipped networks reach SIFT's homography correctness at
+#    $\varepsilon = 3$ on the viewpoint split? Do they beat every classical method on the illumination split?
 # 6. Run `bench/homography_diagnosis.py --splits illumination`. Is the networks' gap to Harris at $\varepsilon = 5$
 #    a matching or a localisation failure? Look at the pairs where a network finds fewer than 50 keypoints.
