@@ -158,7 +158,7 @@ import torch
 from evio_lib.evaluation.plots_events import plot_training_history
 from evio_lib.events.reconstruct import shipped_checkpoint
 
-checkpoint = torch.load(shipped_checkpoint("firenet"), map_location="cpu", weights_only=False)
+checkpoint = torch.load(shipped_checkpoint("firenet"), map_location="cpu", weights_only=True)
 history = checkpoint["history"]
 plot_training_history(history)
 plt.show()

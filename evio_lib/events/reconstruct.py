@@ -141,7 +141,7 @@ class LearnedReconstructor(Reconstructor):
         if not path.is_file():
             raise FileNotFoundError(f"reconstructor checkpoint {path} does not exist")
         try:
-            ckpt = torch.load(path, map_location="cpu", weights_only=False)
+            ckpt = torch.load(path, map_location="cpu", weights_only=True)
         except Exception as exc:  # a truncated or foreign file: say which and what was expected
             raise ValueError(f"{path} is not a readable reconstructor checkpoint ({type(exc).__name__}: {exc})") from None
         if not isinstance(ckpt, dict) or ckpt.get("format") != "evio-reconstructor-v1":

@@ -259,7 +259,7 @@ def train_reconstructor(config: ReconstructionTrainConfig, out: str | Path, resu
     if resume:
         if not last.is_file():
             raise FileNotFoundError(f"--resume: no checkpoint {last} to continue from")
-        ckpt = torch.load(last, map_location=config.device, weights_only=False)
+        ckpt = torch.load(last, map_location=config.device, weights_only=True)
         if _run_defining(ckpt["config"]) != _run_defining(config.to_dict()):
             raise ValueError(f"--resume: {last} was trained with a different config; start a new --out folder")
         net.load_state_dict(ckpt["state_dict"])

@@ -54,8 +54,8 @@ def test_training_lowers_the_loss_and_resume_is_exact(tmp_path, tiny_data):
     half = ReconstructionTrainConfig(data=DATA, n_train=6, n_val=2, batch_size=2, crop=24, steps=6, validate_every=6)
     train_reconstructor(half, tmp_path / "r", data=data, val_data=val, progress=False)
     train_reconstructor(whole, tmp_path / "r", resume=True, data=data, val_data=val, progress=False)
-    a = torch.load(tmp_path / "w" / "last.pt", weights_only=False)["state_dict"]
-    b = torch.load(tmp_path / "r" / "last.pt", weights_only=False)["state_dict"]
+    a = torch.load(tmp_path / "w" / "last.pt", weights_only=True)["state_dict"]
+    b = torch.load(tmp_path / "r" / "last.pt", weights_only=True)["state_dict"]
     for key in a:
         torch.testing.assert_close(a[key], b[key])
     # the checkpoint loads through the one-call API
