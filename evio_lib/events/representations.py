@@ -274,15 +274,16 @@ def voxel_grid(events: np.ndarray, width: int, height: int, num_bins: int = 5, n
         span = t1 - t0
         if span < 0:
             raise ValueError(f"t_end must be >= t_start; got t_start={t0}, t_end={t1}")
-        t_star = (num_bins - 1) * (t - t0) / span if span > 0 else np.zeros(t.size)
-        t_star = np.clip(t_star, 0.0, num_bins - 1)
-        lower = np.floor(t_star).astype(np.int64)
-        frac = t_star - lower
+        t_star = (t - t0) * ((num_bins - 1) / span) if span > 0 else np.zeros(t.size)
+        np.clip(t_star, 0.0, num_bins - 1, out=t_star)
+        lower = t_star.astype(np.int64)                # floor, as t* >= 0
         p = events["p"].astype(np.float64)
-        grid += np.bincount(lower * (h * w) + pix, weights=p * (1.0 - frac), minlength=grid.size)
-        upper = lower + 1
-        inside = upper < num_bins                      # an event exactly on the last bin has no upper neighbour
-        grid += np.bincount(upper[inside] * (h * w) + pix[inside], weights=p[inside] * frac[inside], minlength=grid.size)
+        w_upper = p * (t_star - lower)                 # p (t* - b), the share of bin b + 1
+        idx = lower * (h * w) + pix
+        # bin B - 1 has no upper neighbour: its share (zero, since t* = B - 1 exactly there) lands in a spare bin
+        grid = np.bincount(idx, weights=p - w_upper, minlength=(num_bins + 1) * h * w)
+        grid += np.bincount(idx + h * w, weights=w_upper, minlength=(num_bins + 1) * h * w)
+        grid = grid[:num_bins * h * w]
     grid = grid.astype(np.float32).reshape(num_bins, h, w)
     return normalize_voxel_grid(grid) if normalize else grid
 
