@@ -30,11 +30,32 @@ the gate sees the whole track: more degrees of freedom, more power against movin
 residuals, ``update.gating_mean_shrink``); the survivors are stacked, QR-compressed
 (Eqs. 51-55) and applied in one Joseph-form Kalman update (Eqs. 56-58). Features are processed in batches of equal
 observation count, so the per-feature work is vectorised. Every dropped feature is counted in ``rejections`` with
-its reason; an update whose result is not finite is skipped (counted), so the state never holds NaN.
+its reason.
+
+Guards (issue 17), all counted in ``Msckf.faults`` and announced by a ``MsckfWarning`` (the first time, then at
+10, 100, ... occurrences) or an exception:
+
+* IMU range (``feed_imu``): samples beyond ``config.accel_full_scale`` / ``gyro_full_scale`` (±16 g, ±2000 deg/s by
+  default) cannot come from the sensor: they are dropped and the hole is interpolated like any gap. A batch of >= 10
+  A batch that would bring the share of such samples above 10 % (of >= 10 fed so far) is refused with ValueError
+  (wrong units: deg/s, mg, ...; a real sensor saturates at its full scale, beyond it are only glitches), and a
+  gyro stream that turns faster than one revolution per second most of the time is reported as probably deg/s
+  (warning).
+* IMU gaps (``propagation.propagate``): longer than ``imu_max_gap`` -> counted, warned, covariance inflated for the
+  unseen motion; longer than ``imu_max_bridged_gap`` -> ``ImuGapError``, the state stays before the gap.
+* Observations: a frame mostly beyond ``max_normalized_coordinate`` (pixels instead of normalised coordinates) is
+  refused with ValueError; single observations beyond it are dropped.
+* Every step is checked: after each propagation the state must be finite and the IMU covariance block symmetric
+  positive semi-definite (the rest of P changes only by Φ P_IC, whose finiteness is checked), after each update
+  the whole state and P (``state.state_problem``). A propagation that fails the check raises
+  ``StepRefusedError`` (a propagation cannot be skipped: the image time would be wrong) and the filter keeps the
+  state before it; an update that fails it is rolled back (the state after propagation and augmentation is kept),
+  its features are dropped, the filter goes on. So the state never holds NaN or inf, and P stays a covariance.
 """
 from __future__ import annotations
 
 import math
+import warnings
 from collections import Counter
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -53,7 +74,7 @@ from evio_lib.msckf.observability import (
     constrain_projected_jacobian,
     constrain_transition,
 )
-from evio_lib.msckf.propagation import propagate
+from evio_lib.msckf.propagation import ImuGapError, imu_gaps, propagate
 from evio_lib.msckf.state import (
     BA,
     BG,
@@ -69,11 +90,28 @@ from evio_lib.msckf.state import (
     _frozen,
     _unchecked,
     remove_camera_states,
+    state_problem,
 )
 from evio_lib.msckf.triangulation import triangulate_inverse_depth_batch
 from evio_lib.msckf.update import chi_square_threshold, kalman_update, measurement_compress
 
-__all__ = ["FilterOutput", "Msckf", "OC_UPDATE_MODES", "apply_correction", "whitening_matrices"]
+__all__ = [
+    "FilterOutput", "Msckf", "MsckfWarning", "OC_UPDATE_MODES", "StepRefusedError", "apply_correction",
+    "whitening_matrices",
+]
+
+_DEG_S_SUSPECT_RATE = 2.0 * math.pi  # rad/s: a gyro stream mostly faster than one turn per second looks like deg/s
+_DEG_S_MIN_SAMPLES = 200  # samples seen before that judgement is made
+_UNITS_MIN_SAMPLES = 10  # once this many samples were fed, more than _UNITS_FRACTION of them beyond the full
+_UNITS_FRACTION = 0.1  # scale means wrong units (or a broken sensor), not glitches: feed_imu refuses the batch
+
+
+class MsckfWarning(UserWarning):
+    """Warning of the MSCKF about its input (dropped IMU samples, IMU gaps, dropped observations, refused updates)."""
+
+
+class StepRefusedError(ValueError):
+    """Raised when a propagation would leave a non-finite or non-PSD state; the filter keeps the state before it."""
 
 # Update side of the OC-EKF. "projected": the minimal change of each feature's nullspace-projected Jacobian with
 # H_o N_C = 0 (4 conditions). "eq86": the thesis's per-camera H_C u = 0 (2 per camera), which on aerial_like
@@ -207,7 +245,12 @@ class Msckf:
     Attributes:
         config: the configuration.
         rejections: Counter of dropped features by reason (too_few_observations, the triangulation reasons of
-            ``TRIANGULATION_REASONS``, chi2) and of skipped updates (update_failed, nonfinite_update).
+            ``TRIANGULATION_REASONS``, chi2).
+        faults: Counter of bad input and refused steps (module docstring): imu_accel_out_of_range and
+            imu_gyro_out_of_range (samples dropped; a sample beyond both counts in both), gyro_units_suspect (1
+            once a gyro stream looked like deg/s), imu_gaps (gaps longer than imu_max_gap bridged), imu_gap_refused
+            (ImuGapError raised), observation_out_of_view (observations dropped), propagation_refused
+            (StepRefusedError raised), update_refused (updates rolled back). Empty for a clean run.
         tracks: dict feature id -> list of (camera id, xy (2,), W (2, 2)) observations held in the window; W is
             the whitening matrix L^-1 of the observation's noise covariance Σ = L L^T (:func:`whitening_matrices`).
 
@@ -259,6 +302,11 @@ class Msckf:
             max_rms_residual=config.triangulation_max_reprojection_px / config.focal_length_px,
         )
         self._frame_counters: Counter[str] = Counter()
+        self.faults: Counter[str] = Counter()
+        self._imu_fed = 0  # IMU samples accepted by feed_imu so far, dropped ones included
+        self._gyro_seen = 0  # in-range gyro samples fed, and those turning faster than _DEG_S_SUSPECT_RATE
+        self._gyro_fast = 0
+        self._last_gap_end = -math.inf  # end of the last IMU gap counted (a gap crossed in two calls counts once)
 
     # ------------------------------------------------------------------------------------------------ properties
     @property
@@ -271,7 +319,10 @@ class Msckf:
         """Buffer IMU samples: one (t float, gyro (3,), accel (3,)) or a batch (t (n,), gyro (n, 3), accel (n, 3)).
 
         Times must be finite, strictly increasing and later than every sample fed before (s); gyro in rad/s and
-        accel (specific force) in m/s^2, both in I.
+        accel (specific force) in m/s^2, both in I. Samples with a component beyond the IMU's full scale
+        (``config.gyro_full_scale``, ``accel_full_scale``) are dropped (counted in ``faults``, warned); a batch that
+        would make them more than 10 % of the samples fed (from 10 samples on) raises ValueError, naming the
+        likely unit mistake, and nothing of it is buffered.
         """
         try:
             t_arr = np.atleast_1d(np.asarray(t, dtype=np.float64))
@@ -296,8 +347,76 @@ class Msckf:
                 f"t must be strictly increasing and later than the last sample fed ({self._last_imu_t!r}); "
                 f"got times from {t_arr[0]!r}"
             )
-        self._pending.append((t_arr.copy(), w.copy(), a.copy()))
-        self._last_imu_t = float(t_arr[-1])
+        t_last = float(t_arr[-1])  # dropped samples count for the time order too
+        keep = self._check_imu_range(t_arr, w, a)
+        if keep is not None:
+            t_arr, w, a = t_arr[keep], w[keep], a[keep]
+        if t_arr.shape[0]:
+            self._pending.append((t_arr.copy(), w.copy(), a.copy()))
+        self._last_imu_t = t_last
+        self._check_gyro_units(w)
+
+    def _warn(self, key: str, count: int, message: str) -> None:
+        """Add count to faults[key]; warn with message the first time and when the total reaches 10, 100, ..."""
+        old = self.faults[key]
+        new = old + count
+        self.faults[key] = new
+        self._frame_counters[key] += count
+        if old == 0 or int(math.log10(new)) > int(math.log10(old)):
+            warnings.warn(f"{message} [{new} so far: Msckf.faults[{key!r}]]", MsckfWarning, stacklevel=4)
+
+    def _check_imu_range(self, t: NDArray[np.float64], w: NDArray[np.float64],
+                         a: NDArray[np.float64]) -> NDArray[np.bool_] | None:
+        """Return the mask of samples within the IMU's full scale (None: all are); raise on a wrong-units batch."""
+        cfg = self.config
+        bad_w = np.any(np.abs(w) > cfg.gyro_full_scale, axis=1)
+        bad_a = np.any(np.abs(a) > cfg.accel_full_scale, axis=1)
+        n_w, n_a, n = int(np.count_nonzero(bad_w)), int(np.count_nonzero(bad_a)), t.shape[0]
+        seen = self._imu_fed + n
+        if n_w == 0 and n_a == 0:
+            self._imu_fed = seen
+            return None
+        gyro_range = (f"the gyro's full scale ±{cfg.gyro_full_scale:.4g} rad/s "
+                      f"({math.degrees(cfg.gyro_full_scale):.0f} deg/s, gyro_full_scale)")
+        accel_range = (f"the accelerometer's full scale ±{cfg.accel_full_scale:.4g} m/s^2 "
+                       f"({cfg.accel_full_scale / 9.80665:.3g} g, accel_full_scale)")
+        total_w = self.faults["imu_gyro_out_of_range"] + n_w
+        total_a = self.faults["imu_accel_out_of_range"] + n_a
+        if seen >= _UNITS_MIN_SAMPLES and total_w > _UNITS_FRACTION * seen:
+            raise ValueError(
+                f"gyro must be in rad/s: {total_w} of the {seen} samples fed exceed {gyro_range}, largest "
+                f"|component| {np.abs(w).max():.4g}; these look like deg/s (np.radians converts them). "
+                "Nothing of this batch was buffered"
+            )
+        if seen >= _UNITS_MIN_SAMPLES and total_a > _UNITS_FRACTION * seen:
+            raise ValueError(
+                f"accel must be the specific force in m/s^2: {total_a} of the {seen} samples fed exceed "
+                f"{accel_range}, largest |component| {np.abs(a).max():.4g}; check the units (g, mg or mm/s^2 need "
+                "converting). Nothing of this batch was buffered"
+            )
+        self._imu_fed = seen
+        for key, bad, values, what, hint in (
+                ("imu_gyro_out_of_range", bad_w, w, gyro_range, "; gyro must be in rad/s (deg/s?)"),
+                ("imu_accel_out_of_range", bad_a, a, accel_range, "")):
+            if bad.any():
+                k = int(np.flatnonzero(bad)[0])
+                self._warn(key, int(np.count_nonzero(bad)),
+                           f"feed_imu dropped {int(np.count_nonzero(bad))} IMU sample(s) beyond {what}, the first "
+                           f"at t = {t[k]:.6g} s ({values[k].tolist()}){hint}; the IMU signal is interpolated "
+                           "across the hole")
+        return ~(bad_w | bad_a)
+
+    def _check_gyro_units(self, w: NDArray[np.float64]) -> None:
+        """Warn once when most gyro samples fed so far turn faster than one revolution per second (deg/s?)."""
+        if self.faults["gyro_units_suspect"] or w.shape[0] == 0:
+            return
+        self._gyro_seen += w.shape[0]
+        self._gyro_fast += int(np.count_nonzero(np.einsum("ij,ij->i", w, w) > _DEG_S_SUSPECT_RATE**2))
+        if self._gyro_seen >= _DEG_S_MIN_SAMPLES and 2 * self._gyro_fast > self._gyro_seen:
+            self._warn("gyro_units_suspect", 1,
+                       f"gyro must be in rad/s: {self._gyro_fast} of the {self._gyro_seen} samples fed turn faster "
+                       f"than one revolution per second (|ω| > 2π rad/s), which looks like deg/s "
+                       "(np.radians converts them)")
 
     def _imu_buffer(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         """Return the buffered IMU arrays, merged, without samples older than the last one at or before the state."""
@@ -338,6 +457,15 @@ class Msckf:
             raise ValueError("xy must contain only finite values (no NaN/inf)")
         if np.unique(ids_arr).shape[0] != K:
             raise ValueError("ids must be unique within one image (one observation per feature)")
+        limit = self.config.max_normalized_coordinate
+        n_far = int(np.count_nonzero(np.any(np.abs(xy_arr) > limit, axis=1)))
+        if 2 * n_far > K:
+            raise ValueError(
+                f"xy must be undistorted normalised image coordinates (X/Z, Y/Z), |x|, |y| <= {limit:g} "
+                f"(max_normalized_coordinate); got {n_far} of {K} observations beyond it, largest "
+                f"{np.abs(xy_arr).max():.4g}: pixel coordinates? Convert distorted pixels with camera.unproject(uv) "
+                "(evio_lib.geometry.camera.PinholeRadtan), undistorted pixels with ((u - cx) / fx, (v - cy) / fy)"
+            )
         return t, ids_arr.astype(np.int64), xy_arr
 
     # ------------------------------------------------------------------------------------------------ main steps
@@ -363,6 +491,15 @@ class Msckf:
                                  f"observation; got {cov.shape}")
             whiten = whitening_matrices(cov)
         self._frame_counters = Counter()
+        far = np.any(np.abs(xy) > self.config.max_normalized_coordinate, axis=1)
+        if far.any():  # outside any plausible field of view: drop these observations
+            k = int(np.flatnonzero(far)[0])
+            self._warn("observation_out_of_view", int(np.count_nonzero(far)),
+                       f"process_image(t = {t:.6g} s) dropped {int(np.count_nonzero(far))} observation(s) beyond "
+                       f"max_normalized_coordinate = {self.config.max_normalized_coordinate:g}, e.g. feature "
+                       f"{int(ids[k])} at {xy[k].tolist()}; xy must be undistorted normalised coordinates")
+            ids, xy = ids[~far], xy[~far]
+            whiten = None if whiten is None else whiten[~far]
         self._propagate_to(t)
         camera_id = self._augment()
         remove: list[int] = []
@@ -395,13 +532,41 @@ class Msckf:
         return [self.process_image(*frame) for frame in frames]
 
     def _propagate_to(self, t: float) -> None:
-        """Propagate the state to time t with the buffered IMU samples (OC hook when configured)."""
-        if t == self._state.timestamp:
+        """Propagate the state to time t with the buffered IMU samples (OC hook when configured), count and warn
+        about the IMU gaps crossed, and refuse a result that is not finite or whose IMU covariance is not PSD."""
+        t0 = self._state.timestamp
+        if t == t0:
             return
         imu_t, imu_w, imu_a = self._imu_buffer()
         if imu_t.shape[0] == 0:
             raise ValueError("no IMU samples buffered: call feed_imu before process_image")
-        self._state = propagate(self._state, imu_t, imu_w, imu_a, t, self.config, transition_hook=self._hook)
+        try:
+            with np.errstate(over="ignore", invalid="ignore"):  # the result is checked below
+                state = propagate(self._state, imu_t, imu_w, imu_a, t, self.config, transition_hook=self._hook)
+        except ImuGapError:
+            self.faults["imu_gap_refused"] += 1
+            raise
+        except ValueError as exc:  # the inputs were checked: a breakdown of the numbers (e.g. an absurd time span)
+            state, problem = None, f"the integration failed ({exc})"
+        else:
+            problem = state_problem(state, psd_size=IMU_DIM)  # P_CC is unchanged, P_IC = Φ P_IC checked finite
+        if problem is not None:
+            self.faults["propagation_refused"] += 1
+            raise StepRefusedError(
+                f"propagation from t = {t0:.6g} s to t = {t:.6g} s refused: {problem}; the filter keeps its state at "
+                f"t = {t0:.6g} s. Check the IMU samples and the image time in between"
+            )
+        assert state is not None
+        self._state = state
+        cfg = self.config
+        for start, end in imu_gaps(imu_t, t0, t, cfg.imu_max_gap):
+            if start > self._last_gap_end:  # a new gap, not the rest of one counted by the previous call
+                self._warn("imu_gaps", 1,
+                           f"IMU gap of {end - start:.3g} s > imu_max_gap = {cfg.imu_max_gap:g} s (no samples from "
+                           f"t = {start:.6g} s to t = {end:.6g} s): bridged by interpolation, covariance inflated "
+                           f"for the unseen motion (imu_gap_accel_sigma = {cfg.imu_gap_accel_sigma:g} m/s^2, "
+                           f"imu_gap_gyro_sigma = {cfg.imu_gap_gyro_sigma:g} rad/s)")
+            self._last_gap_end = max(self._last_gap_end, float(end))
 
     def _augment(self) -> int:
         """Clone the current camera pose into the window; return its camera id."""
@@ -691,16 +856,25 @@ class Msckf:
         H_c, r_c = measurement_compress(H, r)  # (Eqs. 51-55) when rows > n
         self._frame_counters["rows"] += rows
         try:
-            dx, P_new = kalman_update(state.P, H_c, r_c, 1.0)  # (Eqs. 56-58), whitened rows: R = I
-        except ValueError:
-            self.rejections["update_failed"] += 1
-            return False
-        if not (np.all(np.isfinite(dx)) and np.all(np.isfinite(P_new)) and np.all(np.diag(P_new) > 0.0)):
-            self.rejections["nonfinite_update"] += 1
-            return False
-        self._state = apply_correction(state, dx, P_new)
+            with np.errstate(over="ignore", invalid="ignore"):  # the result is checked below
+                dx, P_new = kalman_update(state.P, H_c, r_c, 1.0)  # (Eqs. 56-58), whitened rows: R = I
+        except ValueError as exc:
+            return self._refuse_update(f"the Kalman update failed ({exc})")
+        if not np.all(np.isfinite(dx)):
+            return self._refuse_update("its correction holds non-finite values")
+        new_state = apply_correction(state, dx, P_new)
+        problem = state_problem(new_state)  # finite, P symmetric positive semi-definite (Cholesky, O(n³ / 3))
+        if problem is not None:
+            return self._refuse_update(problem)
+        self._state = new_state
         self._frame_counters["updates"] += 1
         return True
+
+    def _refuse_update(self, reason: str) -> bool:
+        """Count and warn about a refused update (the state stays as before it); return False."""
+        self._warn("update_refused", 1, f"update at t = {self._state.timestamp:.6g} s refused and rolled back: "
+                                        f"{reason}; its features are dropped")
+        return False
 
     # ------------------------------------------------------------------------------------------------ output
     def _output(self, used: int) -> FilterOutput:

@@ -36,6 +36,16 @@ Discretisation over each interval, with F and G frozen at its midpoint (ω, a, R
   Φ_tot = Φ_K-1 ... Φ_0 (the same in exact arithmetic; the sum is Y Y^T with Y = [S_k X_k], so it stays positive
   semi-definite); P_IC <- Φ_tot P_IC; P_CC is unchanged; P is symmetrised.
 
+IMU gaps (issue 17): the measurements are interpolated across any interval without samples, but what the platform
+did there is unknown. An integration interval that lies in a data gap of length T > ``config.imu_max_gap`` (between
+two samples, before the first sample or after the last one) gets extra white noise of density σ_g² T on the gyro
+and σ_a² T on the accelerometer (``imu_gap_gyro_sigma``, ``imu_gap_accel_sigma``), so that over the whole gap
+var δθ = σ_g² T² and var δv = σ_a² T², as for a constant unseen deviation of std σ (and var δp = σ_a² T⁴ / 3);
+the couplings (attitude into velocity through the specific force, velocity into position) follow from Φ as for any
+noise. A gap longer than ``config.imu_max_bridged_gap`` raises ``ImuGapError``: beyond it the attitude error would
+be too large for the linearised model. Samples beyond the IMU's full scale (``accel_full_scale``,
+``gyro_full_scale``) are refused (``Msckf.feed_imu`` drops them before they get here).
+
 Speed: everything is vectorised over the samples of one call except a short loop of one 15x15 product per sample
 (the suffix products of the Φs); the quaternion chain uses recursive doubling.
 """
@@ -65,6 +75,8 @@ from evio_lib.msckf.state import (
 )
 
 __all__ = [
+    "ImuGapError",
+    "imu_gaps",
     "PropagationSteps",
     "TransitionHook",
     "error_state_jacobians",
@@ -119,6 +131,20 @@ class PropagationSteps:
 
 
 TransitionHook = Callable[[NDArray[np.float64], PropagationSteps], NDArray[np.float64]]
+
+
+class ImuGapError(ValueError):
+    """Raised when a propagation would cross an IMU gap longer than ``MsckfConfig.imu_max_bridged_gap``.
+
+    Attributes:
+        start, end: the gap, s (the last sample before it, or the state time when the IMU starts late; the first
+            sample after it, or the target time when the IMU ends early).
+    """
+
+    def __init__(self, message: str, start: float, end: float) -> None:
+        super().__init__(message)
+        self.start = start
+        self.end = end
 
 
 # ------------------------------------------------------------------------------------------------------ input checks
@@ -226,7 +252,8 @@ def _discretize(
          [ 0,      0,     0,      I        ],
          [-A Γ2,  -A Γ3,  -R s,   -R s²/2  ]]
 
-    X is None when noise_psd is None.
+    noise_psd: (12,) for all intervals or (K, 12) one per interval (e.g. inflated over IMU gaps); X is None when
+    noise_psd is None.
     """
     K = dt.shape[0]
     m = 1 if noise_psd is None else 1 + _GL_NODES
@@ -266,7 +293,8 @@ def _discretize(
         (POS, 0, -AG2[:, 1:]), (POS, 1, -AG3[:, 1:]), (POS, 2, -R * s1), (POS, 3, -0.5 * R * (s1 * s1)),
     ]
     # sqrt of the quadrature weight times the noise density: Q_d = Σ_i (h w_i / 2) Φ(s_i) G Q G^T Φ(s_i)^T = X X^T
-    scale = np.sqrt((0.5 * dt[:, None] * _GL_W[None, :])[:, :, None, None] * noise_psd.reshape(4, 3))  # (K, n, 4, 3)
+    psd = noise_psd.reshape(-1, 1, 4, 3)  # (1 or K, 1, 4, 3)
+    scale = np.sqrt((0.5 * dt[:, None] * _GL_W[None, :])[:, :, None, None] * psd)  # (K, n, 4, 3)
     X = np.zeros((K, IMU_DIM, n, 12))
     for rows, col, value in blocks:
         # X[k, r, i, 3 col + c] = value[k, i, r, c] * scale[k, i, col, c]
@@ -462,6 +490,70 @@ def integrate_imu(
     return q, v, p
 
 
+# ------------------------------------------------------------------------------------------------------ gaps
+def _window(t_imu: NDArray[np.float64], t0: float, t_target: float) -> tuple[int, int, int, int]:
+    """Return (lo, hi, j0, j1): samples j0..j1-1 lie strictly inside (t0, t_target); lo..hi-1 add one each side."""
+    M = t_imu.shape[0]
+    j0 = int(np.searchsorted(t_imu, t0, side="right"))
+    j1 = int(np.searchsorted(t_imu, t_target, side="left"))
+    return max(j0 - 1, 0), min(j1 + 1, M), j0, j1
+
+
+def _gap_bounds(
+    t_nodes: NDArray[np.float64], win_t: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Return (start (K,), end (K,)): the data gap each integration interval [t_k, t_k+1] lies in.
+
+    start is the last sample at or before t_k (t_k itself when there is none), end the first sample at or after
+    t_k+1 (t_k+1 when there is none); no sample lies strictly inside an interval.
+    """
+    mid = 0.5 * (t_nodes[:-1] + t_nodes[1:])
+    i = np.searchsorted(win_t, mid)  # first sample > mid
+    n = win_t.shape[0]
+    start = np.where(i > 0, win_t[np.maximum(i - 1, 0)], t_nodes[:-1])
+    end = np.where(i < n, win_t[np.minimum(i, n - 1)], t_nodes[1:])
+    return start, end
+
+
+def imu_gaps(imu_t: ArrayLike, t0: float, t_target: float, max_gap: float) -> NDArray[np.float64]:
+    """Return (G, 2) [start, end] of the IMU gaps longer than max_gap that a propagation t0 -> t_target crosses.
+
+    Args:
+        imu_t: (M,) strictly increasing sample times, s.
+        t0, t_target: the propagation's start and end, s (t0 <= t_target).
+        max_gap: gaps longer than this are listed, s.
+
+    A gap runs from the last sample before a stretch without samples to the first sample after it; with no sample
+    before t0 (IMU starts late) it starts at t0, with none after t_target (IMU ends early) it ends at t_target.
+
+    >>> imu_gaps([0.0, 0.01, 0.5, 0.51], 0.0, 0.6, 0.05)
+    array([[0.01, 0.5 ],
+           [0.51, 0.6 ]])
+    """
+    t_imu = np.asarray(imu_t, dtype=np.float64)
+    if t_imu.ndim != 1 or t_imu.shape[0] < 1:
+        raise ValueError(f"imu_t must have shape (M,) with M >= 1; got {t_imu.shape}")
+    if not t0 <= t_target:
+        raise ValueError(f"t0 must be <= t_target; got {t0!r} and {t_target!r}")
+    if t_target == t0:
+        return np.zeros((0, 2))
+    lo, hi, j0, j1 = _window(t_imu, t0, t_target)
+    t_nodes = np.concatenate(([t0], t_imu[j0:j1], [t_target]))
+    start, end = _gap_bounds(t_nodes, t_imu[lo:hi])
+    long = end - start > max_gap
+    bounds = np.unique(np.column_stack((start[long], end[long])), axis=0)
+    return bounds.reshape(-1, 2)
+
+
+def _gap_description(start: float, end: float, first_sample: float, last_sample: float) -> str:
+    """Return where a gap lies, in words (for messages)."""
+    if start < first_sample:
+        return f"the IMU data start late: first sample at t = {first_sample:.6g} s, state at t = {start:.6g} s"
+    if end > last_sample:
+        return f"the IMU data end early: last sample at t = {last_sample:.6g} s, propagating to t = {end:.6g} s"
+    return f"no IMU samples between t = {start:.6g} s and t = {end:.6g} s"
+
+
 # ------------------------------------------------------------------------------------------------------ propagate
 def _signal_at(t: float, imu_t: NDArray[np.float64], values: NDArray[np.float64]) -> NDArray[np.float64]:
     """Return values linearly interpolated at time t (3,), holding the first / last sample outside imu_t."""
@@ -503,6 +595,11 @@ def propagate(
     IMU state has timestamp t_target and its OC first estimates (*_null) set to the predicted values (S-MSCKF);
     camera poses are unchanged. Inputs are not modified.
 
+    Guards (module docstring): samples beyond ``config.accel_full_scale`` / ``gyro_full_scale`` in the window raise
+    ValueError; intervals in an IMU gap longer than ``config.imu_max_gap`` get inflated noise; a gap longer than
+    ``config.imu_max_bridged_gap`` raises :class:`ImuGapError`. The result is not checked for finiteness and
+    positive semi-definiteness here: ``Msckf`` does that after every step (``state.state_problem``).
+
     >>> from evio_lib.msckf.state import ImuState
     >>> cfg = MsckfConfig()
     >>> imu = ImuState.from_pose(np.eye(3), np.zeros(3), np.zeros(3), timestamp=0.0)
@@ -537,15 +634,35 @@ def propagate(
         return state
 
     # samples strictly inside (t0, t_target), plus one on each side for the interpolated end points
-    j0 = int(np.searchsorted(t_imu, t0, side="right"))
-    j1 = int(np.searchsorted(t_imu, t_target, side="left"))
-    lo, hi = max(j0 - 1, 0), min(j1 + 1, M)
+    lo, hi, j0, j1 = _window(t_imu, t0, t_target)
     win_t, win_g, win_a = t_imu[lo:hi], gyro[lo:hi], accel[lo:hi]
     if not (np.all(np.isfinite(win_t)) and np.all(np.isfinite(win_g)) and np.all(np.isfinite(win_a))):
         raise ValueError("imu_t, imu_gyro and imu_accel must be finite around [state.timestamp, t_target]")
     if np.any(np.diff(win_t) <= 0.0):
         raise ValueError("imu_t must be strictly increasing")
+    for name, values, limit, field in (("imu_accel", win_a, config.accel_full_scale, "accel_full_scale"),
+                                       ("imu_gyro", win_g, config.gyro_full_scale, "gyro_full_scale")):
+        beyond = np.abs(values) > limit
+        if beyond.any():
+            k = int(np.flatnonzero(beyond.any(axis=1))[0])
+            raise ValueError(
+                f"{name} holds {int(np.count_nonzero(beyond.any(axis=1)))} samples beyond the IMU's full scale "
+                f"±{limit:.4g} ({field}) around [state.timestamp, t_target], the first at t = {win_t[k]:.6g} s "
+                f"({values[k].tolist()}); drop them (Msckf.feed_imu does) or check the units (m/s^2, rad/s)"
+            )
     t_nodes = np.concatenate(([t0], t_imu[j0:j1], [t_target]))
+    gap_start, gap_end = _gap_bounds(t_nodes, win_t)
+    gap = gap_end - gap_start  # length of the data gap each interval lies in
+    k_long = int(np.argmax(gap))
+    if gap[k_long] > config.imu_max_bridged_gap:
+        where = _gap_description(float(gap_start[k_long]), float(gap_end[k_long]), float(t_imu[0]),
+                                 float(t_imu[-1]))
+        raise ImuGapError(
+            f"IMU gap of {gap[k_long]:.3g} s > imu_max_bridged_gap = {config.imu_max_bridged_gap:g} s ({where}): "
+            f"the motion over it is unknown, so the state stays at t = {t0:.6g} s. Feed IMU samples covering the "
+            "gap, restart the filter after it, or raise imu_max_bridged_gap",
+            float(gap_start[k_long]), float(gap_end[k_long]),
+        )
     w_nodes = np.vstack((_signal_at(t0, win_t, win_g), gyro[j0:j1], _signal_at(t_target, win_t, win_g)))
     a_nodes = np.vstack((_signal_at(t0, win_t, win_a), accel[j0:j1], _signal_at(t_target, win_t, win_a)))
 
@@ -557,7 +674,14 @@ def propagate(
     dt = np.diff(t_nodes)
     K = dt.shape[0]
 
-    Phi, X = _discretize(R_mid, w_mid, a_mid, dt, config.continuous_noise_psd())  # Eq. 36; Q_d,k = X_k X_k^T (37)
+    noise_psd = config.continuous_noise_psd()
+    in_gap = gap > config.imu_max_gap
+    if in_gap.any():  # unseen motion over a gap of length T: + σ_g² T (gyro), + σ_a² T (accel) white-noise density
+        extra = np.zeros(12)
+        extra[0:3] = config.imu_gap_gyro_sigma ** 2
+        extra[6:9] = config.imu_gap_accel_sigma ** 2
+        noise_psd = noise_psd + np.where(in_gap, gap, 0.0)[:, None] * extra
+    Phi, X = _discretize(R_mid, w_mid, a_mid, dt, noise_psd)  # Eq. 36; Q_d,k = X_k X_k^T (37)
     if transition_hook is not None:
         for arr in (t_nodes, dt, w_mid, a_mid, R_mid, q, v, p):
             _frozen(arr)  # the hook may read, not write, what the state is built from

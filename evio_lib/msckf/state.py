@@ -54,6 +54,10 @@ __all__ = [
     "state_difference",
     "remove_camera_states",
     "symmetrize",
+    "covariance_problem",
+    "state_problem",
+    "PSD_TOLERANCE",
+    "SYMMETRY_TOLERANCE",
 ]
 
 IMU_DIM = 15  # size of the IMU error state
@@ -62,6 +66,8 @@ THETA, BG, VEL, BA, POS = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), s
 
 _UNIT_TOL = 1e-6  # | |q| - 1 | allowed for a stored quaternion (then renormalised)
 _SYM_RTOL = 1e-6  # relative asymmetry of P tolerated at construction
+PSD_TOLERANCE = 1e-8  # smallest eigenvalue allowed for the correlation matrix of P is -PSD_TOLERANCE
+SYMMETRY_TOLERANCE = 1e-6  # largest |C - C^T| allowed for the correlation matrix C of P
 
 
 # ---------------------------------------------------------------------------------------------------------- checks
@@ -121,6 +127,54 @@ def symmetrize(P: NDArray[np.float64]) -> NDArray[np.float64]:
     if P.ndim != 2 or P.shape[0] != P.shape[1]:
         raise ValueError(f"P must be a square matrix of shape (n, n); got {P.shape}")
     return 0.5 * (P + P.T)
+
+
+def covariance_problem(P: ArrayLike, psd_size: int | None = None) -> str | None:
+    """Return None when P is a usable covariance, else one line saying what is wrong with it.
+
+    Args:
+        P: (n, n) covariance.
+        psd_size: test positive semi-definiteness on the leading (psd_size, psd_size) block only (None: all of P).
+            Finiteness, variances and symmetry are always tested on all of P.
+
+    Usable means: finite; variances >= 0 (a zero variance with zero covariances); symmetric and positive
+    semi-definite within tolerance, both judged on the correlation matrix C = D^-1/2 P D^-1/2 (D = diag P), so
+    that variances of 1e-12 rad² and 1e4 m² weigh the same: max |C - C^T| <= SYMMETRY_TOLERANCE and
+    λ_min(C) >= -PSD_TOLERANCE (tested by a Cholesky factorisation of C + PSD_TOLERANCE I, O(n³ / 3)).
+
+    >>> covariance_problem(np.diag([1e-12, 1e4])) is None
+    True
+    >>> covariance_problem(np.array([[1.0, 2.0], [2.0, 1.0]]))   # |correlation| 2 > 1
+    'P is not positive semi-definite (smallest eigenvalue of its correlation matrix -1 < -1e-08)'
+    """
+    P = np.asarray(P, dtype=np.float64)
+    if P.ndim != 2 or P.shape[0] != P.shape[1]:
+        return f"P must be a square matrix; got shape {P.shape}"
+    finite = np.isfinite(P)
+    if not finite.all():
+        return f"P holds {int(P.size - np.count_nonzero(finite))} non-finite values (NaN/inf)"
+    d = np.diagonal(P)
+    if np.any(d < 0.0):
+        i = int(np.argmin(d))
+        return f"P has {int(np.count_nonzero(d < 0.0))} negative variances (smallest {d[i]:.3g} at index {i})"
+    zero = d == 0.0
+    if zero.any() and np.any(P[zero] != 0.0):
+        i = int(np.flatnonzero(zero & np.any(P != 0.0, axis=1))[0])
+        return f"P is not positive semi-definite (variance 0 at index {i} with non-zero covariances)"
+    inv_sd = np.where(zero, 0.0, 1.0 / np.sqrt(np.where(zero, 1.0, d)))
+    C = P * inv_sd[:, None] * inv_sd[None, :]  # correlation matrix (0 rows where the variance is 0)
+    asym = float(np.abs(C - C.T).max()) if C.size else 0.0
+    if asym > SYMMETRY_TOLERANCE:
+        return f"P is not symmetric (max |C - C^T| of its correlation matrix {asym:.3g} > {SYMMETRY_TOLERANCE:g})"
+    m = C.shape[0] if psd_size is None else min(int(psd_size), C.shape[0])
+    block = 0.5 * (C[:m, :m] + C[:m, :m].T) + PSD_TOLERANCE * np.eye(m)
+    try:
+        np.linalg.cholesky(block)
+    except np.linalg.LinAlgError:
+        lam = float(np.linalg.eigvalsh(block).min()) - PSD_TOLERANCE
+        return (f"P is not positive semi-definite (smallest eigenvalue of its correlation matrix {lam:.3g} < "
+                f"-{PSD_TOLERANCE:g})")
+    return None
 
 
 # ---------------------------------------------------------------------------------------------------------- IMU
@@ -408,6 +462,27 @@ def _filter_state_unchecked(
     if "q_ItoC" in like.__dict__:  # carry the cached extrinsic quaternion over (same extrinsics)
         out.__dict__["q_ItoC"] = like.__dict__["q_ItoC"]
     return out
+
+
+def state_problem(state: "FilterState", psd_size: int | None = None) -> str | None:
+    """Return None when the state is usable (finite nominal values, unit quaternions, usable P), else what is wrong.
+
+    Args:
+        state: the state to test.
+        psd_size: as in :func:`covariance_problem` (None: the whole P is tested for positive semi-definiteness).
+
+    The filter calls this after every propagation and update and refuses a step that fails it (``Msckf``).
+    """
+    imu = state.imu
+    values = [imu.q_GtoI, imu.b_g, imu.v_IinG, imu.b_a, imu.p_IinG]
+    if state.num_cameras:
+        values.extend(state.camera_poses)
+    for name, v in zip(("q_GtoI", "b_g", "v_IinG", "b_a", "p_IinG", "q_GtoC", "p_CinG"), values):
+        if not np.all(np.isfinite(v)):
+            return f"the state holds non-finite values in {name}"
+    if not math.isfinite(state.timestamp):
+        return "the state's timestamp is not finite"
+    return covariance_problem(state.P, psd_size)
 
 
 # ---------------------------------------------------------------------------------------------------------- operations
