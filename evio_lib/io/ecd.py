@@ -196,7 +196,7 @@ def _read_groundtruth_imu(path: Path) -> GroundTruth:
     return GroundTruth(
         t=table["t"].copy(),
         p_BinG=stack(("px", "py", "pz")),
-        q_GtoB=stack(("qx", "qy", "qz", "qw")),  # Hamilton q of R_ItoG == JPL q_GtoI (same numbers)
+        q_GtoB=table.unit_quaternions(("qx", "qy", "qz", "qw")),  # Hamilton q of R_ItoG == JPL q_GtoI (same numbers)
         body="imu",
         v_BinG=stack(_VEL) if has_v else None,
         bias_gyro=stack(_BIAS[:3]) if has_b else None,

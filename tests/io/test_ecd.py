@@ -273,3 +273,17 @@ def test_invalid_input_writes_nothing(tmp_path):
     (tmp_path / "file").write_text("x")
     with pytest.raises(ValueError, match="folder must be a folder path; .*file is a file"):
         write_ecd(Sequence("ok", events=make_events([0.0], [1], [1], [1])), tmp_path / "file")
+
+
+def test_groundtruth_imu_quaternions_are_normalised_or_refused(tmp_path):
+    """groundtruth_imu.txt: a quaternion within 1e-3 of unit norm is normalised; norm 2 names the file and line."""
+    from evio_lib.io.ecd import _read_groundtruth_imu
+    from evio_lib.io.errors import DataFileError
+
+    path = tmp_path / "groundtruth_imu.txt"
+    path.write_text("0.0 0 0 0 0 0 0 1.0005\n0.1 0 0 0 0 0 0 1\n")
+    gt = _read_groundtruth_imu(path)
+    assert abs(float(np.linalg.norm(gt.q_GtoB[0])) - 1.0) < 1e-12
+    path.write_text("0.0 0 0 0 0 0 0 1\n0.1 0 0 0 0 0 0 2\n")
+    with pytest.raises(DataFileError, match="line 2: quaternion"):
+        _read_groundtruth_imu(path)
