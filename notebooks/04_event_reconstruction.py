@@ -22,7 +22,7 @@
 #    scored against the simulator's sharp truth and against real APS frames;
 # 5. **the window fraction n**: too few events per frame and the image is incomplete, too many and it smears
 #    (thesis Figs. 16 and 18);
-# 6. **fast motion**, where reconstructed frames stay sharp and the APS frames blur.
+# 6. **fast motion**, where the APS frames blur and the event windows shrink to milliseconds.
 #
 # The code lives in `evio_lib.events.representations`, `evio_lib.events.reconstruct` (one call,
 # `create_reconstructor(name)`, for every method), `evio_lib.events.reconstruction_train` and
@@ -163,7 +163,7 @@ history = checkpoint["history"]
 plot_training_history(history)
 plt.show()
 print(f"shipped: step {checkpoint['step']}, validation SSIM {history[0]['val_ssim']:.3f} at step {history[0]['step']} "
-      f"-> {max(h['val_ssim'] for h in history):.3f} at best")
+      f"-> {max(h['val_ssim'] for h in history):.3f} (the highest it reached)")
 assert max(h["val_ssim"] for h in history) > history[0]["val_ssim"]
 
 # %% [markdown]
@@ -191,15 +191,18 @@ for name in stretches:
 print("(SSIM / MSE)")
 
 # %%
-for name in stretches:
-    assert scores[name, "firenet"]["ssim"] > max(scores[name, "direct"]["ssim"], scores[name, "high_pass"]["ssim"]), name
+classical = {name: max(scores[name, "direct"]["ssim"], scores[name, "high_pass"]["ssim"]) for name in stretches}
+for name in ("boxes_like_slow", "boxes_like_fast"):
+    assert scores[name, "firenet"]["ssim"] > classical[name] + 0.03, name
+assert abs(scores["aerial_like", "firenet"]["ssim"] - classical["aerial_like"]) < 0.03
+assert scores["aerial_like", "firenet"]["mse"] > scores["aerial_like", "high_pass"]["mse"]
 
 # %% [markdown]
-# On every stretch the learned network scores a higher SSIM than both classical integrators; the margin is wide on the
-# boxes and small over the sparse terrain, where little moves and everyone guesses. Direct integration and the
-# high-pass filter only know where the log intensity changed, so flat regions stay at an arbitrary gray and old noise
-# lingers; the network has learned what images look like and fills them in. Its MSE is not always lower: where it
-# guesses a brightness wrongly, it is wrong over a whole region.
+# On both boxes stretches the learned network scores a higher SSIM than both classical integrators, by more than 0.03.
+# Over the sparse terrain it does **not** win: its SSIM is within 0.03 of the best integrator's and its MSE is
+# higher. Direct integration and the high-pass filter only know where the log intensity changed, so flat regions stay
+# at an arbitrary gray and old noise lingers; the network has learned what images look like and fills them in, which
+# pays off where many edges move and costs where it guesses a large flat field's brightness wrongly (the terrain).
 
 # %%
 from evio_lib.evaluation.plots_events import plot_image_grid
@@ -251,9 +254,9 @@ assert best_n["boxes_like_slow"] == best_n["aerial_like"]
 # %% [markdown]
 # ## 6. Fast motion: blurred frames, sharper events
 #
-# At the violent end of the boxes motion the APS frames (lesson 03's camera integrates light over its exposure) smear
-# every edge, while one event window of the same moment covers a few milliseconds of motion. The pictures show the
-# difference; the scores of section 4 say how much it matters on this simulator.
+# At the violent end of the boxes motion the APS frames (lesson 03's camera integrates light over a 10 ms exposure)
+# smear every edge, while one event window of the same moment covers a few milliseconds of motion. The pictures show
+# the difference; the scores of section 4 say how much it matters on this simulator.
 
 # %%
 fast = stretches["boxes_like_fast"]
@@ -262,8 +265,9 @@ t_frame = float(fast.frame_times[k])
 up_to = np.searchsorted(fast.events["t"], t_frame)
 bounds = count_windows(fast.events[:up_to], window_size_from_fraction(0.7, W, H))
 frames, times = reconstruct_windows(create_reconstructor("firenet", W, H), fast.events[:up_to], bounds)
-plot_image_grid({"APS frame (blurred)": fast.frames[k], "FireNet, n = 0.7": frames[-1],
-                 "sharp truth": fast.render(t_frame)}, columns=3)
+plot_image_grid({f"APS frame (blurred), t = {t_frame:.4f} s": fast.frames[k],
+                 f"FireNet, n = 0.7, t = {times[-1]:.4f} s": frames[-1],
+                 "sharp truth at the FireNet frame's time": fast.render(float(times[-1]))}, columns=3)
 plt.show()
 window_ms = 1e3 * (times[-1] - fast.events["t"][bounds[-1, 0]])
 print(f"the last window spans {window_ms:.1f} ms")
@@ -271,21 +275,26 @@ for name in ("boxes_like_slow", "boxes_like_fast"):
     print(f"{name:16s} SSIM: APS {scores[name, 'APS']['ssim']:.3f}, FireNet {scores[name, 'firenet']['ssim']:.3f}")
 gap_slow = scores["boxes_like_slow", "APS"]["ssim"] - scores["boxes_like_slow", "firenet"]["ssim"]
 gap_fast = scores["boxes_like_fast", "APS"]["ssim"] - scores["boxes_like_fast", "firenet"]["ssim"]
-assert window_ms < 20 and gap_fast < gap_slow
+assert window_ms < 10 and gap_fast < gap_slow
+assert scores["boxes_like_fast", "APS"]["ssim"] <= scores["boxes_like_slow", "APS"]["ssim"] + 0.01
+assert scores["boxes_like_fast", "APS"]["ssim"] > scores["boxes_like_fast", "firenet"]["ssim"]
 
 # %% [markdown]
-# Read the numbers honestly. On this simulator the APS frames still score the highest SSIM of all, even at the
-# violent end: a simulated APS camera has no noise worth the name beside the event camera's threshold mismatch, and a
-# reconstruction has to invent the brightness of everything that did not move. But the gap closes with speed: the
-# APS frames lose quality as the motion grows, while the network *gains* from it (more events per second fill its
-# state faster), so the gap shrinks several-fold from the gentle to the violent stretch. Real cameras add what the
-# simulator leaves out (low light, high dynamic range, rolling readout), which is where the thesis's event frames won.
+# Read the numbers honestly. On this simulator the APS frames (decoded to linear intensity, like every image scored
+# here) still score the highest SSIM, even at the violent end: the simulated APS camera has little noise, and a
+# reconstruction has to invent the brightness of everything that did not move. But the gap narrows from the gentle to
+# the violent stretch: the network scores higher where many more events
+# per second fill its state (part of that gain is only a faster warm-up), while the APS frames do not improve. Real cameras
+# add what the simulator leaves out (low light, high dynamic range, longer exposures), which is where the thesis's
+# event frames won.
 
+# %% [markdown]
 # ## 7. Real events
 #
 # The real recordings under `../shared/data/real/` (when present) test the network on a sensor it never saw. The ECD
-# `slider_depth` slice has 5 real APS frames inside its 0.17 s of events: each method reconstructs the frame at each
-# APS timestamp from all events before it (the EVREAL protocol), and is scored against the real frame.
+# `slider_depth` slice has 5 real APS frames within its 0.17 s of events; the first, at t = 0, precedes every event,
+# so 4 are scored. Each method reconstructs the frame at each APS timestamp from all events before it (the EVREAL
+# protocol) and is scored against the real frame as recorded.
 
 # %%
 from evio_lib.events.reconstruction_eval import load_slider_slice, score_at_frame_times
@@ -304,6 +313,13 @@ else:
     plot_image_grid({"APS frame": slider["frames"][-1], **{m: real[m]["reconstructions"][-1] for m in methods}},
                     columns=4, title="slider_depth, last APS frame inside the events")
     plt.show()
+    assert len(real["firenet"]["per_frame"]) == 4
+    assert real["firenet"]["ssim"] > max(real["direct"]["ssim"], real["high_pass"]["ssim"]) + 0.05
+
+# %% [markdown]
+# On the real slider the network beats both integrators by a clear margin, on a sensor and a scene it never saw in
+# training. For orientation only (other frames, windows and normalisation): EVREAL reports SSIM on the ECD of 0.42 for
+# E2VID and 0.50 for FireNet trained on far more data.
 
 # %% [markdown]
 # ## 8. Training it yourself
@@ -335,13 +351,14 @@ assert summary["last"]["val_loss"] < untrained["loss"]
 # %% [markdown]
 # ## Summary
 #
-# - An event window of N_e = n H W events is the unit of reconstruction; the right n depends on the scene.
+# - An event window of N_e = n H W events is the unit of reconstruction.
 # - Polarity frames, time surfaces and voxel grids are cheap, vectorised views of a window; the voxel grid keeps the
 #   timing inside the window and is what the networks read.
-# - Direct integration and Scheerlinck's high-pass filter are exact, fast and easy to reason about, but they only see
-#   changes.
-# - A 38 k-parameter recurrent network trained on the project's own simulator beats both on SSIM on held-out simulated
-#   stretches, and its frames stay sharp where the APS camera blurs.
+# - Direct integration and Scheerlinck's high-pass filter are fast and easy to reason about (a window in closed form),
+#   but they only see changes.
+# - A 38 k-parameter recurrent network trained on the project's own simulator beats both on SSIM on the simulated boxes
+#   and on real events; over sparse terrain it does not win, and on this simulator the APS frames still score higher.
+# - Measure the window fraction n on your own scene: here both simulated scenes peaked at the same n.
 # - To retrain the shipped network: `python -m evio_lib reconstruct-train --out runs/firenet` (about an hour on a
 #   2-core CPU; `--max-minutes` and `--resume` split it). To turn any ECD folder into frames:
 #   `python -m evio_lib reconstruct FOLDER --out FRAMES`.

@@ -13,7 +13,8 @@
   The filter is linear, so a window is applied in closed form, vectorised with ``np.bincount``: at the window's end T,
       L^(T) = exp(-alpha (T - T_prev) - beta n_x) L^(T_prev) + sum_k C p_k exp(-alpha (T - t_k) - beta m_k),
   where n_x counts the window's events at pixel x and m_k the events at event k's pixel after it.
-  The image shown is the log state stretched between its 1st and 99th percentiles.
+  The image returned is the intensity exp(L^), stretched between its 1st and 99th percentiles: linear intensity, like
+  the learned networks' output and the simulator's truth (up to the unknown brightness of each pixel at the start).
 - ``firenet`` (the default, shipped weights) and any other shipped checkpoint by name, or ``learned`` with
   ``checkpoint=PATH``: a recurrent network (:mod:`evio_lib.events.reconstruction_nets`) fed E2VID's voxel grid
   (B = 5 bins) of each window.
@@ -105,7 +106,7 @@ class LogIntegrator(Reconstructor):
 
     def _reconstruct(self, window: np.ndarray, t_end: float | None) -> np.ndarray:
         if t_end is None:                                    # nothing happened and no time given: the state stands
-            return _stretch(self.log_state).reshape(self.height, self.width)
+            return self._image()
         if self.t_state is None:
             self.t_state = float(window["t"][0]) if window.size else t_end
         n_pixels = self.height * self.width
@@ -124,7 +125,12 @@ class LogIntegrator(Reconstructor):
             weight = self.contrast * window["p"] * np.exp(-self.alpha * (t_end - window["t"]) - self.beta * later)
             self.log_state += np.bincount(pix, weights=weight, minlength=n_pixels)
         self.t_state = t_end
-        return _stretch(self.log_state).reshape(self.height, self.width)
+        return self._image()
+
+    def _image(self) -> np.ndarray:
+        """Return exp(L^) stretched to [0, 1] (linear intensity), as (H, W) float32."""
+        log_state = self.log_state - self.log_state.max() if self.log_state.size else self.log_state  # no overflow
+        return _stretch(np.exp(log_state)).reshape(self.height, self.width)
 
 
 class LearnedReconstructor(Reconstructor):

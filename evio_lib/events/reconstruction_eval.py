@@ -1,7 +1,8 @@
 """Scoring event-to-image reconstructions: against the simulator's sharp truth, and against real APS frames.
 
 Metrics (full-reference, as EVREAL reports them): MSE and SSIM (scikit-image, ``data_range=1``; Gaussian window,
-sigma 1.5). An event camera only sees changes, so a reconstruction's absolute brightness and contrast are arbitrary:
+sigma 1.5). Every image is compared in linear intensity: the reconstructors output it, the simulated APS frames are
+decoded from their gamma encoding first. (Real APS frames are scored as recorded.) An event camera only sees changes, so a reconstruction's absolute brightness and contrast are arbitrary:
 before scoring, both images are normalised the same way, each stretched linearly so that its 1st and 99th percentiles
 map to 0 and 1 (clipped). EVREAL also normalises both images before its full-reference metrics; our percentile stretch
 is robust to hot pixels, which a plain min-max is not.
@@ -150,11 +151,18 @@ def score_windows(reconstructor: Reconstructor, sequence: EvalSequence, fraction
             "frames": int(scored.size)}
 
 
-def score_aps_frames(sequence: EvalSequence) -> dict[str, float]:
-    """Return mean {"mse", "ssim", "frames"} of the blurred APS frames against the sharp truth at mid-exposure."""
+def score_aps_frames(sequence: EvalSequence, gamma: float | None = None) -> dict[str, float]:
+    """Return mean {"mse", "ssim", "frames"} of the blurred APS frames against the sharp truth at mid-exposure.
+
+    The simulated APS camera encodes its output as 255 V^gamma (gamma = 1/2.2 by default, :class:`ApsParams`); frames
+    are decoded back to linear intensity V = (frame / 255)^(1 / gamma) before scoring, like every other image here.
+    """
+    from evio_lib.sim.aps import ApsParams
+
+    gamma = ApsParams().gamma if gamma is None else float(gamma)
     if len(sequence.frame_times) == 0:
         raise ValueError(f"{sequence.name} has no APS frames")
-    scores = [image_quality(frame.astype(np.float64) / 255.0, sequence.render(float(t)))
+    scores = [image_quality((frame.astype(np.float64) / 255.0) ** (1.0 / gamma), sequence.render(float(t)))
               for t, frame in zip(sequence.frame_times, sequence.frames)]
     return {"mse": float(np.mean([s["mse"] for s in scores])), "ssim": float(np.mean([s["ssim"] for s in scores])),
             "frames": len(scores)}
@@ -169,6 +177,8 @@ def score_at_frame_times(reconstructor: Reconstructor, events: np.ndarray, frame
     """
     frame_times = np.asarray(frame_times, dtype=np.float64)
     inside = frame_times > events["t"][0]
+    if not inside.any():
+        raise ValueError("no frame time follows the first event: nothing to reconstruct a frame from")
     recon = reconstruct_at_times(reconstructor, events, frame_times[inside], max_window_events=max_window_events)
     per_frame = [image_quality(r, f.astype(np.float64) / (255.0 if f.dtype == np.uint8 else 1.0))
                  for r, f in zip(recon, np.asarray(frames)[inside])]

@@ -131,8 +131,7 @@ class E2VIDRecurrent(nn.Module):
             skips.append(x)
         x = self.res(x)
         for up, skip in zip(self.up, reversed(skips[:-1])):
-            x = F.interpolate(x + 0 if x.shape == skip.shape else x, size=skip.shape[-2:], mode="bilinear",
-                              align_corners=False)
+            x = F.interpolate(x, size=skip.shape[-2:], mode="bilinear", align_corners=False)
             x = F.relu(up(x)) + skip                                                # upsample, convolve, add skip
         image = torch.sigmoid(self.pred(x))
         return image[..., :height, :width], new_state

@@ -198,6 +198,7 @@ def evaluate_on_samples(net: torch.nn.Module, data: dict[str, np.ndarray], confi
                         batch_size: int = 8) -> dict[str, float]:
     """Return the mean loss parts (l1, ssim, tc) of ``net`` on a stack of samples, without gradients."""
     sums, count = {"l1": 0.0, "ssim": 0.0, "tc": 0.0, "loss": 0.0}, 0
+    was_training = net.training
     net.eval()
     with torch.no_grad():
         for i in range(0, data["voxels"].shape[0], batch_size):
@@ -210,7 +211,7 @@ def evaluate_on_samples(net: torch.nn.Module, data: dict[str, np.ndarray], confi
                 sums[k] += parts[k] * n
             sums["loss"] += loss.item() * n
             count += n
-    net.train()
+    net.train(was_training)
     return {k: v / count for k, v in sums.items()}
 
 
