@@ -129,17 +129,20 @@ def simulated_eval_sequence(stretch: str, duration: float | None = None, seed: i
                         frame_times=frame_times, frames=frames)
 
 
-def score_windows(reconstructor: Reconstructor, sequence: EvalSequence, fraction: float, warmup_s: float = 0.1,
-                  max_frames: int | None = None) -> dict[str, float]:
-    """Return mean {"mse", "ssim", "frames"} of ``reconstructor`` on windows of n = ``fraction`` against the sharp truth.
+def score_windows(reconstructor: Reconstructor, sequence: EvalSequence, fraction: float | None, warmup_s: float = 0.1,
+                  max_frames: int | None = None, bounds: np.ndarray | None = None) -> dict[str, float]:
+    """Return mean {"mse", "ssim", "frames", "mean_fraction"} of ``reconstructor`` against the sharp truth.
 
-    Windows ending in the first ``warmup_s`` seconds are fed but not scored (every method starts from nothing).
-    ``max_frames`` scores only that many windows, evenly spread (the renders of the truth cost time).
+    Windows are N_e = ``fraction`` H W events, or the given ``bounds`` (K, 2) (e.g. from ``adaptive_windows``; then
+    ``fraction`` is None); ``mean_fraction`` is the windows' mean size over H W. Windows ending in the first
+    ``warmup_s`` seconds are fed but not scored (every method starts from nothing). ``max_frames`` scores only that
+    many windows, evenly spread (the renders of the truth cost time).
     """
-    n_events = window_size_from_fraction(fraction, sequence.width, sequence.height)
-    bounds = count_windows(sequence.events, n_events)
+    if bounds is None:
+        n_events = window_size_from_fraction(fraction, sequence.width, sequence.height)
+        bounds = count_windows(sequence.events, n_events)
     if len(bounds) == 0:
-        raise ValueError(f"{sequence.name} has {sequence.events.size} events: not one window of {n_events}")
+        raise ValueError(f"{sequence.name} has {sequence.events.size} events: not one window to score")
     frames, times = reconstruct_windows(reconstructor, sequence.events, bounds)
     scored = np.flatnonzero(times >= sequence.events["t"][0] + warmup_s)
     if scored.size == 0:
@@ -148,7 +151,8 @@ def score_windows(reconstructor: Reconstructor, sequence: EvalSequence, fraction
         scored = scored[np.linspace(0, scored.size - 1, max_frames).round().astype(int)]
     scores = [image_quality(frames[k], sequence.render(float(times[k]))) for k in scored]
     return {"mse": float(np.mean([s["mse"] for s in scores])), "ssim": float(np.mean([s["ssim"] for s in scores])),
-            "frames": int(scored.size)}
+            "frames": int(scored.size),
+            "mean_fraction": float(np.diff(bounds, axis=1).mean() / (sequence.width * sequence.height))}
 
 
 def score_aps_frames(sequence: EvalSequence, gamma: float | None = None) -> dict[str, float]:
