@@ -466,7 +466,10 @@ def load_event_frames(spec: str | Path | Mapping[str, Any], name: str = "events"
     to [0, 1] when it is not already; or ``{"simulate": "aerial_like", "duration": 4.0, "seed": 0,
     "events_per_frame": 15000}``: the project's simulator records the preset and every block of
     ``events_per_frame`` consecutive events becomes one frame, ``min(count / q99(count > 0), 1)`` per pixel
-    (event-count frames; the reconstruction issue's intensity frames can be passed as a file instead).
+    (event-count frames). With ``"reconstructor": NAME`` (any name of
+    :func:`evio_lib.events.create_reconstructor`, e.g. ``"firenet"``) each block is instead reconstructed into an
+    intensity frame, the recurrent state carried from block to block (the thesis's event frames, §4.1); with
+    ``"window_fraction": n`` the blocks hold N_e = n H W events (Eq. 87) instead of ``events_per_frame``.
     """
     from evio_lib.features.datasets import EventFrames
 
@@ -483,12 +486,24 @@ def load_event_frames(spec: str | Path | Mapping[str, Any], name: str = "events"
         sequence = simulate_sequence(config)
         width, height = sequence.sensor_size
         per_frame = int(spec.get("events_per_frame", 15000))
+        if "window_fraction" in spec:
+            from evio_lib.events.representations import window_size_from_fraction
+
+            per_frame = window_size_from_fraction(float(spec["window_fraction"]), width, height)
         frames = []
-        for start in range(0, len(sequence.events) - per_frame + 1, per_frame):  # loop over frames, not events
-            counts = event_count_image(sequence.events[start : start + per_frame], width, height).astype(np.float32)
-            scale = float(np.quantile(counts[counts > 0], 0.99)) if (counts > 0).any() else 1.0
-            frames.append(np.minimum(counts / max(scale, 1.0), 1.0).astype(np.float32))  # count / q99, clipped
-        label = f"{spec['simulate']}-{config.seed}"
+        if spec.get("reconstructor"):
+            from evio_lib.events.reconstruct import create_reconstructor, reconstruct_windows
+            from evio_lib.events.representations import count_windows
+
+            reconstructor = create_reconstructor(str(spec["reconstructor"]), width, height)
+            frames = list(reconstruct_windows(reconstructor, sequence.events,
+                                              count_windows(sequence.events, per_frame))[0])
+        else:
+            for start in range(0, len(sequence.events) - per_frame + 1, per_frame):  # loop over frames, not events
+                counts = event_count_image(sequence.events[start : start + per_frame], width, height).astype(np.float32)
+                scale = float(np.quantile(counts[counts > 0], 0.99)) if (counts > 0).any() else 1.0
+                frames.append(np.minimum(counts / max(scale, 1.0), 1.0).astype(np.float32))  # count / q99, clipped
+        label = f"{spec['simulate']}-{config.seed}" + (f"-{spec['reconstructor']}" if spec.get("reconstructor") else "")
     else:
         path = Path(spec)
         if not path.is_file():

@@ -339,3 +339,26 @@ def test_label_max_keypoints_keeps_the_strongest_labels(tmp_path, label_cache, m
     assert np.array_equal(capped["train"][0], strongest_first[0][:4])
     full = tr.export_labels(tr.load_config(common), progress=False)
     assert [len(k) for k in full["train"]] == [10, 3]
+
+
+def test_event_frames_from_a_named_reconstructor(monkeypatch):
+    """{"simulate": ..., "reconstructor": NAME, "window_fraction": n}: one reconstructed frame per N_e = n H W events."""
+    from evio_lib.events.array import make_events
+    from evio_lib.events.reconstruct import create_reconstructor, reconstruct_windows
+    from evio_lib.events.representations import count_windows
+    from evio_lib.geometry.camera import PinholeRadtan
+    from evio_lib.sequence import Sequence
+    from evio_lib.sim import presets
+
+    rng = np.random.default_rng(0)
+    n = 3000
+    events = make_events(np.sort(rng.uniform(0, 1, n)), rng.integers(0, 32, n), rng.integers(0, 24, n),
+                         rng.choice([-1, 1], n))
+    camera = PinholeRadtan(fx=30.0, fy=30.0, cx=16.0, cy=12.0, width=32, height=24)
+    monkeypatch.setattr(presets, "simulate_sequence",
+                        lambda config, **kw: Sequence(name="tiny", camera=camera, events=events))
+    frames = tr.load_event_frames({"simulate": "aerial_like", "duration": 1.0, "seed": 7, "reconstructor": "high_pass",
+                                   "window_fraction": 1.0})
+    expected, _ = reconstruct_windows(create_reconstructor("high_pass", 32, 24), events, count_windows(events, 768))
+    assert len(frames.frames) == len(expected) == n // 768
+    np.testing.assert_allclose(np.stack(frames.frames), expected)
