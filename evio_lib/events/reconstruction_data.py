@@ -241,12 +241,6 @@ def _sample_job(job: tuple[int, str, int, ReconstructionDataConfig]) -> dict[str
     return make_training_sample(np.random.default_rng([seed, _SPLIT_SEED_OFFSET[split], i]), split, config)
 
 
-def _cache_dir() -> Path:
-    """Return the cache folder: ``$EVIO_CACHE_DIR`` if set, else ``<repository>/data/cache`` (git-ignored)."""
-    env = os.environ.get("EVIO_CACHE_DIR")
-    return Path(env) if env else Path(__file__).resolve().parents[2] / "data" / "cache"
-
-
 def reconstruction_dataset(split: str, n_samples: int, seed: int = 0,
                            config: ReconstructionDataConfig = ReconstructionDataConfig(), cache: bool = True,
                            progress: bool = False, workers: int = 1) -> dict[str, np.ndarray]:
@@ -260,9 +254,11 @@ def reconstruction_dataset(split: str, n_samples: int, seed: int = 0,
         raise ValueError(f"split must be one of {tuple(SPLIT_PHOTOS)}; got {split!r}")
     if int(n_samples) != n_samples or n_samples < 1:
         raise ValueError(f"n_samples must be a positive integer; got {n_samples!r}")
+    from evio_lib.features.datasets import default_cache_dir  # the project's one cache folder ($EVIO_CACHE_DIR)
+
     key = json.dumps({"split": split, "n": int(n_samples), "seed": int(seed), "config": asdict(config), "v": 1},
                      sort_keys=True)
-    path = _cache_dir() / f"reconstruction_{split}_{hashlib.sha1(key.encode()).hexdigest()[:12]}.npz"
+    path = default_cache_dir() / f"reconstruction_{split}_{hashlib.sha1(key.encode()).hexdigest()[:12]}.npz"
     if cache and path.is_file():
         with np.load(path) as data:
             return {k: data[k] for k in ("voxels", "frames", "H_prev")}

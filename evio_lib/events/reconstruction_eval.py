@@ -80,11 +80,6 @@ class EvalSequence:
     frames: np.ndarray             # (F, H, W) uint8 blurred APS frames
 
 
-def _cache_dir() -> Path:
-    env = os.environ.get("EVIO_CACHE_DIR")
-    return Path(env) if env else Path(__file__).resolve().parents[2] / "data" / "cache"
-
-
 def simulated_eval_sequence(stretch: str, duration: float | None = None, seed: int = EVAL_SEED,
                             cache: bool = True) -> EvalSequence:
     """Return the held-out stretch ``stretch`` (a key of :data:`EVAL_STRETCHES`), simulated once and cached.
@@ -104,7 +99,9 @@ def simulated_eval_sequence(stretch: str, duration: float | None = None, seed: i
     preset, start, default_duration, motion = EVAL_STRETCHES[stretch]
     duration = default_duration if duration is None else float(duration)
     config = SimulationConfig(preset=preset, duration=duration, start_time=start, trajectory_duration=motion, seed=seed)
-    path = _cache_dir() / f"reconstruction_eval_{stretch}_{duration:g}s_seed{seed}.npz"
+    from evio_lib.features.datasets import default_cache_dir  # the project's one cache folder ($EVIO_CACHE_DIR)
+
+    path = default_cache_dir() / f"reconstruction_eval_{stretch}_{duration:g}s_seed{seed}.npz"
     if cache and path.is_file():
         with np.load(path) as data:
             events, frame_times, frames = data["events"], data["frame_times"], data["frames"]
