@@ -85,8 +85,11 @@ def execute_notebook(path: Path, timeout_s: int = 1800, fast: bool | None = None
     from nbclient import NotebookClient
 
     notebook = nbformat.read(path, as_version=4)
+    # The kernel app's own log (not the cells' output or warnings) only says, once per notebook, that a local kernel
+    # talks over TCP without encryption; keep it quiet so the course's output shows what the lessons print.
     client = NotebookClient(notebook, timeout=timeout_s, kernel_name="python3",
-                            resources={"metadata": {"path": str(path.parent)}})
+                            resources={"metadata": {"path": str(path.parent)}},
+                            extra_arguments=["--IPKernelApp.log_level=ERROR"])
     client.execute(env=kernel_environment(fast))
     nbformat.write(notebook, path)
     return path

@@ -88,3 +88,14 @@ def test_execute_passes_the_mode_to_the_kernel(tmp_path, monkeypatch):
     assert mode == "1"  # --fast reached the kernel, though this process says 0
     assert module.startswith(str(course.PROJECT_ROOT))  # and the kernel imports this working tree
     assert os.environ["EVIO_FAST"] == "0"
+
+
+def test_executing_prints_no_kernel_transport_warning(tmp_path, capfd):
+    """The kernel's own 'running over TCP without encryption' log line stays out of the course's output."""
+    source = tmp_path / "01_quiet.py"
+    source.write_text('# %%\nprint("hello")\n')
+    notebook_path = course.build_notebooks([source], out_dir=tmp_path / "nb")[0]
+    course.execute_notebook(notebook_path, timeout_s=120, fast=True)
+    captured = capfd.readouterr()
+    assert "without encryption" not in captured.err + captured.out
+    assert "hello" in "".join(json.loads(notebook_path.read_text())["cells"][0]["outputs"][0]["text"])
