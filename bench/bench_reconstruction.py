@@ -9,13 +9,15 @@ them. Goal for the default network: at least 100 frames/s on a 2-core CPU. Measu
 from __future__ import annotations
 
 import argparse
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 import torch
 
 from evio_lib.events.array import make_events
-from evio_lib.events.reconstruct import LearnedReconstructor, create_reconstructor
+from evio_lib.events.reconstruct import create_reconstructor
 from evio_lib.events.reconstruction_nets import E2VIDRecurrent
 from evio_lib.events.representations import voxel_grid
 
@@ -32,11 +34,11 @@ def main() -> None:
     windows = [make_events(np.sort(rng.uniform(k, k + 1, n)), rng.integers(0, w, n), rng.integers(0, h, n),
                            rng.choice([-1, 1], n)) for k in range(args.frames)]
     methods = {name: create_reconstructor(name, w, h) for name in ("direct", "high_pass", "firenet")}
-    large = LearnedReconstructor.__new__(LearnedReconstructor)  # random-weight E2VID-style UNet, same interface
-    large.width, large.height, large.num_bins, large.device, large.name = w, h, 5, "cpu", "e2vid (random weights)"
-    large.net = E2VIDRecurrent().eval()
-    large.reset()
-    methods["e2vid"] = large
+    with tempfile.TemporaryDirectory() as folder:  # a random-weight E2VID-style UNet, loaded the way users load one
+        path = Path(folder) / "e2vid_random.pt"
+        torch.save({"format": "evio-reconstructor-v1", "architecture": "e2vid", "network_options": {}, "num_bins": 5,
+                    "state_dict": E2VIDRecurrent().state_dict()}, path)
+        methods["e2vid"] = create_reconstructor("learned", w, h, checkpoint=path, device="cpu")
     start = time.perf_counter()
     for window in windows:
         voxel_grid(window, w, h, 5)
