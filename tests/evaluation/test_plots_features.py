@@ -11,13 +11,19 @@ import pytest  # noqa: E402
 from evio_lib.evaluation.plots_features import (  # noqa: E402
     plot_binary_descriptors,
     plot_cell_correspondences,
+    plot_cell_probabilities,
     plot_detections,
     plot_fast_circle,
     plot_heatmap_row,
+    plot_homography_corners,
     plot_keypoints,
+    plot_labelled_images,
+    plot_match_grid,
     plot_matches,
+    plot_oracle_corner_errors,
     plot_repeatability_bars,
     plot_repeatability_pair,
+    plot_repeated_points,
     plot_scale_space,
     plot_structure_tensor_classes,
     plot_training_curve,
@@ -156,3 +162,126 @@ def test_heatmap_row_and_cell_correspondences(image: np.ndarray) -> None:
     _render(fig)
     with pytest.raises(ValueError, match=r"shape \(N, N\)"):
         plot_cell_correspondences(image, image, centres, np.eye(2))
+
+
+def test_labelled_images_grid_circles_each_images_keypoints(image: np.ndarray, rng: np.random.Generator) -> None:
+    points = [rng.uniform(0, 40, (4, 2)), np.zeros((0, 2)), rng.uniform(0, 40, (2, 2))]
+    fig = plot_labelled_images([image] * 3, points, ["cube", "ellipses", "star"], ncols=2)
+    shown = [ax for ax in fig.axes if ax.get_visible()]
+    assert len(fig.axes) == 4 and [ax.get_title() for ax in shown] == ["cube", "ellipses", "star"]  # 2 x 2, one hidden
+    for ax, p in zip(shown, points):
+        np.testing.assert_allclose(ax.collections[0].get_offsets().reshape(-1, 2), p)
+    _render(fig)
+
+    mask = np.zeros_like(image)
+    mask[5:30, 10:50] = 1.0
+    fig = plot_labelled_images([image, image], points[:2], ["a", "b"], masks=[mask, mask], ncols=4)
+    assert len(fig.axes) == 2  # ncols shrinks to the number of images
+    assert len(fig.axes[0].collections) == 2  # the mask's contour and the keypoints
+    _render(fig)
+    with pytest.raises(ValueError, match="equal length"):
+        plot_labelled_images([image, image], points[:1], ["a", "b"])
+    with pytest.raises(ValueError, match=r"masks\[0\] must have the shape of images\[0\]"):
+        plot_labelled_images([image], points[:1], ["a"], masks=[mask[:10]])
+    with pytest.raises(ValueError, match=r"keypoints\[0\] must have shape \(N, 2\)"):
+        plot_labelled_images([image], [np.zeros((3, 3))], ["a"])
+
+
+def test_cell_probabilities_shows_the_cell_and_cell_borders() -> None:
+    probabilities = np.full(65, 0.5 / 64)
+    probabilities[-1] = 0.5
+    heatmap = np.zeros((16, 24))
+    fig = plot_cell_probabilities(probabilities, heatmap, cell_name="(0, 1)")
+    left, right = fig.axes
+    assert left.get_title() == "65 probabilities of cell (0, 1): 64 pixels + dustbin (last)"
+    np.testing.assert_allclose(left.images[0].get_array(), probabilities[None])
+    assert len(right.lines) == 3  # borders between the 2 x 3 cells: 2 vertical, then 1 horizontal
+    assert [list(line.get_xdata()) for line in right.lines[:2]] == [[7.5, 7.5], [15.5, 15.5]]
+    assert list(right.lines[2].get_ydata()) == [7.5, 7.5]
+    fig = plot_cell_probabilities(np.full(17, 1 / 17), np.zeros((12, 8)), cell=4)
+    assert len(fig.axes[1].lines) == 1 + 2  # 8 / 4 - 1 vertical, 12 / 4 - 1 horizontal
+    _render(fig)
+    with pytest.raises(ValueError, match=r"shape \(cell\^2 \+ 1,\) = \(65,\)"):
+        plot_cell_probabilities(np.ones(64), heatmap)
+    with pytest.raises(ValueError, match="multiples of cell = 8"):
+        plot_cell_probabilities(probabilities, np.zeros((16, 20)))
+
+
+def test_repeated_points_colours_follow_the_flags(image: np.ndarray, rng: np.random.Generator) -> None:
+    warped, detected = rng.uniform(0, 40, (7, 2)), rng.uniform(0, 40, (5, 2))
+    repeated = np.array([True, False, True, True, False, False, True])
+    fig = plot_repeated_points(image, warped, detected, repeated, eps=3, title="SIFT")
+    blue, green, red = fig.axes[0].collections
+    np.testing.assert_allclose(blue.get_offsets(), detected)
+    np.testing.assert_allclose(green.get_offsets(), warped[repeated])
+    np.testing.assert_allclose(red.get_offsets(), warped[~repeated])
+    assert fig.axes[0].get_legend().get_texts()[1].get_text() == "H x_i, repeated (eps = 3)"
+    _render(fig)
+    with pytest.raises(ValueError, match=r"repeated must be \(7,\) booleans"):
+        plot_repeated_points(image, warped, detected, repeated[:3], eps=3)
+    with pytest.raises(ValueError, match="booleans"):
+        plot_repeated_points(image, warped, detected, repeated.astype(int), eps=3)
+
+
+def test_homography_corners_draw_both_quadrilaterals_and_the_mean_error(image: np.ndarray) -> None:
+    h, w = image.shape
+    true = np.array([[-12.0, -8.0], [w + 10.0, -6.0], [-9.0, h + 7.0], [w + 12.0, h + 9.0]])  # a zoom
+    estimated = true + np.array([[3.0, 4.0], [0.0, 0.0], [-6.0, 8.0], [0.0, 0.0]])  # errors 5, 0, 10, 0
+    fig = plot_homography_corners(image, true, estimated)
+    ax = fig.axes[0]
+    assert ax.get_title() == "image 1's corners in image 2: mean error 3.75 px"
+    x, y = ax.lines[0].get_data()
+    np.testing.assert_allclose(np.column_stack([x, y]), true[[0, 1, 3, 2, 0]])  # a closed quadrilateral
+    assert ax.get_xlim()[0] < true[:, 0].min() and ax.get_xlim()[1] > true[:, 0].max()  # corners outside the image
+    assert ax.get_ylim()[0] > true[:, 1].max()  # image convention: y grows downwards
+    _render(fig)
+    with pytest.raises(ValueError, match=r"corners_estimated must have shape \(4, 2\)"):
+        plot_homography_corners(image, true, estimated[:3])
+    with pytest.raises(ValueError, match="corners_true must be finite"):
+        plot_homography_corners(image, np.full((4, 2), np.inf), estimated)
+
+
+def test_match_grid_rows_are_methods_columns_are_pairs(image: np.ndarray, rng: np.random.Generator) -> None:
+    kp = rng.uniform(0, 40, (30, 2))
+    matches = np.column_stack([np.arange(30), np.arange(30)])
+    correct = np.arange(30) % 3 == 0  # 10 of 30
+    none = (kp, kp, np.zeros((0, 2), int), np.zeros(0, bool))
+    results = {"viewpoint": {"sift": (kp, kp, matches, correct), "orb": none},
+               "illumination": {"sift": (kp, kp, matches[:4], correct[:4]), "orb": none}}
+    fig = plot_match_grid({"viewpoint": (image, image[:30]), "illumination": (image, image)}, results, rng=0,
+                          max_drawn=12, gap=10)
+    axes = np.array(fig.axes).reshape(2, 2)
+    assert axes[0, 0].get_title() == "VIEWPOINT — sift: 10 of 30 matches correct (33%)"
+    assert axes[1, 0].get_title() == "orb: 0 of 0 matches correct"
+    assert axes[0, 1].get_title() == "ILLUMINATION — sift: 2 of 4 matches correct (50%)"
+    assert len(axes[0, 0].lines) == 12 and len(axes[0, 1].lines) == 4  # at most max_drawn lines
+    assert axes[0, 0].images[0].get_array().shape == (40, 60 + 10 + 60)  # side by side with a gap
+    for line in axes[0, 1].lines:  # every line joins a point to its partner, shifted by width + gap
+        x, y = line.get_data()
+        assert x[1] - x[0] == pytest.approx(70.0) and y[0] == pytest.approx(y[1])
+    colours = {matplotlib.colors.to_hex(line.get_color()) for line in axes[0, 0].lines}
+    assert colours <= {matplotlib.colors.to_hex("tab:green"), matplotlib.colors.to_hex("tab:red")}
+    again = plot_match_grid({"viewpoint": (image, image[:30]), "illumination": (image, image)}, results, rng=0,
+                            max_drawn=12)
+    assert [line.get_xdata()[0] for line in again.axes[0].lines] == [line.get_xdata()[0] for line in axes[0, 0].lines]
+    _render(fig)
+    with pytest.raises(ValueError, match="same non-empty columns"):
+        plot_match_grid({"viewpoint": (image, image)}, results)
+    with pytest.raises(ValueError, match="same non-empty methods"):
+        plot_match_grid({"a": (image, image), "b": (image, image)}, {"a": {"sift": none}, "b": {"orb": none}})
+    with pytest.raises(ValueError, match="one boolean per match"):
+        plot_match_grid({"a": (image, image)}, {"a": {"sift": (kp, kp, matches, correct[:5])}})
+
+
+def test_oracle_corner_errors_scatter_clipped_for_log_axes() -> None:
+    fig = plot_oracle_corner_errors({"sift": ([120, 40, 0], [0.01, 2.5, np.inf]), "net": ([8], [12.0])}, eps=3.0)
+    ax = fig.axes[0]
+    assert ax.get_xscale() == "log" and ax.get_yscale() == "log"
+    np.testing.assert_allclose(ax.collections[0].get_offsets(), [[120, 0.05], [40, 2.5], [1, 1000]])
+    np.testing.assert_allclose(ax.collections[1].get_offsets(), [[8, 12.0]])
+    assert list(ax.lines[0].get_ydata()) == [3.0, 3.0]
+    _render(fig)
+    with pytest.raises(ValueError, match="at least one detector"):
+        plot_oracle_corner_errors({})
+    with pytest.raises(ValueError, match=r"diagnoses\['sift'\] must be two \(P,\) arrays of equal length"):
+        plot_oracle_corner_errors({"sift": ([1, 2], [1.0])})
