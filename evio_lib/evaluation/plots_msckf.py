@@ -1,5 +1,5 @@
 """Figures for the MSCKF lessons (notebooks 09-12): error growth, Monte-Carlo errors against 3-sigma bounds, covariance,
-NEES against its chi-square band, a filter run against the truth.
+triangulation error against the number of views, NEES against its chi-square band, a filter run against the truth.
 
 Plotting only (plus :func:`correlation_matrix`, the normalised covariance the structure plot shows); the filter lives
 in :mod:`evio_lib.msckf`. Matplotlib is imported when a figure is made.
@@ -19,6 +19,7 @@ __all__ = [
     "plot_error_growth",
     "plot_monte_carlo_bounds",
     "plot_covariance_structure",
+    "plot_triangulation_error",
     "plot_nees",
     "plot_consistency",
     "plot_trajectory_errors",
@@ -220,6 +221,44 @@ def plot_covariance_structure(P: ArrayLike, correlation: bool = True, title: str
     ax.set_yticks(centres)
     ax.set_yticklabels(names, fontsize=7)
     ax.set_title(title or f"error-state covariance, 15 + 6·{n_cam} = {n} states")
+    fig.tight_layout()
+    return fig
+
+
+def plot_triangulation_error(view_counts: ArrayLike, median_error: ArrayLike, noise_levels_px: ArrayLike,
+                             title: str = "") -> "Figure":
+    """Return the median triangulation error [cm] against the number of views, one line per pixel-noise level.
+
+    Args:
+        view_counts: (V,) numbers of views M of the track (x axis).
+        median_error: (L, V) median position error of the triangulated feature [m], row l for noise level l.
+        noise_levels_px: (L,) standard deviation of the pixel noise of each row [px] (the legend).
+        title: figure title.
+
+    Reference: thesis §3.3.7 (Eqs. 68-71, Gauss-Newton triangulation in inverse depth).
+
+    >>> import matplotlib; matplotlib.use("Agg")
+    >>> fig = plot_triangulation_error([2, 3, 5], [[0.3, 0.2, 0.15]], [1.0])
+    >>> [float(y) for y in fig.axes[0].lines[0].get_ydata()]
+    [30.0, 20.0, 15.0]
+    """
+    import matplotlib.pyplot as plt
+
+    views = np.asarray(view_counts, dtype=np.float64)
+    errors = np.asarray(median_error, dtype=np.float64)
+    noise = np.asarray(noise_levels_px, dtype=np.float64)
+    if views.ndim != 1 or views.size == 0 or np.any(views < 1):
+        raise ValueError(f"view_counts must be a non-empty (V,) array of counts >= 1; got {views.tolist()}")
+    if noise.ndim != 1 or noise.size == 0:
+        raise ValueError(f"noise_levels_px must be a non-empty (L,) array; got shape {noise.shape}")
+    if errors.shape != (noise.size, views.size):
+        raise ValueError(f"median_error must have shape (L, V) = ({noise.size}, {views.size}), one row per noise "
+                         f"level and one column per view count; got {errors.shape}")
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    for noise_px, row in zip(noise, errors):
+        ax.plot(views, 100 * row, "o-", label=f"{noise_px:g} px noise")  # m -> cm
+    ax.set(xlabel="number of views (same time span)", ylabel="median position error [cm]", title=title)
+    ax.legend()
     fig.tight_layout()
     return fig
 

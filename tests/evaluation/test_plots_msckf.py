@@ -15,6 +15,7 @@ from evio_lib.evaluation.plots_msckf import (  # noqa: E402
     plot_monte_carlo_bounds,
     plot_nees,
     plot_trajectory_errors,
+    plot_triangulation_error,
 )
 
 
@@ -205,3 +206,26 @@ def test_plot_trajectory_errors_rejects_bad_input():
         plot_trajectory_errors(t, np.zeros((3, 3)), {"a": np.zeros((2, 3))}, np.ones((3, 3)))
     with pytest.raises(ValueError, match=r"sigma must be finite standard deviations >= 0"):
         plot_trajectory_errors(t, np.zeros((3, 3)), {"a": np.zeros((3, 3))}, -np.ones((3, 3)))
+
+
+def test_plot_triangulation_error_one_line_per_noise_level_in_cm():
+    views = [2, 3, 5, 10]
+    median_error = np.array([[0.10, 0.08, 0.07, 0.065], [0.40, 0.33, 0.29, 0.27]])  # [m]
+    fig = plot_triangulation_error(views, median_error, [0.5, 2.0], title="feature at 2.5 m")
+    ax = fig.axes[0]
+    assert len(fig.axes) == 1 and len(ax.lines) == 2
+    for line, row in zip(ax.lines, median_error):
+        np.testing.assert_allclose(line.get_xdata(), views)
+        np.testing.assert_allclose(line.get_ydata(), 100 * row)  # metres -> centimetres
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["0.5 px noise", "2 px noise"]
+    assert ax.get_title() == "feature at 2.5 m" and ax.get_ylabel() == "median position error [cm]"
+    _render(fig)
+
+
+def test_plot_triangulation_error_rejects_bad_input():
+    with pytest.raises(ValueError, match=r"median_error must have shape \(L, V\) = \(2, 3\)"):
+        plot_triangulation_error([2, 3, 5], np.ones((3, 2)), [1.0, 2.0])
+    with pytest.raises(ValueError, match=r"view_counts must be a non-empty \(V,\) array of counts >= 1"):
+        plot_triangulation_error([0, 3], np.ones((1, 2)), [1.0])
+    with pytest.raises(ValueError, match=r"noise_levels_px must be a non-empty \(L,\) array"):
+        plot_triangulation_error([2, 3], np.ones((0, 2)), [])
