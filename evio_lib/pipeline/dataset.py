@@ -1,0 +1,230 @@
+"""What ``python -m evio_lib run DATASET`` reads: a simulated preset, an ECD folder or a EuRoC ASL folder.
+
+:func:`load_dataset` turns the DATASET argument into a :class:`LoadedDataset`: the :class:`~evio_lib.sequence.Sequence`
+plus the camera-IMU extrinsics and IMU noise model the filter needs, and notes saying where each came from.
+
+- A preset name (``boxes_like``, ``aerial_like``) is simulated on first use and cached as ``.npz`` under the project's
+  cache folder (``features.datasets.default_cache_dir() / "sequences"``), keyed by preset, duration, seed and whether
+  events were simulated; the sidecar knows the extrinsics and the IMU noise exactly.
+- An ECD folder (``events.txt`` [+ ``images.txt``, ``imu.txt``, ``calib.txt``, ``groundtruth.txt``]): extrinsics from
+  the evio sidecar when present, else camera = IMU frame (the DAVIS chip's own IMU; about a centimetre off in reality),
+  said in the notes. IMU noise from the sidecar, else the DAVIS's MPU-6150 model of :class:`ImuNoiseParams`.
+- A EuRoC ASL folder (``mav0/`` or the ``mav0`` folder itself): extrinsics and noise from the ``sensor.yaml`` files.
+
+``extrinsics=PATH`` (a Kalibr camchain YAML with ``T_cam_imu``) overrides every source of extrinsics.
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from evio_lib.io.errors import DataFileError
+from evio_lib.sequence import Sequence
+from evio_lib.sim.imu import ImuNoiseParams
+
+__all__ = ["PRESETS", "PRESET_DURATIONS", "LoadedDataset", "load_dataset", "simulate_preset", "read_kalibr_extrinsics",
+           "sequence_cache_dir"]
+
+PRESETS = ("boxes_like", "aerial_like")
+#: Default length of each preset's motion and recording, seconds (the thesis's sequences: 60 s boxes, 40 s aerial).
+PRESET_DURATIONS = {"boxes_like": 60.0, "aerial_like": 40.0}
+
+
+@dataclass(frozen=True)
+class LoadedDataset:
+    """A recording ready for the pipeline.
+
+    Attributes:
+        sequence: the recording (frames, events, IMU, ground truth, camera).
+        kind: 'preset', 'ecd' or 'euroc'.
+        source: the preset name or the folder read.
+        R_CtoI, p_CinI: camera-IMU extrinsics used (x_I = R_CtoI x_C + p_CinI).
+        noise: IMU noise densities for the filter.
+        notes: one line per assumption made (e.g. "extrinsics: camera = IMU frame").
+    """
+
+    sequence: Sequence
+    kind: str
+    source: str
+    R_CtoI: np.ndarray
+    p_CinI: np.ndarray
+    noise: ImuNoiseParams
+    notes: tuple[str, ...]
+
+
+def sequence_cache_dir() -> Path:
+    """Return the folder of cached simulated recordings (``default_cache_dir() / "sequences"``)."""
+    from evio_lib.features.datasets import default_cache_dir
+
+    return default_cache_dir() / "sequences"
+
+
+def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, with_events: bool = False,
+                    cache: bool = True, progress: bool = False) -> Sequence:
+    """Return the simulated recording of a preset: the first ``duration`` s of its full motion (cached as .npz).
+
+    The motion is always the preset's whole trajectory (60 s boxes_like: gentle start, violent end; 40 s
+    aerial_like), so a shorter duration is the start of the same recording, not a faster one.
+    """
+    from evio_lib.io.cache import load_sequence_npz, save_sequence_npz
+    from evio_lib.sim.presets import SimulationConfig, simulate_sequence
+
+    if preset not in PRESETS:
+        raise ValueError(f"preset must be one of {PRESETS}; got {preset!r}")
+    full = PRESET_DURATIONS[preset]
+    duration = full if duration is None else float(duration)
+    if not np.isfinite(duration) or duration <= 0 or duration > full:
+        raise ValueError(f"duration of {preset} must be in (0, {full:g}] s; got {duration!r}")
+    path = sequence_cache_dir() / f"{preset}_d{duration:g}_seed{seed}_{'events' if with_events else 'frames'}.npz"
+    if cache and path.is_file():
+        try:
+            return load_sequence_npz(path)
+        except (ValueError, OSError):
+            path.unlink(missing_ok=True)  # a damaged cache file is simulated again
+    config = SimulationConfig(preset=preset, duration=duration, trajectory_duration=full, seed=seed,
+                              with_events=with_events)
+    sequence = simulate_sequence(config, progress=progress)
+    if cache:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(suffix=".npz", dir=path.parent)  # written whole, then renamed: never half a file
+        os.close(fd)
+        try:
+            save_sequence_npz(sequence, tmp)
+            os.replace(tmp, path)
+        finally:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+    return sequence
+
+
+def read_kalibr_extrinsics(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """Return (R_CtoI, p_CinI) from a Kalibr-style YAML holding ``T_cam_imu`` (4 x 4, x_C = T_cam_imu x_I).
+
+    Accepted: a camchain file (``cam0: T_cam_imu: [[...], ...]``) or a file with a top-level ``T_cam_imu``.
+    T_CtoI = T_cam_imu^-1: R_CtoI = R^T, p_CinI = -R^T t.
+    """
+    import yaml
+
+    path = Path(path)
+    if not path.is_file():
+        raise DataFileError(f"extrinsics file not found: {path} (expected a Kalibr YAML with T_cam_imu)")
+    try:
+        content: Any = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (yaml.YAMLError, UnicodeDecodeError) as error:
+        raise DataFileError(f"{path}: not a readable YAML file ({str(error).splitlines()[0]})") from None
+    node = None
+    if isinstance(content, dict):
+        node = content.get("T_cam_imu")
+        if node is None:
+            cams = [v for k, v in sorted(content.items()) if isinstance(v, dict) and "T_cam_imu" in v]
+            node = cams[0]["T_cam_imu"] if cams else None
+    if node is None:
+        raise DataFileError(f"{path}: no T_cam_imu found (expected 'T_cam_imu:' or 'cam0: T_cam_imu:' with a 4 x 4 "
+                            f"matrix, Kalibr's camchain format)")
+    try:
+        T = np.asarray(node, dtype=np.float64)
+    except (TypeError, ValueError):
+        T = np.zeros(0)
+    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+        raise DataFileError(f"{path}: T_cam_imu must be a 4 x 4 matrix of numbers; got {node!r}"[:300])
+    R, t = T[:3, :3], T[:3, 3]
+    if not np.allclose(R @ R.T, np.eye(3), atol=1e-4) or np.linalg.det(R) < 0:
+        raise DataFileError(f"{path}: the rotation block of T_cam_imu is not a rotation (R R^T != I or det < 0)")
+    return R.T.copy(), -R.T @ t
+
+
+def _noise_from_metadata(metadata: dict) -> ImuNoiseParams | None:
+    """Return the IMU noise stored in a recording's metadata (simulator names or Kalibr names), or None."""
+    noise = metadata.get("imu_noise") if isinstance(metadata, dict) else None
+    if not isinstance(noise, dict):
+        return None
+    kalibr = {"gyroscope_noise_density": "gyro_noise_density", "accelerometer_noise_density": "accel_noise_density",
+              "gyroscope_random_walk": "gyro_random_walk", "accelerometer_random_walk": "accel_random_walk"}
+    values = {kalibr.get(k, k): v for k, v in noise.items()}
+    try:
+        return ImuNoiseParams.from_dict({k: v for k, v in values.items() if k in ImuNoiseParams.__dataclass_fields__})
+    except (ValueError, TypeError):
+        return None
+
+
+def _is_euroc(folder: Path) -> bool:
+    return (folder / "mav0").is_dir() or (folder.name == "mav0" and (folder / "imu0").is_dir())
+
+
+def load_dataset(dataset: str | Path | None = None, *, duration: float | None = None, seed: int = 0,
+                 need_events: bool = False, need_frames: bool = True, extrinsics: str | Path | None = None,
+                 progress: bool = False) -> LoadedDataset:
+    """Return the recording named by ``dataset`` (a preset name or a folder; None: ``boxes_like``).
+
+    Args:
+        dataset: 'boxes_like', 'aerial_like', an ECD folder or a EuRoC ASL folder.
+        duration: presets only: seconds simulated (default: the preset's whole 60 / 40 s).
+        seed: presets only: the simulation seed.
+        need_events, need_frames: what the run uses (a preset is simulated with events only when needed; a folder
+            without them is refused with a message saying what is missing).
+        extrinsics: a Kalibr YAML with T_cam_imu overriding the recording's extrinsics.
+        progress: show the simulator's progress bars.
+
+    Raises ValueError (DataFileError) naming what is missing or malformed.
+    """
+    notes: list[str] = []
+    dataset = "boxes_like" if dataset is None else dataset
+    text = str(dataset)
+    if text in PRESETS:
+        seq = simulate_preset(text, duration, seed, with_events=need_events, progress=progress)
+        kind, source = "preset", text
+    else:
+        if duration is not None:
+            raise ValueError("--duration applies to simulated presets; for a recording folder use --max-duration")
+        folder = Path(text)
+        if not folder.exists():
+            raise ValueError(f"DATASET {text!r} is neither a preset ({', '.join(PRESETS)}) nor an existing folder")
+        if not folder.is_dir():
+            raise ValueError(f"DATASET {text!r} is a file; expected a preset name, an ECD folder (events.txt, imu.txt, "
+                             f"...) or a EuRoC ASL folder (mav0/)")
+        if _is_euroc(folder):
+            from evio_lib.io.euroc import read_euroc
+
+            if need_events:
+                raise ValueError(f"{folder} is a EuRoC folder: it has no events; use --frames aps")
+            seq, kind = read_euroc(folder, load_frames=need_frames), "euroc"
+        elif (folder / "events.txt").is_file():
+            from evio_lib.io.ecd import read_ecd
+
+            seq, kind = read_ecd(folder, load_events=need_events, load_frames=need_frames), "ecd"
+        else:
+            raise ValueError(f"{folder} is not a recording folder: expected events.txt (ECD layout) or mav0/ "
+                             f"(EuRoC ASL layout)")
+        source = str(folder)
+    if seq.imu is None or len(seq.imu.t) < 2:
+        raise ValueError(f"{source} has no IMU samples (imu.txt / mav0/imu0/data.csv): the MSCKF needs the IMU")
+    if seq.camera is None:
+        raise ValueError(f"{source} has no camera calibration (calib.txt / mav0/cam0/sensor.yaml): the front-end needs "
+                         f"it to undistort the features")
+    if need_frames and len(seq.frame_times) < 2:
+        raise ValueError(f"{source} has fewer than 2 frames (images.txt): use --frames events, or a recording with frames")
+    if need_events and len(seq.events) == 0:
+        raise ValueError(f"{source} has no events (events.txt is empty): use --frames aps")
+
+    if extrinsics is not None:
+        R_CtoI, p_CinI = read_kalibr_extrinsics(extrinsics)
+        notes.append(f"extrinsics: from {extrinsics}")
+    elif seq.R_CtoI is not None and seq.p_CinI is not None:
+        R_CtoI, p_CinI = np.asarray(seq.R_CtoI, float), np.asarray(seq.p_CinI, float)
+        notes.append("extrinsics: from the recording (" + {"preset": "simulator", "ecd": "evio_sim.json",
+                                                           "euroc": "sensor.yaml"}[kind] + ")")
+    else:
+        R_CtoI, p_CinI = np.eye(3), np.zeros(3)
+        notes.append("extrinsics: none in the recording; assumed camera = IMU frame (the DAVIS's own IMU); "
+                     "give --extrinsics FILE if it differs")
+    noise = _noise_from_metadata(seq.metadata)
+    if noise is None:
+        noise = ImuNoiseParams()
+        notes.append("IMU noise: not in the recording; assumed the DAVIS's MPU-6150 model (ImuNoiseParams defaults)")
+    return LoadedDataset(sequence=seq, kind=kind, source=source, R_CtoI=R_CtoI, p_CinI=p_CinI, noise=noise,
+                         notes=tuple(notes))

@@ -1,0 +1,447 @@
+"""One recording -> frames -> feature tracks -> MSCKF -> trajectory and metrics (thesis §4.5).
+
+:func:`run_pipeline` runs the whole chain on a :class:`~evio_lib.pipeline.dataset.LoadedDataset`:
+
+1. frames: the APS frames, or frames reconstructed from event windows (:mod:`evio_lib.pipeline.frames`);
+2. front-end (:func:`evio_lib.frontend.create_tracker`): detection (SIFT, the CNN, ... by name), matching within the
+   gyroscope-predicted position, two-point RANSAC, a 4 x 5 grid of at most N / 20 features per cell (N = 60);
+3. the MSCKF (:class:`evio_lib.msckf.filter.Msckf`) with every IMU sample, each frame's undistorted tracks and their
+   own 2 x 2 covariances (the pixel noise pushed through the undistortion, Σ_i = σ² J_i J_iᵀ);
+4. metrics against the ground truth when the recording has one: RMSE, final error and % of distance (mean |e_k|
+   over the distance travelled, the thesis's definition), ATE after an SE(3) and a position + yaw alignment, the
+   orientation error and, for the "fast second half" comparison, the RMSE over each half of the run.
+
+Initialisation (``PipelineConfig.init``): 'groundtruth' starts from the ground truth's pose at the first frame and
+its velocity (the recording's own, else a central difference of its positions over ±25 ms) as the thesis did;
+'static' estimates roll, pitch and the gyro bias from the first ``static_init_duration`` (1 s) of a still IMU
+(yaw 0, position 0: the filter's world then differs from the ground truth's by a rigid motion, so only the aligned
+ATE compares them); 'auto' takes the ground truth when there is one. Biases start at zero (``bias_init='zero'``), at
+the ground truth's (``'groundtruth'``, the thesis's hand-tuned "bias correction" row) or at given values.
+
+Every per-frame figure is kept (:class:`PipelineResult`); nothing is written here (see :mod:`.output`).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+import warnings
+from dataclasses import dataclass, field
+from typing import Any, Iterator
+
+import numpy as np
+
+from evio_lib.evaluation.trajectory_metrics import orientation_errors, summarize
+from evio_lib.frontend import FrontendConfig, camera_rotation_prior, create_tracker, stats_table
+from evio_lib.geometry.rotation import quat_to_rot
+from evio_lib.msckf.config import MsckfConfig
+from evio_lib.msckf.experiment import observation_covariance
+from evio_lib.msckf.filter import Msckf, MsckfWarning
+from evio_lib.msckf.initialization import initial_state_from_static, initial_state_from_truth
+from evio_lib.pipeline.dataset import LoadedDataset
+from evio_lib.pipeline.frames import FRAME_SOURCES, aps_frames, event_frames
+
+__all__ = ["INIT_MODES", "PipelineConfig", "PipelineResult", "run_pipeline"]
+
+INIT_MODES = ("auto", "groundtruth", "static")
+
+
+@dataclass(frozen=True)
+class PipelineConfig:
+    """Every choice of one pipeline run (frozen, validated).
+
+    Attributes:
+        frames: 'aps' (the recorded frames) or 'events' (reconstructed from event windows).
+        features: detector name of ``evio_lib.features`` ('sift', 'superpoint' = the shipped CNN, 'orb', ...).
+        detector_options: extra options of the detector as (name, value) pairs (e.g. ('weights', PATH)).
+        tracker: 'descriptor' (the thesis's front-end) or 'klt' (optical flow; ``features`` then detects new ones).
+        max_features: N, features kept per frame (thesis 60).
+        reconstructor: event frames only: a reconstructor name ('firenet', 'high_pass', 'direct').
+        window_fraction: event frames only: n of N_e = n H W; None: the thesis's n for the preset (0.7 / 0.2).
+        adaptive_windows: event frames only: adaptive windows instead of fixed N_e.
+        init: one of :data:`INIT_MODES`.
+        bias_init: 'zero', 'groundtruth', or six numbers (b_g [rad/s], b_a [m/s^2]).
+        imu_only: propagate the IMU only (no frames are processed: the IMU-only rows of Table 6).
+        oc: observability-constrained EKF.
+        pixel_noise_px: feature noise σ, pixels.
+        max_duration: seconds of the recording processed from the start (None: all).
+        seed: seed of the front-end's RANSAC.
+    """
+
+    frames: str = "aps"
+    features: str = "sift"
+    detector_options: tuple[tuple[str, Any], ...] = ()
+    tracker: str = "descriptor"
+    max_features: int = 60
+    reconstructor: str = "firenet"
+    window_fraction: float | None = None
+    adaptive_windows: bool = False
+    init: str = "auto"
+    bias_init: Any = "zero"
+    imu_only: bool = False
+    oc: bool = True
+    pixel_noise_px: float = 1.0
+    max_duration: float | None = None
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.frames not in FRAME_SOURCES:
+            raise ValueError(f"frames must be one of {FRAME_SOURCES}; got {self.frames!r}")
+        if self.init not in INIT_MODES:
+            raise ValueError(f"init must be one of {INIT_MODES}; got {self.init!r}")
+        if isinstance(self.bias_init, str):
+            if self.bias_init not in ("zero", "groundtruth"):
+                raise ValueError(f"bias_init must be 'zero', 'groundtruth' or six numbers; got {self.bias_init!r}")
+        else:
+            values = np.asarray(self.bias_init, dtype=np.float64).reshape(-1)
+            if values.shape != (6,) or not np.all(np.isfinite(values)):
+                raise ValueError(f"bias_init must be 'zero', 'groundtruth' or six finite numbers (b_g, b_a); got "
+                                 f"{self.bias_init!r}")
+            object.__setattr__(self, "bias_init", tuple(float(v) for v in values))
+        if self.max_duration is not None and not (math.isfinite(self.max_duration) and self.max_duration > 0):
+            raise ValueError(f"max_duration must be None or a number of seconds > 0; got {self.max_duration!r}")
+        if isinstance(self.detector_options, dict):
+            object.__setattr__(self, "detector_options", tuple(sorted(self.detector_options.items())))
+        if not (math.isfinite(self.pixel_noise_px) and self.pixel_noise_px > 0):
+            raise ValueError(f"pixel_noise_px must be > 0; got {self.pixel_noise_px!r}")
+        FrontendConfig(method=self.tracker, max_features=self.max_features, seed=self.seed)  # validates those
+
+    def frontend_config(self) -> FrontendConfig:
+        """Return the front-end's configuration."""
+        detector = self.features if self.tracker == "descriptor" or self.features != "sift" else None
+        return FrontendConfig(method=self.tracker, detector=detector, detector_options=self.detector_options,
+                              max_features=self.max_features, seed=self.seed)
+
+    def label(self) -> str:
+        """Return a short name, e.g. 'SIFT on APS frames' or 'IMU only'."""
+        if self.imu_only:
+            return "IMU only" + (" (bias correction)" if self.bias_init != "zero" else "")
+        name = {"sift": "SIFT", "superpoint": "CNN"}.get(self.features, self.features)
+        if self.tracker == "klt":
+            name = f"KLT + {name}"
+        source = "APS frames" if self.frames == "aps" else f"event frames ({self.reconstructor})"
+        return f"{name} on {source}"
+
+
+@dataclass(eq=False)
+class PipelineResult:
+    """Everything one run produced (per-frame arrays have one row per processed frame).
+
+    Attributes:
+        config: the run's settings; dataset: the recording's name, kind and source; notes: assumptions made.
+        t: (K,) frame times; q_GtoI (K, 4) JPL; p_IinG, v_IinG, b_g, b_a (K, 3); sigma (K, 15) standard deviations of
+            [δθ, δb_g, δv, δb_a, δp]; features_used (K,) features in the updates at each frame.
+        R_CtoI, p_CinI: the extrinsics used.
+        tracking: the front-end's statistics as columns (``frontend.stats_table``), empty for IMU only.
+        track_lengths: frames each finished track lasted.
+        truth: ground truth of the IMU at t (keys p_IinG, R_ItoG, v_IinG, b_g, b_a; absent ones missing), or {}.
+        metrics: the error metrics (empty without ground truth) and the counts.
+        timings: seconds per stage (reconstruction, detection, matching, ransac, filter, total) and the real-time
+            factor (recording seconds processed per wall-clock second).
+        faults, rejections: the filter's counters.
+    """
+
+    config: PipelineConfig
+    dataset: dict[str, str]
+    notes: list[str]
+    t: np.ndarray
+    q_GtoI: np.ndarray
+    p_IinG: np.ndarray
+    v_IinG: np.ndarray
+    b_g: np.ndarray
+    b_a: np.ndarray
+    sigma: np.ndarray
+    features_used: np.ndarray
+    R_CtoI: np.ndarray
+    p_CinI: np.ndarray
+    tracking: dict[str, np.ndarray]
+    track_lengths: np.ndarray
+    truth: dict[str, np.ndarray]
+    metrics: dict[str, Any]
+    timings: dict[str, float]
+    faults: dict[str, int] = field(default_factory=dict)
+    rejections: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def R_ItoG(self) -> np.ndarray:
+        """Return (K, 3, 3) estimated orientations R_ItoG = C(q_GtoI)^T."""
+        return np.swapaxes(quat_to_rot(self.q_GtoI), -1, -2)
+
+    def camera_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        """Return (R_CtoG (K, 3, 3), p_CinG (K, 3)): the camera's estimated pose, R_CtoG = R_ItoG R_CtoI."""
+        R_ItoG = self.R_ItoG
+        return R_ItoG @ self.R_CtoI, self.p_IinG + R_ItoG @ self.p_CinI
+
+    def summary(self) -> str:
+        """Return a few lines: the run, its speed and its errors."""
+        m, tm = self.metrics, self.timings
+        lines = [f"{self.config.label()} on {self.dataset['name']}: {len(self.t)} frames over "
+                 f"{m.get('duration_s', 0.0):.1f} s, {tm.get('realtime_factor', float('nan')):.2f}x real time"]
+        if "rmse_m" in m:
+            lines.append(f"  RMSE {m['rmse_m']:.3f} m, final error {m['final_error_m']:.3f} m, "
+                         f"{m['percent_of_distance']:.2f} % of {m['distance_m']:.1f} m, ATE (SE(3)) {m['ate_se3_m']:.3f} m, "
+                         f"orientation RMSE {m['orientation_rmse_deg']:.2f} deg")
+        if len(self.tracking.get("t", ())):
+            lines.append(f"  tracking: {np.mean(self.tracking['total']):.1f} features/frame, "
+                         f"{np.mean(self.tracking['tracked']):.1f} tracked, mean track length "
+                         f"{np.mean(self.track_lengths) if len(self.track_lengths) else 0:.1f} frames")
+        if self.faults:
+            lines.append("  faults: " + ", ".join(f"{k}={v}" for k, v in sorted(self.faults.items())))
+        return "\n".join(lines)
+
+
+# ==================================================================================================== set-up
+def _truth_imu(data: LoadedDataset, t: np.ndarray) -> dict[str, np.ndarray]:
+    """Return the IMU's ground truth interpolated at times t (positions, orientations, velocity, biases) or {}."""
+    seq = data.sequence
+    if seq.groundtruth_imu is not None:
+        gt = seq.groundtruth_imu
+        inside = (t >= gt.t[0]) & (t <= gt.t[-1])
+        if not np.all(inside):
+            raise ValueError(f"the ground truth spans [{gt.t[0]:.3f}, {gt.t[-1]:.3f}] s, not every processed time "
+                             f"[{t[0]:.3f}, {t[-1]:.3f}] s")
+        g = gt.interpolate(t)
+        out = {"p_IinG": g.p_BinG, "R_ItoG": g.R_BtoG}
+        if g.v_BinG is not None:
+            out["v_IinG"] = g.v_BinG
+        if g.bias_gyro is not None:
+            out["b_g"], out["b_a"] = g.bias_gyro, g.bias_accel
+        return out
+    if seq.groundtruth is not None:  # camera poses: I = C composed with the extrinsics
+        gt = seq.groundtruth
+        if t[0] < gt.t[0] or t[-1] > gt.t[-1]:
+            raise ValueError(f"the ground truth spans [{gt.t[0]:.3f}, {gt.t[-1]:.3f}] s, not every processed time "
+                             f"[{t[0]:.3f}, {t[-1]:.3f}] s")
+        g = gt.interpolate(t)
+        R_ItoG = g.R_BtoG @ data.R_CtoI.T  # R_ItoG = R_CtoG R_ItoC
+        p_IinG = g.p_BinG - R_ItoG @ data.p_CinI  # p_CinG = p_IinG + R_ItoG p_CinI
+        return {"p_IinG": p_IinG, "R_ItoG": R_ItoG}
+    return {}
+
+
+def _truth_velocity(data: LoadedDataset, t0: float) -> np.ndarray:
+    """Return v_IinG at t0: the recording's own velocity, else a central difference of positions over ±25 ms."""
+    truth = _truth_imu(data, np.array([t0]))
+    if "v_IinG" in truth:
+        return truth["v_IinG"][0]
+    gt = data.sequence.groundtruth_imu or data.sequence.groundtruth
+    h = 0.025
+    a, b = max(t0 - h, gt.t[0]), min(t0 + h, gt.t[-1])
+    if b <= a:
+        raise ValueError("the ground truth is too short to difference a velocity at the first frame")
+    p = _truth_imu(data, np.array([a, b]))["p_IinG"]
+    return (p[1] - p[0]) / (b - a)
+
+
+def _bias_estimates(config: PipelineConfig, data: LoadedDataset, t0: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """Return the initial (b_g, b_a) the config asks for, or None for 'zero'."""
+    if config.bias_init == "zero":
+        return None
+    if config.bias_init == "groundtruth":
+        truth = _truth_imu(data, np.array([t0]))
+        if "b_g" not in truth:
+            raise ValueError("bias_init 'groundtruth' needs a ground truth with biases (groundtruth_imu.txt with 14 or "
+                             "17 columns, or EuRoC's state_groundtruth_estimate0)")
+        return truth["b_g"][0], truth["b_a"][0]
+    values = np.asarray(config.bias_init, dtype=np.float64)
+    return values[:3], values[3:]
+
+
+def msckf_config_for(config: PipelineConfig, data: LoadedDataset) -> MsckfConfig:
+    """Return the filter's configuration: library defaults with the recording's IMU noise, the pixel noise and OC."""
+    cam = data.sequence.camera
+    gravity = data.sequence.metadata.get("gravity_G") if isinstance(data.sequence.metadata, dict) else None
+    cfg = MsckfConfig().with_imu_noise(data.noise)
+    changes: dict[str, Any] = dict(pixel_noise_sigma=config.pixel_noise_px, focal_length_px=math.sqrt(cam.fx * cam.fy),
+                                   observability_constrained=config.oc, imu_only=config.imu_only)
+    if gravity is not None:
+        changes["gravity_G"] = tuple(float(g) for g in gravity)
+    return dataclasses.replace(cfg, **changes)
+
+
+def _frames(data: LoadedDataset, config: PipelineConfig, t_start: float, t_end: float
+            ) -> Iterator[tuple[float, np.ndarray, float]]:
+    if config.frames == "aps":
+        return aps_frames(data.sequence, t_start, t_end)
+    return event_frames(data.sequence, config.reconstructor, config.window_fraction, config.adaptive_windows,
+                        t_start, t_end)
+
+
+def _span(data: LoadedDataset, config: PipelineConfig) -> tuple[float, float]:
+    """Return (t_first, t_last): the time span the run may process (inside the IMU's, cut by max_duration)."""
+    seq = data.sequence
+    if config.frames == "aps" or config.imu_only:
+        if len(seq.frame_times) < 2:
+            raise ValueError("the recording has fewer than 2 frames")
+        t0, t1 = float(seq.frame_times[0]), float(seq.frame_times[-1])
+    else:
+        t0, t1 = float(seq.events["t"][0]), float(seq.events["t"][-1])
+    t0, t1 = max(t0, float(seq.imu.t[0])), min(t1, float(seq.imu.t[-1]))
+    if config.max_duration is not None:
+        t1 = min(t1, t0 + config.max_duration)
+    if t1 <= t0:
+        raise ValueError(f"the frames (or events) and the IMU do not overlap in time (frames [{t0:.3f}, ...], IMU "
+                         f"[{seq.imu.t[0]:.3f}, {seq.imu.t[-1]:.3f}] s)")
+    return t0, t1
+
+
+# ==================================================================================================== the run
+def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, progress: bool = False,
+                 detector: Any = None) -> PipelineResult:
+    """Return the result of running frames -> front-end -> MSCKF on a recording (module docstring).
+
+    Args:
+        data: the recording (:func:`evio_lib.pipeline.dataset.load_dataset`).
+        config: the run's choices (default ``PipelineConfig()``: SIFT on APS frames).
+        progress: show a progress bar over the processed seconds.
+        detector: an already created feature detector to use instead of ``config.features`` (e.g. a loaded CNN).
+
+    Raises ValueError for a recording the run cannot use (no overlap of frames and IMU, a still start required by
+    static initialisation that is not still, an IMU gap too long to bridge) with the reason in the message.
+    """
+    config = PipelineConfig() if config is None else config
+    if not isinstance(config, PipelineConfig):
+        raise ValueError(f"config must be a PipelineConfig; got {type(config).__name__}")
+    seq = data.sequence
+    notes = list(data.notes)
+    has_truth = seq.groundtruth_imu is not None or seq.groundtruth is not None
+    init = config.init if config.init != "auto" else ("groundtruth" if has_truth else "static")
+    if init == "groundtruth" and not has_truth:
+        raise ValueError("init 'groundtruth' needs a ground truth (groundtruth.txt); use init 'static'")
+    t_first, t_last = _span(data, config)
+    msckf_cfg = msckf_config_for(config, data)
+
+    if init == "groundtruth":
+        gt = seq.groundtruth_imu or seq.groundtruth
+        t_first = max(t_first, float(gt.t[0]) + 0.025)
+        truth0 = _truth_imu(data, np.array([t_first]))
+        biases = _bias_estimates(config, data, t_first)
+        b_g, b_a = biases if biases is not None else (np.zeros(3), np.zeros(3))
+        state = initial_state_from_truth(t_first, truth0["R_ItoG"][0], truth0["p_IinG"][0],
+                                         _truth_velocity(data, t_first), data.R_CtoI, data.p_CinI, msckf_cfg,
+                                         b_g=b_g, b_a=b_a)
+        notes.append(f"initialisation: ground-truth pose and velocity at t = {t_first:.3f} s, biases "
+                     f"{'zero' if biases is None else 'from ' + str(config.bias_init)}")
+    else:
+        imu = seq.imu
+        try:
+            state, stats = initial_state_from_static(imu.t, imu.gyro, imu.accel, data.R_CtoI, data.p_CinI, msckf_cfg,
+                                                     t_start=t_first)
+        except ValueError as error:
+            raise ValueError(f"static initialisation failed: {error}. Start the run where the sensor is still, or "
+                             f"give a ground truth (init 'groundtruth')") from None
+        biases = _bias_estimates(config, data, stats.t_end)
+        if biases is not None:
+            state = dataclasses.replace(state, imu=dataclasses.replace(state.imu, b_g=np.asarray(biases[0]),
+                                                                        b_a=np.asarray(biases[1])))
+        t_first = stats.t_end
+        notes.append(f"initialisation: static, IMU still over [{stats.t_start:.3f}, {stats.t_end:.3f}] s (gravity "
+                     f"error {stats.gravity_error:+.3f} m/s^2); yaw 0 and position 0, so compare with the ground truth "
+                     f"after alignment (ATE)")
+    if t_last <= t_first:
+        raise ValueError(f"nothing left to process after the initialisation at t = {t_first:.3f} s")
+
+    filt = Msckf(msckf_cfg, state)
+    imu = seq.imu
+    k0 = int(np.searchsorted(imu.t, t_first, side="right"))
+    wall0 = time.perf_counter()
+    filt.feed_imu(imu.t[k0:], imu.gyro[k0:], imu.accel[k0:])
+    tracker = create_tracker(seq.camera, config.frontend_config(), detector=detector)
+    sigma_px = config.pixel_noise_px
+    outputs, tracked, lengths = [], [], []
+    last_seen: dict[int, int] = {}
+    timings = dict(reconstruction=0.0, detection=0.0, matching=0.0, ransac=0.0, filter=0.0)
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=round(t_last - t_first, 1), unit="s", desc=config.label(), leave=False)
+    t_prev = None
+    if config.imu_only:
+        times = seq.frame_times[(seq.frame_times > t_first) & (seq.frame_times <= t_last)]
+        source = ((float(t), None, 0.0) for t in times)
+    else:
+        source = _frames(data, config, t_first, t_last)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", MsckfWarning)  # counted in filt.faults and reported in the summary
+        for t, image, t_rec in source:
+            if t <= t_first or (t_prev is not None and t <= t_prev):
+                continue
+            timings["reconstruction"] += t_rec
+            if image is None:
+                start = time.perf_counter()
+                outputs.append(filt.process_image(t, np.zeros(0, np.int64), np.zeros((0, 2))))
+                timings["filter"] += time.perf_counter() - start
+            else:
+                R_prior = None
+                if t_prev is not None:
+                    b_g = filt.state.imu.b_g
+                    R_prior = camera_rotation_prior(imu.t, imu.gyro, t_prev, t, data.R_CtoI, gyro_bias=b_g)
+                frame = tracker.process(image, t, R_prior)
+                timings["detection"] += frame.stats.time_detect_s
+                timings["matching"] += frame.stats.time_match_s
+                timings["ransac"] += frame.stats.time_ransac_s
+                tracked.append(frame)
+                for i in frame.ids.tolist():
+                    last_seen[i] = last_seen.get(i, 0) + 1
+                start = time.perf_counter()
+                cov = observation_covariance(seq.camera, frame.pixels, sigma_px) if len(frame) else None
+                outputs.append(filt.process_image(t, frame.ids, frame.xy, cov))
+                timings["filter"] += time.perf_counter() - start
+            if not (np.all(np.isfinite(outputs[-1].p_IinG)) and np.all(np.isfinite(outputs[-1].P_imu))):
+                raise ValueError(f"the filter's state became non-finite at t = {t:.3f} s (faults: {dict(filt.faults)})")
+            if bar is not None:
+                bar.update(round(t - (t_prev if t_prev is not None else t_first), 3))
+            t_prev = t
+    if bar is not None:
+        bar.close()
+    wall = time.perf_counter() - wall0
+    if not outputs:
+        raise ValueError(f"no frame to process in [{t_first:.3f}, {t_last:.3f}] s (no events or frames there)")
+    lengths = np.array(list(last_seen.values()), dtype=np.int64)
+
+    t = np.array([o.t for o in outputs])
+    P = np.array([o.P_imu for o in outputs])
+    duration = float(t[-1] - t_first)
+    timings["total"] = wall  # reconstruction happens inside the loop, so it is part of the wall time
+    timings["realtime_factor"] = duration / wall if wall > 0 else float("inf")
+    result = PipelineResult(
+        config=config, dataset={"name": seq.name, "kind": data.kind, "source": data.source}, notes=notes, t=t,
+        q_GtoI=np.array([o.q_GtoI for o in outputs]), p_IinG=np.array([o.p_IinG for o in outputs]),
+        v_IinG=np.array([o.v_IinG for o in outputs]), b_g=np.array([o.b_g for o in outputs]),
+        b_a=np.array([o.b_a for o in outputs]), sigma=np.sqrt(np.clip(np.diagonal(P, axis1=1, axis2=2), 0.0, None)),
+        features_used=np.array([o.n_features_used for o in outputs]), R_CtoI=data.R_CtoI, p_CinI=data.p_CinI,
+        tracking=stats_table(tracked) if tracked else {}, track_lengths=lengths, truth={}, metrics={},
+        timings=timings, faults=dict(filt.faults), rejections=dict(filt.rejections),
+    )
+    result.metrics = {"frames": int(len(t)), "duration_s": duration, "t_start": t_first, "t_end": float(t[-1]),
+                      "init": init}
+    if has_truth:
+        result.truth = _truth_imu(data, t)
+        result.metrics.update(trajectory_metrics(result, aligned_only=init == "static"))
+    return result
+
+
+def trajectory_metrics(result: PipelineResult, aligned_only: bool = False) -> dict[str, Any]:
+    """Return the error metrics of a result against its ``truth`` (IMU positions and orientations at ``t``).
+
+    Keys: those of :func:`evio_lib.evaluation.trajectory_metrics.summarize` (rmse_m, final_error_m,
+    percent_of_distance, distance_m, ate_4dof_m, ate_se3_m, ...), orientation_rmse_deg, and rmse_first_half_m /
+    rmse_second_half_m (the run split at its middle time). With ``aligned_only`` (static initialisation: another
+    world frame) the unaligned figures are NaN and only the ATEs are reported.
+    """
+    t, truth = result.t, result.truth
+    row = summarize(t, result.p_IinG, t, truth["p_IinG"])
+    row.pop("name", None)
+    angle, _, _ = orientation_errors(result.R_ItoG, truth["R_ItoG"])
+    row["orientation_rmse_deg"] = float(np.degrees(np.sqrt(np.mean(angle ** 2))))
+    err = np.linalg.norm(result.p_IinG - truth["p_IinG"], axis=1)
+    mid = 0.5 * (t[0] + t[-1])
+    first, second = t <= mid, t > mid
+    row["rmse_first_half_m"] = float(np.sqrt(np.mean(err[first] ** 2))) if first.any() else float("nan")
+    row["rmse_second_half_m"] = float(np.sqrt(np.mean(err[second] ** 2))) if second.any() else float("nan")
+    if aligned_only:
+        for key in ("rmse_m", "final_error_m", "mean_error_m", "max_error_m", "percent_of_distance",
+                    "orientation_rmse_deg", "rmse_first_half_m", "rmse_second_half_m"):
+            row[key] = float("nan")
+    return row
