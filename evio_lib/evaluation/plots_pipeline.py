@@ -1,0 +1,385 @@
+"""Figures of a complete EVIO run (``python -m evio_lib run``): filter errors with 3-sigma bounds, IMU biases, the
+trajectory seen from above, the front-end's tracking statistics and an error comparison of several configurations.
+
+- :func:`plot_state_errors`: per-axis error (truth - estimate) of position, orientation or velocity against time, inside
+  the filter's ±3σ band. Called three times per run, it gives the position / orientation / velocity panels of the
+  thesis's MSCKF result figures (Figs. 23-32, Friedel 2020, §4.5).
+- :func:`plot_bias_estimates`: estimated gyroscope or accelerometer bias with ±3σ around the estimate and, when known,
+  the true bias; thesis Appendix C (Figs. 49-58, "Gyroscope and Accelerometer Bias Results").
+- :func:`plot_trajectory_topdown`: the x-y plane of any number of estimated trajectories and the ground truth, equal
+  aspect, start and end marked (the top-down view of a run; the thesis shows the same information per axis).
+- :func:`plot_tracking_statistics`: features tracked / new / total per frame and RANSAC rejections per frame, from the
+  columns of :func:`evio_lib.frontend.stats_table`, optionally with a histogram of track lengths (front-end health
+  behind the thesis's §4.5 remarks on blur and sparse event frames).
+- :func:`plot_error_comparison`: position-error norm against time for several configurations on one axis (e.g. APS
+  frames vs event frames vs IMU only, the comparison of thesis Table 6), with an optional line at the start of the
+  fast second half of a recording.
+
+Plotting only, on plain arrays: nothing here depends on the pipeline's classes. Matplotlib is imported when a figure is
+made; no function calls ``plt.show``.
+"""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any, Mapping, Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.figure import Figure
+
+__all__ = [
+    "plot_state_errors",
+    "plot_bias_estimates",
+    "plot_trajectory_topdown",
+    "plot_tracking_statistics",
+    "plot_error_comparison",
+]
+
+_BIAS_KINDS = {  # kind -> (default unit, name used in labels)
+    "gyro": ("rad/s", "gyroscope bias"),
+    "accel": ("m/s^2", "accelerometer bias"),
+}
+_STATS_KEYS = ("t", "tracked", "new", "total", "rejected_ransac")  # columns plot_tracking_statistics needs
+
+
+def _array(value: Any, name: str, expected: str) -> NDArray[np.float64]:
+    """Return value as a float64 array; raise ValueError naming ``name`` and the ``expected`` form otherwise."""
+    try:
+        return np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be a numeric array of shape {expected}; got {type(value).__name__}") from exc
+
+
+def _times(t: ArrayLike, name: str = "t") -> NDArray[np.float64]:
+    """Return t as a finite float64 (N,) array with N >= 1; raise ValueError naming ``name`` otherwise."""
+    arr = _array(t, name, "(N,)")
+    if arr.ndim != 1 or arr.shape[0] < 1:
+        raise ValueError(f"{name} must have shape (N,) with N >= 1 times [s]; got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must contain only finite times [s]; found {int(np.sum(~np.isfinite(arr)))} "
+                         f"NaN/inf values")
+    return arr
+
+
+def _xyz(value: ArrayLike, name: str, n: int, *, sigma: bool = False) -> NDArray[np.float64]:
+    """Return value as a float64 (n, 3) array (NaN allowed: not drawn); raise ValueError naming ``name`` otherwise.
+
+    With ``sigma`` the values must also be standard deviations: >= 0 where not NaN.
+    """
+    arr = _array(value, name, f"(N, 3) = ({n}, 3)")
+    if arr.shape != (n, 3):
+        raise ValueError(f"{name} must have shape (N, 3) = ({n}, 3) like t; got {arr.shape}")
+    if np.any(np.isinf(arr)):
+        raise ValueError(f"{name} must not contain inf (NaN marks samples that are not drawn)")
+    if sigma and np.any(arr < 0):  # NaN < 0 is False, so NaN passes
+        raise ValueError(f"{name} must contain standard deviations >= 0 (or NaN); got min {np.nanmin(arr):.3g}")
+    return arr
+
+
+def _n_sigma(n_sigma: float) -> float:
+    """Return n_sigma as a float > 0; raise ValueError otherwise."""
+    try:
+        value = float(n_sigma)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"n_sigma must be a finite number > 0; got {n_sigma!r}") from exc
+    if not (np.isfinite(value) and value > 0):
+        raise ValueError(f"n_sigma must be a finite number > 0; got {n_sigma!r}")
+    return value
+
+
+def _axis_labels(axis_labels: Sequence[str]) -> tuple[str, str, str]:
+    """Return three axis names as strings; raise ValueError otherwise."""
+    if isinstance(axis_labels, str) or len(axis_labels) != 3:
+        raise ValueError(f"axis_labels must be three names, e.g. ('x', 'y', 'z'); got {axis_labels!r}")
+    return tuple(str(a) for a in axis_labels)  # type: ignore[return-value]
+
+
+def plot_state_errors(t: ArrayLike, errors: ArrayLike, sigma: ArrayLike, *, quantity: str = "position",
+                      unit: str = "m", axis_labels: Sequence[str] = ("x", "y", "z"), n_sigma: float = 3.0,
+                      title: str = "") -> "Figure":
+    """Return a figure of three stacked panels (one per axis): the error against time inside the ±nσ band.
+
+    Args:
+        t: (N,) times [s].
+        errors: (N, 3) per-axis errors, truth - estimate, in ``unit`` (orientation: the caller converts the small-angle
+            error δθ to degrees). NaN samples are not drawn.
+        sigma: (N, 3) the filter's standard deviations of those errors, sqrt(diag P), in ``unit``; NaN where unknown
+            (not drawn there).
+        quantity, unit: y labels read "<axis> <quantity> error [<unit>]", e.g. "x position error [m]".
+        axis_labels: names of the three axes (e.g. ("North", "East", "Down")).
+        n_sigma: width of the band (3: a consistent filter keeps ~99.7 % of the errors inside).
+        title: figure title.
+
+    Reference: thesis Figs. 23-32 (MSCKF position and velocity errors with 3σ bounds), Friedel 2020 §4.5.
+
+    >>> import matplotlib; matplotlib.use("Agg")
+    >>> fig = plot_state_errors([0.0, 1.0], np.zeros((2, 3)), np.ones((2, 3)))
+    >>> len(fig.axes), fig.axes[0].lines[1].get_ydata().tolist()      # +3 sigma
+    (3, [3.0, 3.0])
+    """
+    import matplotlib.pyplot as plt
+
+    t = _times(t)
+    e = _xyz(errors, "errors", t.shape[0])
+    s = _xyz(sigma, "sigma", t.shape[0], sigma=True)
+    names = _axis_labels(axis_labels)
+    k_sigma = _n_sigma(n_sigma)
+    fig, axes = plt.subplots(3, 1, figsize=(8, 6.5), sharex=True)
+    for j, (ax, name) in enumerate(zip(axes, names)):
+        ax.plot(t, e[:, j], "C0-", lw=1.2, label="error (truth - estimate)")
+        ax.plot(t, k_sigma * s[:, j], "r--", lw=1.0, label=f"±{k_sigma:g}σ")  # +nσ; NaN breaks the line
+        ax.plot(t, -k_sigma * s[:, j], "r--", lw=1.0)  # -nσ
+        ax.axhline(0.0, color="k", lw=0.5, alpha=0.5)
+        ax.set_ylabel(f"{name} {quantity} error [{unit}]")
+        ax.grid(True, alpha=0.3)
+    axes[0].legend(fontsize=8, loc="lower right", bbox_to_anchor=(1.0, 1.0), ncol=3, frameon=False)  # above the data
+    axes[-1].set_xlabel("time [s]")
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
+def plot_bias_estimates(t: ArrayLike, estimate: ArrayLike, sigma: ArrayLike, truth: ArrayLike | None = None, *,
+                        kind: str = "gyro", unit: str | None = None, axis_labels: Sequence[str] = ("x", "y", "z"),
+                        n_sigma: float = 3.0, title: str = "") -> "Figure":
+    """Return a figure of three stacked panels: the estimated IMU bias per axis, ±nσ around it, the truth if given.
+
+    Args:
+        t: (N,) times [s].
+        estimate: (N, 3) estimated bias b_g [rad/s] (kind "gyro") or b_a [m/s^2] (kind "accel"), in ``unit``.
+        sigma: (N, 3) its standard deviations (NaN where unknown, not drawn).
+        truth: (N, 3) true bias (simulations), drawn dashed; None for recordings without one.
+        kind: "gyro" or "accel": chooses the labels and the default unit.
+        unit: unit of the arrays for the y labels; None: "rad/s" for gyro, "m/s^2" for accel.
+        axis_labels: names of the three axes; n_sigma: band width; title: figure title.
+
+    Reference: thesis Appendix C, Figs. 49-58 (estimated gyroscope and accelerometer biases with 3σ bounds).
+
+    >>> import matplotlib; matplotlib.use("Agg")
+    >>> fig = plot_bias_estimates([0.0, 1.0], np.zeros((2, 3)), np.ones((2, 3)), kind="accel")
+    >>> fig.axes[0].get_ylabel()
+    'x accelerometer bias [m/s^2]'
+    """
+    import matplotlib.pyplot as plt
+
+    if kind not in _BIAS_KINDS:
+        raise ValueError(f"kind must be one of {sorted(_BIAS_KINDS)}; got {kind!r}")
+    default_unit, name = _BIAS_KINDS[kind]
+    unit = default_unit if unit is None else unit
+    t = _times(t)
+    b = _xyz(estimate, "estimate", t.shape[0])
+    s = _xyz(sigma, "sigma", t.shape[0], sigma=True)
+    b_true = None if truth is None else _xyz(truth, "truth", t.shape[0])
+    names = _axis_labels(axis_labels)
+    k_sigma = _n_sigma(n_sigma)
+    fig, axes = plt.subplots(3, 1, figsize=(8, 6.5), sharex=True)
+    for j, (ax, axis) in enumerate(zip(axes, names)):
+        ax.plot(t, b[:, j], "C0-", lw=1.2, label="estimate")
+        ax.plot(t, b[:, j] + k_sigma * s[:, j], "r--", lw=1.0, label=f"estimate ±{k_sigma:g}σ")  # b + nσ
+        ax.plot(t, b[:, j] - k_sigma * s[:, j], "r--", lw=1.0)  # b - nσ
+        if b_true is not None:
+            ax.plot(t, b_true[:, j], "k--", lw=1.2, label="truth")
+        ax.set_ylabel(f"{axis} {name} [{unit}]")
+        ax.grid(True, alpha=0.3)
+    axes[0].legend(fontsize=8, loc="lower right", bbox_to_anchor=(1.0, 1.0), ncol=3, frameon=False)  # above the data
+    axes[-1].set_xlabel("time [s]")
+    fig.suptitle(title or f"estimated {name}" + ("" if b_true is not None else " (no truth available)"))
+    fig.tight_layout()
+    return fig
+
+
+def _trajectory(value: ArrayLike, name: str) -> NDArray[np.float64]:
+    """Return value as a float64 (N, 3) array with at least one finite row; raise ValueError naming ``name``."""
+    arr = _array(value, name, "(N, 3)")
+    if arr.ndim != 2 or arr.shape[1] != 3 or arr.shape[0] < 1:
+        raise ValueError(f"{name} must have shape (N, 3) with N >= 1 positions [m]; got {arr.shape}")
+    if not np.any(np.all(np.isfinite(arr), axis=1)):
+        raise ValueError(f"{name} has no finite position (every row contains NaN/inf)")
+    return arr
+
+
+def plot_trajectory_topdown(estimates: Mapping[str, ArrayLike], groundtruth: ArrayLike | None = None, *,
+                            title: str = "") -> "Figure":
+    """Return a top-down (x-y plane) figure of estimated trajectories and the ground truth, equal aspect.
+
+    Args:
+        estimates: label -> (N, 3) estimated positions p_IinG [m] (any number, e.g. {"MSCKF": ..., "IMU only": ...});
+            each may have its own N. Rows with NaN are not drawn.
+        groundtruth: (M, 3) true positions [m], drawn in black; None when there is none.
+        title: figure title.
+
+    The start (circle) and end (cross) of each curve are marked.
+
+    >>> import matplotlib; matplotlib.use("Agg")
+    >>> fig = plot_trajectory_topdown({"MSCKF": np.zeros((2, 3))}, np.ones((3, 3)))
+    >>> fig.axes[0].get_aspect()
+    1.0
+    """
+    import matplotlib.pyplot as plt
+
+    if not isinstance(estimates, Mapping):
+        raise ValueError(f"estimates must be a mapping label -> (N, 3) positions; got {type(estimates).__name__}")
+    curves = {str(label): _trajectory(value, f"estimates[{label!r}]") for label, value in estimates.items()}
+    gt = None if groundtruth is None else _trajectory(groundtruth, "groundtruth")
+    if not curves and gt is None:
+        raise ValueError("nothing to draw: estimates is empty and groundtruth is None")
+    fig, ax = plt.subplots(figsize=(6.5, 6))
+    styled = ([("ground truth", gt, "k")] if gt is not None else []) + \
+        [(label, p, f"C{k}") for k, (label, p) in enumerate(curves.items())]
+    for k, (label, p, colour) in enumerate(styled):
+        ax.plot(p[:, 0], p[:, 1], "-", color=colour, lw=1.8 if colour == "k" else 1.2, label=label)
+        finite = np.flatnonzero(np.all(np.isfinite(p), axis=1))
+        first, last = p[finite[0]], p[finite[-1]]
+        ax.plot(first[0], first[1], "o", color=colour, ms=7, mfc="none", mew=1.5, label="start" if k == 0 else None)
+        ax.plot(last[0], last[1], "x", color=colour, ms=7, mew=1.5, label="end" if k == 0 else None)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title(title or "trajectory, top view (x-y plane)")
+    fig.tight_layout()
+    return fig
+
+
+def plot_tracking_statistics(stats: Mapping[str, ArrayLike], *, track_lengths: ArrayLike | None = None,
+                             title: str = "") -> "Figure":
+    """Return a figure of the front-end's per-frame statistics: features (top), RANSAC rejections (bottom).
+
+    Args:
+        stats: columns as :func:`evio_lib.frontend.stats_table` returns them; needs "t" (F,) frame times [s] and the
+            (F,) counts "tracked", "new", "total" and "rejected_ransac"; "lost" (F,) is drawn beside the rejections
+            when present. Other columns are ignored.
+        track_lengths: optional (K,) lengths of finished tracks in frames (>= 1); adds a third panel, their histogram.
+        title: figure title.
+
+    The legend gives each count's mean per frame.
+
+    >>> import matplotlib; matplotlib.use("Agg")
+    >>> s = {"t": [0.0, 0.1], "tracked": [0, 8], "new": [10, 2], "total": [10, 10], "rejected_ransac": [0, 1]}
+    >>> len(plot_tracking_statistics(s, track_lengths=[1, 2, 2]).axes)
+    3
+    """
+    import matplotlib.pyplot as plt
+
+    if not isinstance(stats, Mapping):
+        raise ValueError(f"stats must be a mapping of columns (evio_lib.frontend.stats_table); "
+                         f"got {type(stats).__name__}")
+    for key in _STATS_KEYS:
+        if key not in stats:
+            raise ValueError(f"stats lacks the column {key!r}; expected the columns {list(_STATS_KEYS)} "
+                             f"(evio_lib.frontend.stats_table)")
+    t = _array(stats["t"], "stats['t']", "(F,)")
+    if t.ndim != 1 or t.shape[0] < 1 or not np.all(np.isfinite(t)):
+        raise ValueError(f"stats['t'] must be finite frame times of shape (F,), F >= 1; got shape {t.shape}")
+    columns = {}
+    for key in _STATS_KEYS[1:] + (("lost",) if "lost" in stats else ()):
+        col = _array(stats[key], f"stats[{key!r}]", f"(F,) = {t.shape}")
+        if col.shape != t.shape:
+            raise ValueError(f"stats[{key!r}] must have shape (F,) = {t.shape} like stats['t']; got {col.shape}")
+        if not np.all(np.isfinite(col)) or np.any(col < 0):
+            raise ValueError(f"stats[{key!r}] must contain finite counts >= 0")
+        columns[key] = col
+    lengths = None
+    if track_lengths is not None:
+        lengths = _array(track_lengths, "track_lengths", "(K,)")
+        if lengths.ndim != 1 or lengths.shape[0] < 1:
+            raise ValueError(f"track_lengths must have shape (K,) with K >= 1; got {lengths.shape}")
+        if not np.all(np.isfinite(lengths)) or np.any(lengths < 1):
+            raise ValueError("track_lengths must contain finite track lengths >= 1 [frames]")
+    n_panels = 2 if lengths is None else 3
+    fig, axes = plt.subplots(n_panels, 1, figsize=(8, 2.6 * n_panels + 0.6))
+    top, bottom = axes[0], axes[1]
+    for key, style in (("total", "k-"), ("tracked", "C0-"), ("new", "C2-")):
+        top.plot(t, columns[key], style, lw=1.2, label=f"{key} (mean {columns[key].mean():.1f})")
+    top.set_ylabel("features per frame")
+    top.set_ylim(bottom=0.0)
+    bottom.sharex(top)
+    bottom.plot(t, columns["rejected_ransac"], "C3-", lw=1.2,
+                label=f"rejected by RANSAC (mean {columns['rejected_ransac'].mean():.1f})")
+    if "lost" in columns:
+        bottom.plot(t, columns["lost"], "C1:", lw=1.2, label=f"lost (mean {columns['lost'].mean():.1f})")
+    bottom.set_ylabel("tracks per frame")
+    bottom.set_xlabel("time [s]")
+    bottom.set_ylim(bottom=0.0)
+    for ax in (top, bottom):
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8, loc="upper right")
+    if lengths is not None:
+        hist = axes[2]
+        integer = np.all(lengths == np.round(lengths))
+        bins = np.arange(0.5, lengths.max() + 1.5) if integer else "auto"  # one bar per whole length
+        hist.hist(lengths, bins=bins, color="C0", alpha=0.8)
+        hist.axvline(float(np.median(lengths)), color="k", ls="--", lw=1.0,
+                     label=f"median {np.median(lengths):g} frames ({lengths.shape[0]} tracks)")
+        hist.set_xlabel("track length [frames]")
+        hist.set_ylabel("tracks")
+        hist.legend(fontsize=8)
+    fig.suptitle(title or f"front-end statistics over {t.shape[0]} frames")
+    fig.tight_layout()
+    return fig
+
+
+def plot_error_comparison(t_by_name: Mapping[str, ArrayLike], error_norm_by_name: Mapping[str, ArrayLike], *,
+                          split_time: float | None = None, log: bool = False, ylabel: str = "position error [m]",
+                          title: str = "") -> "Figure":
+    """Return a figure of error norms against time, one line per configuration, on one axis.
+
+    Args:
+        t_by_name: label -> (N_k,) times [s] of that configuration (each may have its own N_k).
+        error_norm_by_name: the same labels -> (N_k,) error norms |p_true - p_est| >= 0 (NaN not drawn).
+        split_time: draws a vertical line there (e.g. the start of a recording's fast second half); None: no line.
+        log: logarithmic y axis (then only errors > 0 are drawn).
+        ylabel: y-axis label; title: figure title.
+
+    Reference: the configurations of thesis Table 6 (IMU only, grayscale/APS frames, event frames).
+
+    >>> import matplotlib; matplotlib.use("Agg")
+    >>> fig = plot_error_comparison({"a": [0.0, 1.0]}, {"a": [0.0, 0.5]}, split_time=0.5)
+    >>> [line.get_label() for line in fig.axes[0].lines]
+    ['a', 'split at t = 0.5 s']
+    """
+    import matplotlib.pyplot as plt
+
+    for name, value in (("t_by_name", t_by_name), ("error_norm_by_name", error_norm_by_name)):
+        if not isinstance(value, Mapping) or not value:
+            raise ValueError(f"{name} must be a non-empty mapping label -> (N,) array; got {type(value).__name__}")
+    if set(t_by_name) != set(error_norm_by_name):
+        raise ValueError(f"t_by_name and error_norm_by_name must have the same labels; got "
+                         f"{sorted(map(str, t_by_name))} and {sorted(map(str, error_norm_by_name))}")
+    curves = {}
+    for label in error_norm_by_name:
+        t = _times(t_by_name[label], f"t_by_name[{label!r}]")
+        e = _array(error_norm_by_name[label], f"error_norm_by_name[{label!r}]", f"(N,) = {t.shape}")
+        if e.shape != t.shape:
+            raise ValueError(f"error_norm_by_name[{label!r}] must have shape (N,) = {t.shape} like "
+                             f"t_by_name[{label!r}]; got {e.shape}")
+        if np.any(np.isinf(e)) or np.any(e < 0):
+            raise ValueError(f"error_norm_by_name[{label!r}] must contain error norms >= 0 (NaN not drawn, no inf)")
+        curves[label] = (t, e)
+    split = None
+    if split_time is not None:
+        try:
+            split = float(split_time)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"split_time must be a finite time [s] or None; got {split_time!r}") from exc
+        if not np.isfinite(split):
+            raise ValueError(f"split_time must be a finite time [s] or None; got {split_time!r}")
+    fig, ax = plt.subplots(figsize=(8, 4))
+    for k, (label, (t, e)) in enumerate(curves.items()):
+        keep = e > 0 if log else np.ones_like(e, dtype=bool)  # log axes cannot show 0
+        ax.plot(t[keep], e[keep], f"C{k}-", lw=1.4, label=str(label))
+    if split is not None:
+        ax.axvline(split, color="k", ls="--", lw=1.0, label=f"split at t = {split:g} s")
+    if log:
+        ax.set_yscale("log")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel(ylabel)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    if title:
+        ax.set_title(title)
+    fig.tight_layout()
+    return fig
