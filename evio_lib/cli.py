@@ -175,6 +175,24 @@ def build_parser() -> argparse.ArgumentParser:
     add_reconstruct_train_arguments(p)
     p.set_defaults(func=main_reconstruct_train)
 
+    from evio_lib.pipeline.command import add_run_arguments, add_table_arguments, main_run, main_table
+
+    p = sub.add_parser("run", help="the whole EVIO pipeline on a recording: frames -> features -> MSCKF -> trajectory",
+                       description="Run frames (APS or reconstructed from events) -> feature tracking -> MSCKF on a "
+                                   "simulated preset, an ECD folder or a EuRoC folder; print the errors against the "
+                                   "ground truth and write a TUM trajectory, metrics and figures with --out. With no "
+                                   "argument: SIFT on the APS frames of the 60 s boxes_like preset (simulated on first "
+                                   "use, about 1 min, then cached).")
+    add_run_arguments(p)
+    p.set_defaults(func=main_run)
+
+    p = sub.add_parser("table", help="the thesis's Table 6 on both presets: every configuration over several seeds",
+                       description="Run IMU-only, SIFT and CNN on APS and on event frames (and the KLT baseline) on "
+                                   "both presets over several seeds through joblib, and print RMSE, final error, "
+                                   "%% of distance and the real-time factor (mean +- std). --fast is the CI size.")
+    add_table_arguments(p)
+    p.set_defaults(func=main_table)
+
     for command in sub.choices.values():  # --debug is also accepted after the command name
         command.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
                              help="show the full Python traceback of an error instead of the one-line message")

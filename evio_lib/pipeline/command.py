@@ -1,0 +1,154 @@
+"""Command line of the pipeline: ``python -m evio_lib run [DATASET] ...`` and ``python -m evio_lib table ...``."""
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+from evio_lib.cli_args import add_force_argument, integer, real
+
+__all__ = ["add_run_arguments", "main_run", "add_table_arguments", "main_table"]
+
+
+def add_run_arguments(p: argparse.ArgumentParser) -> None:
+    """Add the options of ``run``."""
+    p.add_argument("dataset", nargs="?", default="boxes_like", metavar="DATASET",
+                   help="a preset (boxes_like [default], aerial_like; simulated on first use and cached), an ECD folder "
+                        "(events.txt, images.txt + images/, imu.txt, calib.txt, optional groundtruth.txt) or a EuRoC "
+                        "ASL folder (mav0/)")
+    p.add_argument("--frames", choices=["aps", "events"], default="aps",
+                   help="aps: the recorded frames (default); events: frames reconstructed from event windows")
+    p.add_argument("--features", default="sift",
+                   help="feature detector: sift (default), superpoint (the shipped CNN), orb, fast, ...")
+    p.add_argument("--weights", type=Path, default=None,
+                   help="a CNN checkpoint for --features superpoint (default: the shipped network)")
+    p.add_argument("--tracker", choices=["descriptor", "klt"], default="descriptor",
+                   help="descriptor: detect + match + two-point RANSAC (thesis); klt: optical flow (msckf_vio)")
+    p.add_argument("--max-features", type=integer(minimum=20), default=60, help="N, features per frame (default 60)")
+    p.add_argument("--reconstructor", default="firenet",
+                   help="event frames: firenet (default, shipped), high_pass or direct")
+    p.add_argument("--window-fraction", type=real(above=0.0), default=None,
+                   help="event frames: n of N_e = n H W events per window (default: 0.7 boxes_like, 0.2 aerial_like, "
+                        "0.5 otherwise)")
+    p.add_argument("--adaptive", action="store_true", help="event frames: adaptive windows instead of a fixed n")
+    p.add_argument("--duration", type=real(above=0.0), default=None,
+                   help="presets: seconds to simulate (default: the whole preset, 60 s boxes_like, 40 s aerial_like)")
+    p.add_argument("--max-duration", type=real(above=0.0), default=None,
+                   help="seconds of the recording to process from its start (default: all)")
+    p.add_argument("--seed", type=integer(minimum=0), default=0, help="presets: simulation seed; RANSAC seed (default 0)")
+    p.add_argument("--init", choices=["auto", "groundtruth", "static"], default="auto",
+                   help="auto (default): from the ground truth when there is one, else static (the IMU must be still "
+                        "for the first second)")
+    p.add_argument("--bias-init", default="zero",
+                   help="initial biases: zero (default), groundtruth, or six numbers 'bgx,bgy,bgz,bax,bay,baz' "
+                        "(rad/s, m/s^2)")
+    p.add_argument("--imu-only", action="store_true", help="propagate the IMU only (no visual updates)")
+    p.add_argument("--no-oc", action="store_true", help="plain EKF instead of the observability-constrained one")
+    p.add_argument("--extrinsics", type=Path, default=None,
+                   help="a Kalibr YAML with T_cam_imu, overriding the recording's extrinsics")
+    p.add_argument("--out", type=Path, default=None,
+                   help="write trajectory.txt (TUM), states.csv, tracking.csv, metrics.json and figures/ here "
+                        "(must be new or empty unless --force)")
+    add_force_argument(p)
+    p.add_argument("--no-figures", action="store_true", help="do not draw the figures (faster)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def _bias(text: str):
+    if text in ("zero", "groundtruth"):
+        return text
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != 6:
+        raise ValueError(f"--bias-init must be zero, groundtruth or six comma-separated numbers "
+                         f"'bgx,bgy,bgz,bax,bay,baz'; got {text!r}")
+    return values
+
+
+def main_run(args: argparse.Namespace) -> int:
+    """Run the pipeline on one recording; print the summary; write the output folder when --out is given."""
+    from evio_lib.io.output_dir import check_output_dir
+    from evio_lib.pipeline.dataset import load_dataset
+    from evio_lib.pipeline.output import write_run
+    from evio_lib.pipeline.run import PipelineConfig, run_pipeline
+
+    if args.out is not None:
+        check_output_dir(args.out, args.force)  # before any work: a refused folder costs nothing
+    options = (("weights", str(args.weights)),) if args.weights is not None else ()
+    if args.weights is not None and not args.weights.is_file():
+        raise ValueError(f"--weights {args.weights}: no such checkpoint file")
+    config = PipelineConfig(frames=args.frames, features=args.features, detector_options=options, tracker=args.tracker,
+                            max_features=args.max_features, reconstructor=args.reconstructor,
+                            window_fraction=args.window_fraction, adaptive_windows=args.adaptive, init=args.init,
+                            bias_init=_bias(args.bias_init), imu_only=args.imu_only, oc=not args.no_oc,
+                            max_duration=args.max_duration, seed=args.seed)
+    start = time.perf_counter()
+    data = load_dataset(args.dataset, duration=args.duration, seed=args.seed,
+                        need_events=args.frames == "events" and not args.imu_only, need_frames=args.frames == "aps"
+                        or args.imu_only, extrinsics=args.extrinsics, progress=not args.quiet)
+    print(f"loaded {data.sequence.name} ({data.kind}) in {time.perf_counter() - start:.1f} s")
+    for note in data.notes:
+        print(f"  {note}")
+    result = run_pipeline(data, config, progress=not args.quiet)
+    print(result.summary())
+    for note in result.notes[len(data.notes):]:
+        print(f"  {note}")
+    if args.out is not None:
+        write_run(result, data, args.out, force=args.force, figures=not args.no_figures)
+        print(f"wrote {args.out} (trajectory.txt is the {'IMU' if data.kind == 'euroc' else 'camera'} pose in TUM "
+              f"format)")
+    return 0
+
+
+def add_table_arguments(p: argparse.ArgumentParser) -> None:
+    """Add the options of ``table``."""
+    p.add_argument("--presets", nargs="+", choices=["boxes_like", "aerial_like"], default=["boxes_like", "aerial_like"])
+    p.add_argument("--seeds", type=integer(minimum=1), default=3, help="seeds 0 .. S-1 per configuration (default 3)")
+    p.add_argument("--duration", type=real(above=0.0), default=None,
+                   help="seconds of each preset (default: the whole preset, 60 s boxes_like, 40 s aerial_like)")
+    p.add_argument("--rows", nargs="+", default=None,
+                   help="only these rows: imu imu_bias sift_aps cnn_aps sift_events cnn_events klt_aps "
+                        "cnn_events_trained")
+    p.add_argument("--events-cnn", type=Path, default=None,
+                   help="checkpoint of a CNN trained with event frames (the 'CNN trained with event frames' row)")
+    p.add_argument("--jobs", type=integer(minimum=1), default=1, help="parallel joblib workers (default 1)")
+    p.add_argument("--fast", action="store_true", help="CI size: 3 s of each preset, one seed")
+    p.add_argument("--out", type=Path, default=None, help="write table.md, table.json and runs.json here")
+    add_force_argument(p)
+
+
+def main_table(args: argparse.Namespace) -> int:
+    """Run the Table 6 sweep and print it (and write it with --out)."""
+    from evio_lib.io.output_dir import atomic_output_dir, check_output_dir
+    from evio_lib.pipeline.output import _json
+    from evio_lib.pipeline.table import aggregate, format_table6, run_table, table_rows
+
+    if args.out is not None:
+        check_output_dir(args.out, args.force)
+    if args.events_cnn is not None and not args.events_cnn.is_file():
+        raise ValueError(f"--events-cnn {args.events_cnn}: no such checkpoint file")
+    seeds = 1 if args.fast else args.seeds
+    duration = 3.0 if args.fast and args.duration is None else args.duration
+    durations = {p: duration for p in args.presets} if duration is not None else None
+    rows = table_rows(args.rows, None if args.events_cnn is None else str(args.events_cnn))
+    start = time.perf_counter()
+    records = run_table(args.presets, list(range(seeds)), rows, durations, jobs=args.jobs)
+    table = aggregate(records)
+    text = format_table6(table)
+    print(text)
+    if args.events_cnn is None:
+        print("(no row 'CNN trained with event frames': no such network is shipped yet; give --events-cnn CHECKPOINT)")
+    for r in table:
+        for error in r["errors"]:
+            print(f"{r['preset']} / {r['label']}: failed: {error}")
+    print(f"{len(records)} runs in {time.perf_counter() - start:.0f} s with {args.jobs} job(s)")
+    if args.out is not None:
+        with atomic_output_dir(args.out, args.force) as tmp:
+            (tmp / "table.md").write_text(text + "\n", encoding="utf-8")
+            (tmp / "table.json").write_text(json.dumps(_json(table), indent=2) + "\n", encoding="utf-8")
+            (tmp / "runs.json").write_text(json.dumps(_json(records), indent=2) + "\n", encoding="utf-8")
+        print(f"wrote {args.out}")
+    return 0

@@ -1,0 +1,137 @@
+"""The folder a pipeline run writes (atomically: a failed write leaves nothing behind).
+
+    trajectory.txt      TUM (t x y z qx qy qz qw): the estimated pose of the same body as the recording's ground truth
+                        (the camera for ECD folders and presets, whose groundtruth.txt is the camera's pose; the IMU
+                        for EuRoC, whose ground truth is the IMU's), in the filter's world frame
+    trajectory_imu.txt  TUM: the IMU's estimated pose (the filter's state)
+    groundtruth.txt     TUM: the ground truth of the same body at the frame times (when the recording has one), so
+                        ``evo_ape tum groundtruth.txt trajectory.txt`` works as is (add ``-a`` after a static start)
+    states.csv          per frame: t, p_IinG, q_GtoI (JPL, x y z w), v_IinG, b_g, b_a, and the 15 standard deviations
+                        of [δθ, δb_g, δv, δb_a, δp] (3-sigma bounds are 3x these)
+    tracking.csv        per frame: the front-end's counts and timings (``frontend.stats_table``)
+    metrics.json        the configuration, the dataset, notes, metrics, timings, the filter's faults and rejections
+    figures/            position, orientation and velocity errors with 3-sigma bounds (thesis Figs. 23-32), the bias
+                        estimates with 3-sigma bounds (Appendix C), the top-down trajectory, the tracking statistics
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from evio_lib.geometry.rotation import rot_to_quat
+from evio_lib.io.output_dir import atomic_output_dir
+from evio_lib.io.tum import write_tum
+from evio_lib.pipeline.dataset import LoadedDataset
+from evio_lib.pipeline.run import PipelineResult
+
+__all__ = ["write_run", "trajectory_body", "STATE_COLUMNS"]
+
+STATE_COLUMNS = (["t", "px", "py", "pz", "qx", "qy", "qz", "qw", "vx", "vy", "vz", "bgx", "bgy", "bgz", "bax", "bay",
+                  "baz"] + [f"sigma_{n}" for n in ("thx", "thy", "thz", "bgx", "bgy", "bgz", "vx", "vy", "vz", "bax",
+                                                     "bay", "baz", "px", "py", "pz")])
+
+
+def trajectory_body(kind: str) -> str:
+    """Return the body whose pose trajectory.txt holds: 'imu' for EuRoC, else 'camera' (like the ground truth)."""
+    return "imu" if kind == "euroc" else "camera"
+
+
+def _json(value: Any) -> Any:
+    """Return value made JSON-able (NaN and inf as None, arrays as lists, tuples as lists)."""
+    if isinstance(value, dict):
+        return {str(k): _json(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _json(value.tolist())
+    if isinstance(value, (np.floating, float)):
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    return value
+
+
+def _write_csv(path: Path, columns: list[str], data: np.ndarray) -> None:
+    np.savetxt(path, data, delimiter=",", header=",".join(columns), comments="", fmt="%.9g")
+
+
+def write_run(result: PipelineResult, data: LoadedDataset, out: str | Path, force: bool = False,
+              figures: bool = True) -> Path:
+    """Write the run's folder (module docstring) to ``out``; refuse a non-empty one unless ``force``. Return it."""
+    body = trajectory_body(data.kind)
+    with atomic_output_dir(out, force) as tmp:
+        q_imu = rot_to_quat(np.swapaxes(result.R_ItoG, -1, -2))  # JPL q_GtoI == Hamilton q of R_ItoG (same numbers)
+        write_tum(tmp / "trajectory_imu.txt", result.t, result.p_IinG, q_imu)
+        if body == "camera":
+            R_CtoG, p_CinG = result.camera_pose()
+            write_tum(tmp / "trajectory.txt", result.t, p_CinG, rot_to_quat(np.swapaxes(R_CtoG, -1, -2)))
+        else:
+            write_tum(tmp / "trajectory.txt", result.t, result.p_IinG, q_imu)
+        if result.truth:
+            R_ItoG, p_IinG = result.truth["R_ItoG"], result.truth["p_IinG"]
+            if body == "camera":
+                R_ItoG, p_IinG = R_ItoG @ result.R_CtoI, p_IinG + R_ItoG @ result.p_CinI
+            write_tum(tmp / "groundtruth.txt", result.t, p_IinG, rot_to_quat(np.swapaxes(R_ItoG, -1, -2)))
+        states = np.column_stack([result.t, result.p_IinG, result.q_GtoI, result.v_IinG, result.b_g, result.b_a,
+                                  result.sigma])
+        _write_csv(tmp / "states.csv", STATE_COLUMNS, states)
+        if result.tracking:
+            names = list(result.tracking)
+            _write_csv(tmp / "tracking.csv", names, np.column_stack([result.tracking[n].astype(float) for n in names]))
+        record = {
+            "config": dataclasses.asdict(result.config), "label": result.config.label(), "dataset": result.dataset,
+            "trajectory_body": body, "notes": result.notes, "metrics": result.metrics, "timings": result.timings,
+            "faults": result.faults, "rejections": result.rejections,
+            "tracking_mean": {k: float(np.mean(v)) for k, v in result.tracking.items() if k != "t"},
+            "track_length_mean": float(np.mean(result.track_lengths)) if len(result.track_lengths) else None,
+        }
+        (tmp / "metrics.json").write_text(json.dumps(_json(record), indent=2) + "\n", encoding="utf-8")
+        (tmp / "summary.txt").write_text(result.summary() + "\n" + "\n".join(result.notes) + "\n", encoding="utf-8")
+        if figures:
+            save_figures(result, tmp / "figures")
+    return Path(out)
+
+
+def save_figures(result: PipelineResult, folder: Path) -> list[Path]:
+    """Save the run's figures as PNG files in ``folder``; return their paths."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    from evio_lib.evaluation import plots_pipeline as pp
+    from evio_lib.geometry.rotation import so3_log
+
+    folder.mkdir(parents=True, exist_ok=True)
+    figs: dict[str, Any] = {}
+    t = result.t - result.t[0]
+    truth = result.truth
+    if truth:
+        figs["position_errors"] = pp.plot_state_errors(t, truth["p_IinG"] - result.p_IinG, result.sigma[:, 12:15],
+                                                       quantity="position", unit="m")
+        dR = np.einsum("nij,nkj->nik", truth["R_ItoG"], result.R_ItoG)  # R_true R_est^T: the error in G
+        err = np.degrees(np.array([so3_log(R) for R in dR]))
+        # the filter's attitude error lives in I; its sigma is rotated into G only approximately (same norm)
+        figs["orientation_errors"] = pp.plot_state_errors(t, err, np.degrees(result.sigma[:, 0:3]),
+                                                          quantity="orientation", unit="deg")
+        if "v_IinG" in truth:
+            figs["velocity_errors"] = pp.plot_state_errors(t, truth["v_IinG"] - result.v_IinG, result.sigma[:, 6:9],
+                                                           quantity="velocity", unit="m/s")
+    figs["gyro_bias"] = pp.plot_bias_estimates(t, result.b_g, result.sigma[:, 3:6], truth.get("b_g"), kind="gyro")
+    figs["accel_bias"] = pp.plot_bias_estimates(t, result.b_a, result.sigma[:, 9:12], truth.get("b_a"), kind="accel")
+    figs["trajectory_topdown"] = pp.plot_trajectory_topdown({result.config.label(): result.p_IinG},
+                                                            truth.get("p_IinG"))
+    if result.tracking:
+        figs["tracking"] = pp.plot_tracking_statistics(result.tracking, track_lengths=result.track_lengths)
+    paths = []
+    for name, fig in figs.items():
+        path = folder / f"{name}.png"
+        fig.savefig(path, dpi=110, bbox_inches="tight")
+        plt.close(fig)
+        paths.append(path)
+    return paths

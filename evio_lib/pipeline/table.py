@@ -1,0 +1,195 @@
+"""The thesis's Table 6 on the simulated presets: every configuration, several seeds, mean and spread.
+
+Rows (thesis Table 6, plus the KLT front-end of msckf_vio / OpenVINS as a baseline):
+
+- IMU only, without bias correction (biases start at zero) and with it (biases start at the ground truth's at the
+  first frame; the thesis estimated them by hand from a still stretch, the simulator knows them exactly);
+- SIFT on APS frames, the CNN (the shipped SuperPoint-style network) on APS frames, KLT + FAST on APS frames;
+- SIFT on event frames and the CNN on event frames (FireNet reconstructions of windows of n H W events, the
+  thesis's n per preset);
+- the CNN trained with event frames, when a checkpoint is given (``events_cnn``); none is shipped yet, and the
+  row then says so instead of a number.
+
+Each (preset, row, seed) job is a pure function of its arguments (:func:`table_job`: it loads the simulated
+recording from the cache, or simulates it, runs the pipeline and returns a dict of numbers), run through joblib
+(``jobs``), so joblib's Dask or Ray backend can spread a large sweep over a cluster unchanged
+(``with joblib.parallel_config(backend="dask"): run_table(...)``). The recordings are simulated first, one job per
+(preset, seed), so two jobs never simulate the same one.
+"""
+from __future__ import annotations
+
+import math
+import os
+import time
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+
+from evio_lib.pipeline.dataset import PRESET_DURATIONS, PRESETS
+
+__all__ = ["TABLE_ROWS", "TableRow", "table_rows", "table_job", "run_table", "aggregate", "format_table6"]
+
+
+@dataclass(frozen=True)
+class TableRow:
+    """One row of Table 6: a label and the PipelineConfig fields that make it."""
+
+    key: str
+    label: str
+    options: tuple[tuple[str, Any], ...]
+
+    @property
+    def needs_events(self) -> bool:
+        return dict(self.options).get("frames") == "events"
+
+
+TABLE_ROWS = (
+    TableRow("imu", "IMU only (no bias correction)", (("imu_only", True),)),
+    TableRow("imu_bias", "IMU only (bias correction)", (("imu_only", True), ("bias_init", "groundtruth"))),
+    TableRow("sift_aps", "SIFT, APS frames", (("features", "sift"),)),
+    TableRow("cnn_aps", "CNN, APS frames", (("features", "superpoint"),)),
+    TableRow("sift_events", "SIFT, event frames", (("features", "sift"), ("frames", "events"))),
+    TableRow("cnn_events", "CNN, event frames", (("features", "superpoint"), ("frames", "events"))),
+    TableRow("cnn_events_trained", "CNN trained with event frames, event frames",
+             (("features", "superpoint"), ("frames", "events"))),
+    TableRow("klt_aps", "KLT + FAST, APS frames (baseline)", (("tracker", "klt"), ("features", "fast"))),
+)
+
+
+def table_rows(keys: Sequence[str] | None = None, events_cnn: str | None = None) -> list[TableRow]:
+    """Return the rows to run: ``keys`` (default all) in table order; the events-trained CNN row only with a checkpoint."""
+    known = [r.key for r in TABLE_ROWS]
+    if keys is not None:
+        unknown = [k for k in keys if k not in known]
+        if unknown:
+            raise ValueError(f"unknown table row(s) {unknown}; choose from {known}")
+    rows = []
+    for row in TABLE_ROWS:
+        if keys is not None and row.key not in keys:
+            continue
+        if row.key == "cnn_events_trained":
+            if events_cnn is None:
+                continue
+            row = TableRow(row.key, row.label, row.options + (("detector_options", (("weights", str(events_cnn)),)),))
+        rows.append(row)
+    return rows
+
+
+def _simulate(preset: str, duration: float, seed: int, with_events: bool) -> None:
+    from evio_lib.pipeline.dataset import simulate_preset
+
+    simulate_preset(preset, duration, seed, with_events=with_events)
+
+
+def table_job(preset: str, duration: float, seed: int, row: TableRow, threads: int = 1) -> dict[str, Any]:
+    """Return the numbers of one (preset, row, seed) run: metrics, timings and tracking means (a pure function).
+
+    A run that fails (e.g. the filter diverges to a refused state) returns its error message under "error"
+    instead of numbers, so one bad seed does not lose the rest of the table.
+    """
+    import torch
+
+    from evio_lib.pipeline.dataset import load_dataset
+    from evio_lib.pipeline.run import PipelineConfig, run_pipeline
+
+    torch.set_num_threads(threads)
+    try:
+        import cv2
+
+        cv2.setNumThreads(threads)
+    except ImportError:  # pragma: no cover - OpenCV is a dependency
+        pass
+    config = PipelineConfig(seed=seed, **dict(row.options))
+    record: dict[str, Any] = {"preset": preset, "row": row.key, "label": row.label, "seed": seed,
+                              "duration_s": duration}
+    start = time.perf_counter()
+    try:
+        data = load_dataset(preset, duration=duration, seed=seed, need_events=row.needs_events,
+                            need_frames=True)
+        result = run_pipeline(data, config)
+    except ValueError as error:
+        record["error"] = str(error).splitlines()[0]
+        return record
+    record.update({k: v for k, v in result.metrics.items() if isinstance(v, (int, float))})
+    record["realtime_factor"] = result.timings["realtime_factor"]
+    record["wall_s"] = time.perf_counter() - start
+    record.update({f"time_{k}_s": v for k, v in result.timings.items() if k not in ("realtime_factor",)})
+    if result.tracking:
+        record["tracked_per_frame"] = float(np.mean(result.tracking["tracked"]))
+        record["mean_track_length"] = float(np.mean(result.track_lengths)) if len(result.track_lengths) else 0.0
+    record["faults"] = int(sum(result.faults.values()))
+    return record
+
+
+def run_table(presets: Sequence[str] = PRESETS, seeds: Sequence[int] = (0, 1, 2), rows: Sequence[TableRow] | None = None,
+              durations: dict[str, float] | None = None, jobs: int = 1, progress: bool = True) -> list[dict[str, Any]]:
+    """Return one record per (preset, row, seed) (:func:`table_job`), run with ``jobs`` joblib workers.
+
+    Args:
+        presets: preset names; seeds: simulation (and front-end) seeds; rows: default :func:`table_rows`.
+        durations: seconds per preset (default the whole presets, 60 s and 40 s).
+        jobs: joblib workers (processes); each uses one thread.
+    """
+    from joblib import Parallel, delayed
+
+    rows = table_rows() if rows is None else list(rows)
+    for preset in presets:
+        if preset not in PRESETS:
+            raise ValueError(f"preset must be one of {PRESETS}; got {preset!r}")
+    durations = {p: PRESET_DURATIONS[p] for p in presets} | (durations or {})
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+        raise ValueError(f"jobs must be an integer >= 1; got {jobs!r}")
+    events = any(r.needs_events for r in rows)
+    sims = [(p, durations[p], s, events) for p in presets for s in seeds]
+    runs = [(p, durations[p], s, r) for p in presets for r in rows for s in seeds]
+    verbose = 5 if progress else 0
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    Parallel(n_jobs=jobs, verbose=verbose)(delayed(_simulate)(*args) for args in sims)
+    return Parallel(n_jobs=jobs, verbose=verbose)(delayed(table_job)(*args) for args in runs)
+
+
+def aggregate(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Return one row per (preset, row) with mean and standard deviation over seeds of each metric."""
+    keys = ("rmse_m", "final_error_m", "percent_of_distance", "rmse_first_half_m", "rmse_second_half_m",
+            "ate_se3_m", "orientation_rmse_deg", "realtime_factor", "tracked_per_frame", "mean_track_length")
+    groups: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for r in records:
+        groups.setdefault((r["preset"], r["row"]), []).append(r)
+    out = []
+    for (preset, row), runs in groups.items():
+        ok = [r for r in runs if "error" not in r]
+        agg: dict[str, Any] = {"preset": preset, "row": row, "label": runs[0]["label"], "seeds": len(runs),
+                               "failed": len(runs) - len(ok),
+                               "errors": sorted({r["error"] for r in runs if "error" in r})}
+        for k in keys:
+            values = np.array([r[k] for r in ok if k in r and r[k] is not None], dtype=float)
+            values = values[np.isfinite(values)]
+            agg[k] = float(values.mean()) if values.size else float("nan")
+            agg[k + "_std"] = float(values.std(ddof=1)) if values.size > 1 else float("nan")
+        out.append(agg)
+    return out
+
+
+def _cell(mean: float, std: float, digits: int) -> str:
+    if not math.isfinite(mean):
+        return "-"
+    return f"{mean:.{digits}f}" + (f" ± {std:.{digits}f}" if math.isfinite(std) else "")
+
+
+def format_table6(rows: Sequence[dict[str, Any]]) -> str:
+    """Return the aggregated rows as a Markdown table, one block per preset (mean ± std over seeds)."""
+    lines = []
+    for preset in dict.fromkeys(r["preset"] for r in rows):
+        lines += [f"**{preset}**", "",
+                  "| configuration | RMSE [m] | final error [m] | % of distance | RMSE 1st / 2nd half [m] | real-time factor "
+                  "| seeds |", "|---|---|---|---|---|---|---|"]
+        for r in (r for r in rows if r["preset"] == preset):
+            halves = f"{_cell(r['rmse_first_half_m'], float('nan'), 3)} / {_cell(r['rmse_second_half_m'], float('nan'), 3)}"
+            seeds = f"{r['seeds'] - r['failed']}" + (f" ({r['failed']} failed)" if r["failed"] else "")
+            lines.append(f"| {r['label']} | {_cell(r['rmse_m'], r['rmse_m_std'], 3)} | "
+                         f"{_cell(r['final_error_m'], r['final_error_m_std'], 3)} | "
+                         f"{_cell(r['percent_of_distance'], r['percent_of_distance_std'], 2)} | {halves} | "
+                         f"{_cell(r['realtime_factor'], float('nan'), 2)}x | {seeds} |")
+        lines.append("")
+    return "\n".join(lines)
