@@ -1,0 +1,115 @@
+"""Tests of evio_lib.pipeline.dataset: what DATASET means, the cache, extrinsics and their sources."""
+import numpy as np
+import pytest
+
+from evio_lib.geometry.rotation import so3_exp
+from evio_lib.io.ecd import write_ecd
+from evio_lib.pipeline.dataset import load_dataset, read_kalibr_extrinsics, sequence_cache_dir, simulate_preset
+
+
+def test_preset_is_cached_and_read_back_identical(boxes_aps):
+    files = list(sequence_cache_dir().glob("boxes_like_d3_seed0_frames.npz"))
+    assert len(files) == 1
+    again = load_dataset("boxes_like", duration=3.0)
+    np.testing.assert_array_equal(again.sequence.frames, boxes_aps.sequence.frames)
+    np.testing.assert_array_equal(again.sequence.imu.accel, boxes_aps.sequence.imu.accel)
+    assert boxes_aps.kind == "preset" and boxes_aps.notes[0].startswith("extrinsics: from the recording")
+    np.testing.assert_allclose(boxes_aps.R_CtoI, boxes_aps.sequence.R_CtoI)
+
+
+def test_preset_duration_is_the_start_of_the_whole_motion(boxes_aps):
+    """3 s of the preset is the first 3 s of the 60 s recording, not the whole motion squeezed into 3 s."""
+    longer = simulate_preset("boxes_like", 4.0, 0)
+    t = boxes_aps.sequence.groundtruth.t
+    np.testing.assert_allclose(longer.groundtruth.p_BinG[: len(t)], boxes_aps.sequence.groundtruth.p_BinG, atol=1e-9)
+
+
+@pytest.mark.parametrize("dataset, message", [
+    ("no_such_preset", "neither a preset"),
+    (__file__, "is a file"),
+])
+def test_bad_dataset_names_the_problem(dataset, message):
+    with pytest.raises(ValueError, match=message):
+        load_dataset(dataset)
+
+
+def test_bad_duration_is_refused(pipeline_cache):
+    with pytest.raises(ValueError, match=r"duration of boxes_like must be in \(0, 60\]"):
+        load_dataset("boxes_like", duration=61.0)
+
+
+def _ecd_folder(seq, folder, keep_sidecar=True):
+    write_ecd(seq, folder)
+    if not keep_sidecar:
+        (folder / "evio_sim.json").unlink()
+    return folder
+
+
+def test_ecd_folder_without_sidecar_assumes_camera_equals_imu(boxes_aps, tmp_path):
+    folder = _ecd_folder(boxes_aps.sequence.slice_time(0.0, 1.0), tmp_path / "rec", keep_sidecar=False)
+    (folder / "events.txt").write_text("")  # an ECD folder needs events.txt; APS runs do not read it
+    data = load_dataset(folder)
+    assert data.kind == "ecd"
+    np.testing.assert_array_equal(data.R_CtoI, np.eye(3))
+    assert any("assumed camera = IMU frame" in n for n in data.notes)
+    assert any("IMU noise: not in the recording" in n for n in data.notes)
+
+
+def test_ecd_folder_without_imu_is_refused(boxes_aps, tmp_path):
+    folder = _ecd_folder(boxes_aps.sequence.slice_time(0.0, 1.0), tmp_path / "rec")
+    (folder / "imu.txt").unlink()
+    with pytest.raises(ValueError, match="no IMU samples"):
+        load_dataset(folder)
+
+
+def test_events_asked_of_a_folder_without_events(boxes_aps, tmp_path):
+    folder = _ecd_folder(boxes_aps.sequence.slice_time(0.0, 1.0), tmp_path / "rec")
+    (folder / "events.txt").write_text("")
+    with pytest.raises(ValueError, match="no events"):
+        load_dataset(folder, need_events=True, need_frames=False)
+
+
+def test_kalibr_extrinsics_invert_T_cam_imu(tmp_path):
+    R_CtoI = so3_exp(np.array([0.3, -1.2, 0.4]))
+    p_CinI = np.array([0.01, -0.02, 0.05])
+    T_cam_imu = np.eye(4)
+    T_cam_imu[:3, :3], T_cam_imu[:3, 3] = R_CtoI.T, -R_CtoI.T @ p_CinI  # x_C = R_ItoC (x_I - p_CinI)
+    rows = "\n".join(f"  - [{', '.join(repr(float(v)) for v in row)}]" for row in T_cam_imu)
+    path = tmp_path / "camchain.yaml"
+    path.write_text(f"cam0:\n  camera_model: pinhole\n  T_cam_imu:\n{rows}\n")
+    R, p = read_kalibr_extrinsics(path)
+    np.testing.assert_allclose(R, R_CtoI, atol=1e-12)
+    np.testing.assert_allclose(p, p_CinI, atol=1e-12)
+    # and the point maps back: x_I = R_CtoI x_C + p_CinI
+    x_I = np.array([1.0, 2.0, 3.0])
+    x_C = T_cam_imu[:3, :3] @ x_I + T_cam_imu[:3, 3]
+    np.testing.assert_allclose(R @ x_C + p, x_I, atol=1e-12)
+
+
+@pytest.mark.parametrize("text, message", [
+    ("cam0:\n  intrinsics: [1, 2]\n", "no T_cam_imu"),
+    ("T_cam_imu: [[1, 0], [0, 1]]\n", "4 x 4"),
+    ("T_cam_imu: [[2, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]\n", "not a rotation"),
+    ("T_cam_imu: [[1, 0\n", "not a readable YAML"),
+])
+def test_bad_extrinsics_files(tmp_path, text, message):
+    path = tmp_path / "x.yaml"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=message):
+        read_kalibr_extrinsics(path)
+
+
+def test_extrinsics_override(boxes_aps, tmp_path):
+    path = tmp_path / "x.yaml"
+    path.write_text("T_cam_imu: [[1, 0, 0, 0.1], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]\n")
+    data = load_dataset("boxes_like", duration=3.0, extrinsics=path)
+    np.testing.assert_allclose(data.p_CinI, [-0.1, 0.0, 0.0])
+    assert data.notes[0] == f"extrinsics: from {path}"
+
+
+def test_euroc_folder_reads_extrinsics_and_noise(real_data_dir):
+    data = load_dataset(real_data_dir / "euroc_V1_01_easy_micro")
+    assert data.kind == "euroc"
+    assert data.notes == ("extrinsics: from the recording (sensor.yaml)",)
+    assert data.noise.gyro_noise_density == pytest.approx(1.6968e-4)
+    np.testing.assert_allclose(data.R_CtoI @ data.R_CtoI.T, np.eye(3), atol=1e-6)
