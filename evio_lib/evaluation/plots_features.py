@@ -511,7 +511,7 @@ def plot_cell_correspondences(image1: ArrayLike, image2: ArrayLike, centres: Arr
 def plot_labelled_images(images: Sequence[ArrayLike], keypoints: Sequence[ArrayLike], titles: Sequence[str],
                          masks: Sequence[ArrayLike] | None = None, ncols: int = 5, panel_in: float = 3.2
                          ) -> "Figure":
-    """Return a grid of images in [0, 1], each with its labelled keypoints circled in red (and its valid mask's outline).
+    """Return a grid of images in [0, 1] with their keypoint labels circled in red (and valid masks outlined).
 
     Args:
         images: K (H, W) grayscale images in [0, 1], e.g. Synthetic Shapes (thesis §3.2.1).
@@ -522,7 +522,8 @@ def plot_labelled_images(images: Sequence[ArrayLike], keypoints: Sequence[ArrayL
         panel_in: width of one panel in inches.
 
     >>> import matplotlib; matplotlib.use("Agg")
-    >>> fig = plot_labelled_images([np.zeros((6, 8))] * 3, [[[1.0, 2.0]], np.zeros((0, 2)), [[3.0, 3.0]]], "abc", ncols=2)
+    >>> points = [[[1.0, 2.0]], np.zeros((0, 2)), [[3.0, 3.0]]]
+    >>> fig = plot_labelled_images([np.zeros((6, 8))] * 3, points, "abc", ncols=2)
     >>> [ax.get_title() for ax in fig.axes if ax.get_visible()]
     ['a', 'b', 'c']
     """
