@@ -35,7 +35,12 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from evio_lib.evaluation.plots_features import plot_detections, plot_training_curve
+from evio_lib.evaluation.plots_features import (
+    plot_cell_probabilities,
+    plot_detections,
+    plot_labelled_images,
+    plot_training_curve,
+)
 from evio_lib.features import train as training
 from evio_lib.features.losses import detector_loss, keypoint_map_to_labels
 from evio_lib.features.metrics import keypoints_to_map, precision_recall
@@ -65,17 +70,10 @@ _ = torch.manual_seed(0)  # nothing below draws from torch's global generator; t
 
 # %%
 print({kind: SHAPE_COUNTS[kind] for kind in SHAPE_KINDS}, "total", sum(SHAPE_COUNTS.values()))
-fig, axes = plt.subplots(2, 5, figsize=(16, 5.6))
-for ax, kind in zip(axes.ravel(), SHAPE_KINDS):
-    image, keypoints = generate_shape_image(kind, (120, 160), rng)
-    ax.imshow(image, cmap="gray", vmin=0, vmax=1)
-    ax.scatter(keypoints[:, 0], keypoints[:, 1], s=28, facecolors="none", edgecolors="red", linewidths=1.5)
-    ax.set_title(f"{kind} ({len(keypoints)} keypoints)")
-    ax.axis("off")
-    if kind in UNLABELLED_KINDS:
-        assert len(keypoints) == 0  # blobs and noise: nothing to detect
-axes.ravel()[-1].axis("off")
-plt.tight_layout()
+examples = {kind: generate_shape_image(kind, (120, 160), rng) for kind in SHAPE_KINDS}  # kind -> (image, keypoints)
+assert all(len(examples[kind][1]) == 0 for kind in UNLABELLED_KINDS)  # blobs and noise: nothing to detect
+fig = plot_labelled_images([im for im, _ in examples.values()], [kp for _, kp in examples.values()],
+                           [f"{kind} ({len(kp)} keypoints)" for kind, (_, kp) in examples.items()], ncols=5)
 plt.show()
 
 # %% [markdown]
@@ -85,17 +83,13 @@ plt.show()
 
 # %%
 shapes = SyntheticShapes(8, seed=0, shape=(120, 160))  # train split: augmented
-fig, axes = plt.subplots(1, 4, figsize=(16, 3.4))
-for ax, i in zip(axes, range(4)):
-    image, keypoint_map, valid = shapes[i]
-    ys, xs = np.nonzero(keypoint_map.numpy())
-    ax.imshow(image[0], cmap="gray", vmin=0, vmax=1)
-    ax.contour(valid.numpy(), levels=[0.5], colors="yellow", linewidths=0.8)
-    ax.scatter(xs, ys, s=20, facecolors="none", edgecolors="red")
-    ax.set_title(f"{shapes.kind_of(i)} (augmented)")
-    ax.axis("off")
-plt.tight_layout()
+samples = [shapes[i] for i in range(4)]  # (image, keypoint_map, valid_mask) tensors
+fig = plot_labelled_images([im[0].numpy() for im, _, _ in samples],
+                           [np.argwhere(kmap.numpy())[:, ::-1] for _, kmap, _ in samples],  # (row, col) -> (x, y)
+                           [f"{shapes.kind_of(i)} (augmented)" for i in range(4)],
+                           masks=[valid.numpy() for _, _, valid in samples], ncols=4, panel_in=4.0)
 plt.show()
+image, keypoint_map, valid = samples[-1]
 print("image", tuple(image.shape), image.dtype, "| keypoint map", tuple(keypoint_map.shape), "| valid mask", tuple(valid.shape))
 
 # %% [markdown]
@@ -147,16 +141,7 @@ heat = logits_to_heatmap(logits)
 assert torch.allclose(by_hand, heat) and torch.allclose(F.pixel_shuffle(prob, 8)[:, 0], heat)
 print("argmax pixel (row, col):", divmod(int(heat[0].argmax()), 24))
 
-fig, axes = plt.subplots(1, 2, figsize=(12, 3.2), gridspec_kw={"width_ratios": [2.4, 1]})
-axes[0].imshow(torch.softmax(logits, dim=1)[0, :, 0, 1][None], cmap="viridis", aspect="auto")
-axes[0].set_title("65 probabilities of cell (0, 1): 64 pixels + dustbin (last)")
-axes[0].set_yticks([])
-axes[1].imshow(heat[0], cmap="viridis")
-for x in (7.5, 15.5):
-    axes[1].axvline(x, color="w", lw=0.6)
-axes[1].axhline(7.5, color="w", lw=0.6)
-axes[1].set_title("depth-to-space: 16 x 24 heatmap")
-plt.tight_layout()
+fig = plot_cell_probabilities(torch.softmax(logits, dim=1)[0, :, 0, 1].numpy(), heat[0].numpy(), cell_name="(0, 1)")
 plt.show()
 
 # %% [markdown]
