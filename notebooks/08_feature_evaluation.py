@@ -42,6 +42,13 @@ import matplotlib.pyplot as plt
 import numpy as np
 from IPython.display import Markdown, display
 
+from evio_lib.evaluation.plots_features import (
+    plot_heatmap_row,
+    plot_homography_corners,
+    plot_match_grid,
+    plot_oracle_corner_errors,
+    plot_repeated_points,
+)
 from evio_lib.events.array import event_count_image, events_between
 from evio_lib.features.base import available_detectors, create_detector
 from evio_lib.features.benchmark import (
@@ -90,14 +97,9 @@ illum_pair = next(p for p in demo_pairs if p.split == "illumination")
 print(f"{len(demo_pairs)} pairs, image size {view_pair.image1.shape}")
 print("viewpoint H =\n", view_pair.H.round(3))
 
-fig, axes = plt.subplots(1, 4, figsize=(16, 3.4))
-for ax, img, title in zip(axes, (view_pair.image1, view_pair.image2, illum_pair.image1, illum_pair.image2),
-                          ("viewpoint: image 1", "viewpoint: image 2 (warped)", "illumination: image 1",
-                           "illumination: image 2 (H = I)")):
-    ax.imshow(img, cmap="gray", vmin=0, vmax=1)
-    ax.set_title(title)
-    ax.axis("off")
-plt.tight_layout()
+fig = plot_heatmap_row([view_pair.image1, view_pair.image2, illum_pair.image1, illum_pair.image2],
+                       ["viewpoint: image 1", "viewpoint: image 2 (warped)", "illumination: image 1",
+                        "illumination: image 2 (H = I)"], cmaps="gray", panel_in=4.0)
 plt.show()
 assert np.allclose(illum_pair.H, np.eye(3))  # the illumination split changes only the photometry
 
@@ -153,16 +155,8 @@ assert np.allclose(rep_hand, rep_lib)
 # lies within $\varepsilon = 3$ px (repeated), red where none does.
 
 # %%
-rep3 = corr1[:, 1]
-fig, ax = plt.subplots(figsize=(7.5, 5.6))
-ax.imshow(small.image2, cmap="gray", vmin=0, vmax=1)
-ax.scatter(b[:, 0], b[:, 1], s=22, facecolors="none", edgecolors="tab:blue", label="detected in image 2")
-ax.scatter(a[rep3, 0], a[rep3, 1], s=8, c="tab:green", label="H x_i, repeated (eps = 3)")
-ax.scatter(a[~rep3, 0], a[~rep3, 1], s=8, c="tab:red", label="H x_i, not repeated")
-ax.set_title(f"SIFT repeatability on one viewpoint pair: {rep_lib[1]:.2f} at eps = 3 px")
-ax.legend(loc="lower right", fontsize=8)
-ax.axis("off")
-plt.tight_layout()
+fig = plot_repeated_points(small.image2, a, b, corr1[:, 1], eps=3,  # column 1 of corr1: eps = 3
+                           title=f"SIFT repeatability on one viewpoint pair: {rep_lib[1]:.2f} at eps = 3 px")
 plt.show()
 
 # %% [markdown]
@@ -206,16 +200,7 @@ assert (correct_hand == homography_correctness(H_est, large.H, large.image1.shap
 assert np.any((c_true < 0) | (c_true > [ww - 1.0, hh - 1.0]))  # image 1's corners land outside image 2 (a zoom)
 
 # %%
-order = [0, 1, 3, 2, 0]  # walk the corners around the quadrilateral
-fig, ax = plt.subplots(figsize=(8, 6))
-ax.imshow(large.image2, cmap="gray", vmin=0, vmax=1)
-ax.plot(c_true[order, 0], c_true[order, 1], "g-", lw=3, label="corners warped by the true H")
-ax.plot(c_est[order, 0], c_est[order, 1], "m--", lw=2, label="corners warped by the estimated H")
-ax.set_xlim(min(c_true[:, 0].min(), -10) - 20, max(c_true[:, 0].max(), ww) + 20)
-ax.set_ylim(max(c_true[:, 1].max(), hh) + 20, min(c_true[:, 1].min(), -10) - 20)
-ax.set_title(f"image 1's corners in image 2: mean error {error_hand:.2f} px")
-ax.legend(loc="lower right", fontsize=8)
-plt.tight_layout()
+fig = plot_homography_corners(large.image2, c_true, c_est)  # its title: the mean corner error, as error_hand
 plt.show()
 
 # %% [markdown]
@@ -264,37 +249,23 @@ assert np.allclose(ms_hand, ms_lib, atol=1e-6)
 
 
 # %%
-def draw_matches(ax: plt.Axes, pair, name: str, max_drawn: int = 150) -> tuple[int, int]:
-    """Draw the pair side by side with mutual-NN matches (green: within 3 px of the truth); return (correct, all)."""
+def mutual_matches(pair, name: str):
+    """Return keypoints 1 and 2, the mutual-NN matches (M, 2) and whether each lies within 3 px of the truth."""
     det = create_detector(name, max_keypoints=settings.homography_keypoints, nms_radius=settings.homography_nms)
     fa, fb = det.detect_and_describe(pair.image1), det.detect_and_describe(pair.image2)
     m = match_descriptors(fa.descriptors, fb.descriptors, binary=fa.binary, mutual=True)
     pa, pb = fa.keypoints[m[:, 0]].astype(np.float64), fb.keypoints[m[:, 1]].astype(np.float64)
-    good = np.linalg.norm(warp_points(pair.H, pa) - pb, axis=1) <= 3.0
-    offset = pair.image1.shape[1] + 10
-    canvas = np.ones((max(pair.image1.shape[0], pair.image2.shape[0]), offset + pair.image2.shape[1]), np.float32)
-    canvas[: pair.image1.shape[0], : pair.image1.shape[1]] = pair.image1
-    canvas[: pair.image2.shape[0], offset:] = pair.image2
-    ax.imshow(canvas, cmap="gray", vmin=0, vmax=1)
-    shown = rng.permutation(len(m))[:max_drawn]
-    for k in shown:
-        ax.plot([pa[k, 0], pb[k, 0] + offset], [pa[k, 1], pb[k, 1]], "-", lw=0.7,
-                color="tab:green" if good[k] else "tab:red")
-    ax.set_title(f"{name}: {good.sum()} of {len(m)} matches correct ({good.mean():.0%})", fontsize=9)
-    ax.axis("off")
-    return int(good.sum()), len(m)
+    good = np.linalg.norm(warp_points(pair.H, pa) - pb, axis=1) <= 3.0  # ||H x_1 - x_2|| <= 3 px
+    return fa.keypoints, fb.keypoints, m, good
 
 
-qualitative = {}
-fig, axes = plt.subplots(3, 2, figsize=(14, 9))
-for col, (split, pair) in enumerate((("viewpoint", view_pair), ("illumination", illum_pair))):
-    big = resize_pair(pair, settings.homography_size)
-    for row, name in enumerate(("sift", "orb", "fast_freak")):
-        qualitative[(split, name)] = draw_matches(axes[row, col], big, name)
-        if row == 0:
-            axes[row, col].set_title(f"{split.upper()} — " + axes[row, col].get_title(), fontsize=9)
-plt.tight_layout()
+big = {"viewpoint": resize_pair(view_pair, settings.homography_size),
+       "illumination": resize_pair(illum_pair, settings.homography_size)}
+matched = {split: {name: mutual_matches(pair, name) for name in ("sift", "orb", "fast_freak")}
+           for split, pair in big.items()}  # split -> detector -> (keypoints1, keypoints2, matches, correct)
+fig = plot_match_grid({split: (pair.image1, pair.image2) for split, pair in big.items()}, matched, rng, max_drawn=150)
 plt.show()
+qualitative = {(split, name): (int(m[3].sum()), len(m[3])) for split, ms in matched.items() for name, m in ms.items()}
 for (split, name), (good, total) in qualitative.items():
     print(f"{split:12s} {name:10s}: {good:4d} correct of {total:4d} mutual matches")
     assert 0 <= good <= total
@@ -335,13 +306,8 @@ event_pairs = event_frame_pairs(frames, SEED, pairs_per_frame=1)
 print(f"{len(sequence.events)} events simulated in {time.perf_counter() - start:.1f} s -> {len(frames)} frames "
       f"of {height} x {width}, {len(event_pairs)} pairs")
 
-fig, axes = plt.subplots(1, 3, figsize=(13, 3.4))
-for ax, img, title in zip(axes, (event_pairs[0].image1, event_pairs[0].image2, frames[-1]),
-                          ("event frame", "warped copy (image 2)", "another frame")):
-    ax.imshow(img, cmap="gray", vmin=0, vmax=1)
-    ax.set_title(title)
-    ax.axis("off")
-plt.tight_layout()
+fig = plot_heatmap_row([event_pairs[0].image1, event_pairs[0].image2, frames[-1]],
+                       ["event frame", "warped copy (image 2)", "another frame"], cmaps="gray", panel_in=4.3)
 plt.show()
 assert all(f.min() >= 0 and f.max() <= 1 and f.max() > 0 for f in frames)
 
@@ -600,17 +566,7 @@ for name, d in diagnoses.items():
 display(Markdown(f"{len(diag_pairs)} viewpoint pairs (held-out images, 480 x 640, best 1000 points, NMS 8)\n\n"
                  + "\n".join(lines)))
 
-fig, ax = plt.subplots(figsize=(8, 4.5))
-for name, d in diagnoses.items():
-    ax.scatter(np.maximum(d[:, 1], 1), np.clip(d[:, 4], 0.05, 1e3), label=name, alpha=0.7)
-ax.axhline(3.0, color="k", ls="--", lw=1, label="ε = 3 px")
-ax.set_xscale("log")
-ax.set_yscale("log")
-ax.set_xlabel("correct matches in the pair")
-ax.set_ylabel("oracle corner error (px)")
-ax.set_title("least squares on the correct matches only: what perfect RANSAC would reach")
-ax.legend(fontsize=8)
-plt.tight_layout()
+fig = plot_oracle_corner_errors({name: (d[:, 1], d[:, 4]) for name, d in diagnoses.items()}, eps=3.0)
 plt.show()
 
 # %% [markdown]
