@@ -38,7 +38,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from scipy.stats import chi2
 
-from evio_lib.evaluation.plots_msckf import plot_trajectory_errors
+from evio_lib.evaluation.plots_msckf import plot_trajectory_errors, plot_triangulation_error
 from evio_lib.evaluation.trajectory_metrics import summarize
 from evio_lib.geometry.camera import PinholeRadtan
 from evio_lib.geometry.rotation import so3_exp
@@ -161,12 +161,8 @@ for a, noise_px in enumerate(noise_levels_px):
             errs.append(np.linalg.norm(res.p_FinG - p_FinG_true) if res.success else np.nan)
         median_error[a, b] = np.nanmedian(errs)
 
-fig, ax = plt.subplots(figsize=(6, 3.5))
-for a, noise_px in enumerate(noise_levels_px[1:], start=1):
-    ax.plot(view_counts, 100 * median_error[a], "o-", label=f"{noise_px:g} px noise")
-ax.set(xlabel="number of views (same time span)", ylabel="median position error [cm]",
-       title="Triangulation error, feature at 2.5 m")
-ax.legend()
+fig = plot_triangulation_error(view_counts, median_error[1:], noise_levels_px[1:],  # the noisy rows
+                               title="Triangulation error, feature at 2.5 m")
 plt.show()
 print("noise-free error [m]:", median_error[0].round(12))
 print("median error [cm]  views:" + "".join(f"{m:7d}" for m in view_counts))
