@@ -14,6 +14,8 @@ trajectory seen from above, the front-end's tracking statistics and an error com
 - :func:`plot_error_comparison`: position-error norm against time for several configurations on one axis (e.g. APS
   frames vs event frames vs IMU only, the comparison of thesis Table 6), with an optional line at the start of the
   fast second half of a recording.
+- :func:`plot_tracks`: the front-end's feature tracks drawn over the frame they end in (polylines over the last frames,
+  new features, and the candidates two-point RANSAC rejected), the tracking figure of thesis §3.3.5 / §4.5.
 
 Plotting only, on plain arrays: nothing here depends on the pipeline's classes. Matplotlib is imported when a figure is
 made; no function calls ``plt.show``.
@@ -34,6 +36,7 @@ __all__ = [
     "plot_trajectory_topdown",
     "plot_tracking_statistics",
     "plot_error_comparison",
+    "plot_tracks",
 ]
 
 _BIAS_KINDS = {  # kind -> (default unit, name used in labels)
@@ -381,5 +384,127 @@ def plot_error_comparison(t_by_name: Mapping[str, ArrayLike], error_norm_by_name
     ax.legend(fontsize=8)
     if title:
         ax.set_title(title)
+    fig.tight_layout()
+    return fig
+
+
+def _image(image: ArrayLike) -> NDArray[Any]:
+    """Return image as an (H, W) or (H, W, 3) array for imshow; raise ValueError naming the expected form."""
+    arr = np.asarray(image)
+    if arr.dtype == object or not (np.issubdtype(arr.dtype, np.number) or arr.dtype == bool):
+        raise ValueError(f"image must be a numeric (H, W) grayscale or (H, W, 3) image; got dtype {arr.dtype}")
+    if not (arr.ndim == 2 or (arr.ndim == 3 and arr.shape[2] == 3)) or min(arr.shape[:2]) < 1:
+        raise ValueError(f"image must have shape (H, W) or (H, W, 3); got {arr.shape}")
+    return arr
+
+
+def _tracks_from_frames(frames: Sequence[Any], last: int | None) -> dict[int, NDArray[np.float64]]:
+    """Return id -> (L, 2) pixels of the tracks alive in the last frame, over the last ``last`` frames."""
+    frames = list(frames)
+    if not frames:
+        raise ValueError("frames_or_tracks must hold at least one tracked frame (or be a mapping id -> (L, 2) pixels)")
+    for k, frame in enumerate(frames):
+        if not (hasattr(frame, "ids") and hasattr(frame, "pixels")):
+            raise ValueError(f"frames_or_tracks[{k}] must be a tracked frame with .ids (K,) and .pixels (K, 2) "
+                             f"(evio_lib.frontend.TrackedFrame); got {type(frame).__name__}")
+    if last is not None:
+        frames = frames[-last:]
+    history: dict[int, list[NDArray[np.float64]]] = {}
+    for k, frame in enumerate(frames):
+        ids = np.asarray(frame.ids).reshape(-1)
+        pixels = _array(frame.pixels, f"frames[{k}].pixels", "(K, 2)")
+        if pixels.shape != (ids.shape[0], 2):
+            raise ValueError(f"frames[{k}].pixels must have shape (K, 2) = ({ids.shape[0]}, 2) like its ids; "
+                             f"got {pixels.shape}")
+        for track_id, xy in zip(ids.tolist(), pixels):
+            history.setdefault(int(track_id), []).append(xy)
+    alive = np.asarray(frames[-1].ids).reshape(-1).tolist()
+    return {int(i): np.array(history[int(i)]) for i in alive}
+
+
+def plot_tracks(image: ArrayLike, frames_or_tracks: Sequence[Any] | Mapping[Any, ArrayLike], *,
+                rejected: ArrayLike | None = None, last: int | None = None, title: str = "") -> "Figure":
+    """Return a figure of feature tracks drawn over the image they end in, with RANSAC's rejections marked.
+
+    Args:
+        image: (H, W) grayscale (uint8, or float in [0, 1]) or (H, W, 3) image: the frame the tracks end in.
+        frames_or_tracks: either consecutive tracked frames, oldest first, the last one being ``image``'s (objects
+            with ``.ids`` (K,) and ``.pixels`` (K, 2) raw pixel (x, y), e.g. :class:`evio_lib.frontend.TrackedFrame`;
+            the tracks alive in the last frame are drawn over the frames given), or a mapping track id -> (L, 2)
+            pixel positions (x, y), oldest first.
+        rejected: optional candidates two-point RANSAC rejected in this frame: (M, 2) pixel positions, or
+            (M, 2, 2) pairs [previous pixel, candidate pixel] (drawn as a segment ending in a cross).
+        last: draw only each track's last ``last`` positions (None: all given).
+        title: axes title (default: the counts).
+
+    Tracks with two or more positions are green polylines ending in a dot (one Line2D, tracks separated by NaN);
+    tracks seen once (new features) are cyan circles; rejected candidates are red crosses. The legend gives the
+    counts and the mean length of the drawn tracks in frames.
+
+    Reference: thesis §3.3.5 (feature tracking with two-point RANSAC) and §4.5.
+
+    >>> import matplotlib; matplotlib.use("Agg")
+    >>> fig = plot_tracks(np.zeros((48, 64)), {7: [[10.0, 10.0], [12.0, 11.0]], 8: [[30.0, 20.0]]},
+    ...                   rejected=[[40.0, 30.0]])
+    >>> [text.get_text() for text in fig.axes[0].get_legend().get_texts()]
+    ['tracked (1, mean 2.0 frames)', 'new (1)', 'rejected by RANSAC (1)']
+    """
+    import matplotlib.pyplot as plt
+
+    img = _image(image)
+    if last is not None and (isinstance(last, bool) or not isinstance(last, (int, np.integer)) or last < 1):
+        raise ValueError(f"last must be None or an integer >= 1 (positions per track); got {last!r}")
+    if isinstance(frames_or_tracks, Mapping):
+        tracks = {}
+        for track_id, value in frames_or_tracks.items():
+            xy = _array(value, f"frames_or_tracks[{track_id!r}]", "(L, 2)")
+            if xy.ndim != 2 or xy.shape[1] != 2 or xy.shape[0] < 1 or not np.all(np.isfinite(xy)):
+                raise ValueError(f"frames_or_tracks[{track_id!r}] must be finite pixel positions of shape (L, 2) "
+                                 f"with L >= 1; got shape {xy.shape}")
+            tracks[track_id] = xy if last is None else xy[-last:]
+    elif isinstance(frames_or_tracks, (str, bytes)) or not hasattr(frames_or_tracks, "__iter__"):
+        raise ValueError(f"frames_or_tracks must be a sequence of tracked frames or a mapping id -> (L, 2) pixels; "
+                         f"got {type(frames_or_tracks).__name__}")
+    else:
+        tracks = _tracks_from_frames(frames_or_tracks, last)
+    segments = None
+    if rejected is not None:
+        rej = _array(rejected, "rejected", "(M, 2) or (M, 2, 2)")
+        if rej.size == 0:
+            rej = rej.reshape(0, 2)
+        if not ((rej.ndim == 2 and rej.shape[1] == 2) or (rej.ndim == 3 and rej.shape[1:] == (2, 2))):
+            raise ValueError(f"rejected must have shape (M, 2) candidate pixels or (M, 2, 2) [previous, candidate] "
+                             f"pixel pairs; got {rej.shape}")
+        if not np.all(np.isfinite(rej)):
+            raise ValueError("rejected must contain only finite pixel positions")
+        if rej.ndim == 3:
+            segments, rej = rej, rej[:, 1]
+    long_tracks = [xy for xy in tracks.values() if xy.shape[0] >= 2]
+    new_points = np.array([xy[-1] for xy in tracks.values() if xy.shape[0] == 1]).reshape(-1, 2)
+
+    fig, ax = plt.subplots(figsize=(7.5, 7.5 * img.shape[0] / img.shape[1] + 0.6))
+    ax.imshow(img, cmap="gray", vmin=0, vmax=255 if img.dtype == np.uint8 else 1, interpolation="nearest")
+    if long_tracks:
+        mean_length = float(np.mean([xy.shape[0] for xy in long_tracks]))
+        joined = np.concatenate([np.vstack([xy, [np.nan, np.nan]]) for xy in long_tracks])[:-1]
+        ax.plot(joined[:, 0], joined[:, 1], "-", color="lime", lw=1.2,
+                label=f"tracked ({len(long_tracks)}, mean {mean_length:.1f} frames)")
+        ends = np.array([xy[-1] for xy in long_tracks])
+        ax.plot(ends[:, 0], ends[:, 1], ".", color="lime", ms=5)
+    if new_points.shape[0]:
+        ax.plot(new_points[:, 0], new_points[:, 1], "o", color="cyan", ms=5, mfc="none", mew=1.2,
+                label=f"new ({new_points.shape[0]})")
+    if rejected is not None and rej.shape[0]:
+        if segments is not None:
+            joined = np.concatenate([np.vstack([pair, [np.nan, np.nan]]) for pair in segments])[:-1]
+            ax.plot(joined[:, 0], joined[:, 1], "-", color="red", lw=1.0)
+        ax.plot(rej[:, 0], rej[:, 1], "x", color="red", ms=7, mew=1.5, label=f"rejected by RANSAC ({rej.shape[0]})")
+    ax.set_xlim(-0.5, img.shape[1] - 0.5)
+    ax.set_ylim(img.shape[0] - 0.5, -0.5)  # image rows go down
+    ax.set_xlabel("x [px]")
+    ax.set_ylabel("y [px]")
+    if ax.get_legend_handles_labels()[1]:
+        ax.legend(fontsize=8, loc="lower right", framealpha=0.8)
+    ax.set_title(title or f"{len(tracks)} features, {len(long_tracks)} tracked from earlier frames")
     fig.tight_layout()
     return fig

@@ -15,6 +15,7 @@ from evio_lib.evaluation.plots_pipeline import (  # noqa: E402
     plot_error_comparison,
     plot_state_errors,
     plot_tracking_statistics,
+    plot_tracks,
     plot_trajectory_topdown,
 )
 
@@ -330,3 +331,124 @@ def test_plot_error_comparison_log_axis_drops_zeros():
 def test_plot_error_comparison_rejects_bad_input(times, errors, kwargs, match):
     with pytest.raises(ValueError, match=match):
         plot_error_comparison(times, errors, **kwargs)
+
+
+# ----------------------------------------------------------------------------------------------------- plot_tracks
+def _tracked_frames():
+    """Three TrackedFrames: track 0 lives in all three, track 1 in the last two, track 2 dies, track 3 is new."""
+    from evio_lib.frontend import FrameStats, TrackedFrame
+
+    layout = [  # (ids, pixels) per frame
+        ([0, 1, 2], [[10.0, 10.0], [50.0, 20.0], [5.0, 5.0]]),
+        ([0, 1], [[12.0, 11.0], [52.0, 21.0]]),
+        ([0, 1, 3], [[14.0, 12.0], [54.0, 22.0], [30.0, 40.0]]),
+    ]
+    frames = []
+    for k, (ids, pixels) in enumerate(layout):
+        stats = FrameStats(frame=k, detected=3, candidates=0, rejected_ransac=0, tracked=0, dropped=0, lost=0,
+                           new=0, total=len(ids), ransac_degenerate=False, time_detect_s=0.0, time_match_s=0.0,
+                           time_ransac_s=0.0)
+        ids_arr = np.array(ids, np.int64)
+        frames.append(TrackedFrame(t=0.1 * k, ids=ids_arr, xy=np.zeros((len(ids), 2)), pixels=np.array(pixels),
+                                   ages=np.ones(len(ids), np.int64), stats=stats))
+    return frames
+
+
+def _xy(line) -> np.ndarray:
+    return np.column_stack([line.get_xdata(), line.get_ydata()]).astype(float)
+
+
+def test_plot_tracks_from_tracked_frames_draws_alive_tracks_and_new_ones():
+    frames = _tracked_frames()
+    image = np.linspace(0.0, 1.0, 48 * 64, dtype=np.float32).reshape(48, 64)
+    image_before = image.copy()
+    fig = plot_tracks(image, frames)
+    ax = fig.axes[0]
+    polyline, ends, new = ax.lines
+    expected = np.array([[10.0, 10.0], [12.0, 11.0], [14.0, 12.0], [np.nan, np.nan], [50.0, 20.0], [52.0, 21.0],
+                         [54.0, 22.0]])
+    np.testing.assert_array_equal(_xy(polyline), expected)  # track 2 ended before the last frame: not drawn
+    np.testing.assert_array_equal(_xy(ends), [[14.0, 12.0], [54.0, 22.0]])
+    np.testing.assert_array_equal(_xy(new), [[30.0, 40.0]])
+    assert _legend_labels(ax) == ["tracked (2, mean 3.0 frames)", "new (1)"]
+    assert ax.get_ylim() == (47.5, -0.5) and ax.get_xlim() == (-0.5, 63.5)  # image orientation, rows down
+    np.testing.assert_array_equal(ax.images[0].get_array(), image)
+    np.testing.assert_array_equal(image, image_before)
+    _render(fig)
+
+
+def test_plot_tracks_last_limits_the_history():
+    frames = _tracked_frames()
+    fig = plot_tracks(np.zeros((48, 64), np.uint8), frames, last=2)
+    polyline = fig.axes[0].lines[0]
+    np.testing.assert_array_equal(_xy(polyline), [[12.0, 11.0], [14.0, 12.0], [np.nan, np.nan], [52.0, 21.0],
+                                                  [54.0, 22.0]])
+    mapping = {"a": [[1.0, 1.0], [2.0, 2.0], [3.0, 3.0]]}
+    fig2 = plot_tracks(np.zeros((48, 64)), mapping, last=1)  # one position left: drawn as a new feature
+    assert _legend_labels(fig2.axes[0]) == ["new (1)"]
+
+
+def test_plot_tracks_marks_rejected_candidates_as_points_or_segments():
+    tracks = {0: np.array([[10.0, 10.0], [11.0, 10.0]])}
+    fig = plot_tracks(np.zeros((48, 64)), tracks, rejected=np.array([[20.0, 30.0], [40.0, 5.0]]))
+    crosses = fig.axes[0].lines[-1]
+    assert crosses.get_marker() == "x"
+    np.testing.assert_array_equal(_xy(crosses), [[20.0, 30.0], [40.0, 5.0]])
+    assert _legend_labels(fig.axes[0])[-1] == "rejected by RANSAC (2)"
+    pairs = np.array([[[18.0, 30.0], [20.0, 30.0]], [[30.0, 5.0], [40.0, 5.0]]])  # [previous, candidate]
+    pairs_before = pairs.copy()
+    fig2 = plot_tracks(np.zeros((48, 64, 3)), tracks, rejected=pairs)
+    segment, crosses = fig2.axes[0].lines[-2:]
+    np.testing.assert_array_equal(_xy(segment), [[18.0, 30.0], [20.0, 30.0], [np.nan, np.nan], [30.0, 5.0],
+                                                 [40.0, 5.0]])
+    np.testing.assert_array_equal(_xy(crosses), pairs[:, 1])
+    np.testing.assert_array_equal(pairs, pairs_before)
+    fig3 = plot_tracks(np.zeros((48, 64)), tracks, rejected=np.zeros((0, 2)))  # none rejected: no entry
+    assert _legend_labels(fig3.axes[0]) == ["tracked (1, mean 2.0 frames)"]
+    _render(fig2)
+
+
+def test_plot_tracks_on_the_real_tracker_output():
+    """The front-end's own output is valid input: a textured image shifted by 2 px per frame gives tracks."""
+    from evio_lib.frontend import FrontendConfig, create_tracker
+    from evio_lib.geometry.camera import PinholeRadtan
+
+    rng = np.random.default_rng(3)
+    camera = PinholeRadtan(fx=150.0, fy=150.0, cx=79.5, cy=59.5, width=160, height=120)
+    texture = rng.random((140, 200)).astype(np.float32)
+    from scipy.ndimage import gaussian_filter
+
+    texture = gaussian_filter(texture, 1.5)
+    texture = (texture - texture.min()) / np.ptp(texture)
+    images = [texture[10:130, 2 * k: 2 * k + 160] for k in range(4)]
+    tracker = create_tracker(camera, FrontendConfig(method="klt", max_features=40))
+    frames = tracker.track(images, [0.0, 0.05, 0.1, 0.15])
+    fig = plot_tracks(images[-1], frames)
+    polyline = fig.axes[0].lines[0]
+    xy = _xy(polyline)
+    steps = np.diff(xy, axis=0)
+    steps = steps[np.all(np.isfinite(steps), axis=1)]
+    assert steps.shape[0] >= 10
+    np.testing.assert_allclose(np.median(steps, axis=0), [-2.0, 0.0], atol=0.3)  # the texture moves 2 px left
+    _render(fig)
+
+
+@pytest.mark.parametrize(
+    "image, tracks, kwargs, match",
+    [
+        (np.zeros((4, 4, 2)), {0: [[1.0, 1.0]]}, {}, r"image must have shape \(H, W\) or \(H, W, 3\)"),
+        (np.array([["a"]]), {0: [[1.0, 1.0]]}, {}, r"image must be a numeric \(H, W\) grayscale"),
+        (np.zeros((4, 4)), {0: [1.0, 1.0]}, {}, r"frames_or_tracks\[0\] must be finite pixel positions of shape"),
+        (np.zeros((4, 4)), {0: [[np.nan, 1.0]]}, {}, r"frames_or_tracks\[0\] must be finite pixel positions"),
+        (np.zeros((4, 4)), [], {}, r"frames_or_tracks must hold at least one tracked frame"),
+        (np.zeros((4, 4)), [np.zeros((3, 2))], {}, r"frames_or_tracks\[0\] must be a tracked frame with \.ids"),
+        (np.zeros((4, 4)), 5, {}, r"frames_or_tracks must be a sequence of tracked frames or a mapping"),
+        (np.zeros((4, 4)), {0: [[1.0, 1.0]]}, {"rejected": np.zeros((3, 3))},
+         r"rejected must have shape \(M, 2\) candidate pixels or \(M, 2, 2\)"),
+        (np.zeros((4, 4)), {0: [[1.0, 1.0]]}, {"rejected": [[np.inf, 0.0]]}, r"rejected must contain only finite"),
+        (np.zeros((4, 4)), {0: [[1.0, 1.0]]}, {"last": 0}, r"last must be None or an integer >= 1"),
+    ],
+)
+def test_plot_tracks_rejects_bad_input(image, tracks, kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        plot_tracks(image, tracks, **kwargs)
