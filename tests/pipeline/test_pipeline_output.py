@@ -1,0 +1,125 @@
+"""Tests of the run's output folder and of the run / table commands."""
+import json
+
+import numpy as np
+import pytest
+
+from evio_lib.cli import main
+from evio_lib.io.tum import read_tum
+from evio_lib.pipeline.output import write_run
+from evio_lib.pipeline.run import PipelineConfig, run_pipeline
+from evio_lib.pipeline.table import TableRow, aggregate, format_table6, table_rows
+
+
+@pytest.fixture(scope="module")
+def short_run(boxes_aps):
+    return run_pipeline(boxes_aps, PipelineConfig(tracker="klt", features="fast", max_duration=1.5))
+
+
+def test_output_folder(short_run, boxes_aps, tmp_path):
+    out = write_run(short_run, boxes_aps, tmp_path / "run", figures=True)
+    names = {p.name for p in out.iterdir()}
+    assert {"trajectory.txt", "trajectory_imu.txt", "groundtruth.txt", "states.csv", "tracking.csv", "metrics.json",
+            "summary.txt", "figures"} <= names
+    assert len(list((out / "figures").glob("*.png"))) == 7
+    t, p, q = read_tum(out / "trajectory.txt")
+    R_CtoG, p_CinG = short_run.camera_pose()
+    np.testing.assert_allclose(p, p_CinG, atol=1e-9)  # the camera pose: the same body as the ECD ground truth
+    t_gt, p_gt, _ = read_tum(out / "groundtruth.txt")
+    seq_gt = boxes_aps.sequence.groundtruth  # the recording's own camera ground truth
+    expected = np.stack([np.interp(t_gt, seq_gt.t, seq_gt.p_BinG[:, k]) for k in range(3)], axis=1)
+    np.testing.assert_allclose(p_gt, expected, atol=1e-3)
+    record = json.loads((out / "metrics.json").read_text())  # strict JSON: NaN would be refused by other readers
+    assert record["trajectory_body"] == "camera"
+    assert record["metrics"]["rmse_m"] == pytest.approx(short_run.metrics["rmse_m"])
+    states = np.loadtxt(out / "states.csv", delimiter=",", skiprows=1)
+    assert states.shape == (len(short_run.t), 32)
+
+
+def test_output_refuses_a_used_folder(short_run, boxes_aps, tmp_path):
+    (tmp_path / "run").mkdir()
+    (tmp_path / "run" / "keep.txt").write_text("mine")
+    with pytest.raises(ValueError, match="not empty"):
+        write_run(short_run, boxes_aps, tmp_path / "run")
+    assert (tmp_path / "run" / "keep.txt").read_text() == "mine"
+
+
+def test_evo_reads_the_trajectory(short_run, boxes_aps, tmp_path):
+    evo_file = pytest.importorskip("evo.tools.file_interface")
+    from evo.core import metrics, sync
+
+    out = write_run(short_run, boxes_aps, tmp_path / "run", figures=False)
+    ref = evo_file.read_tum_trajectory_file(str(out / "groundtruth.txt"))
+    est = evo_file.read_tum_trajectory_file(str(out / "trajectory.txt"))
+    ref, est = sync.associate_trajectories(ref, est)
+    ape = metrics.APE(metrics.PoseRelation.translation_part)
+    ape.process_data((ref, est))
+    R_CtoG, p_CinG = short_run.camera_pose()
+    ours = np.sqrt(np.mean(np.sum((p_CinG - np.loadtxt(out / "groundtruth.txt")[:, 1:4]) ** 2, axis=1)))
+    assert ape.get_statistic(metrics.StatisticsType.rmse) == pytest.approx(ours, rel=1e-6)
+
+
+def test_run_command(pipeline_cache, boxes_aps, tmp_path, capsys):
+    out = tmp_path / "run"
+    args = ["run", "boxes_like", "--duration", "3", "--max-duration", "1", "--tracker", "klt", "--features", "fast",
+            "--quiet", "--no-figures", "--out", str(out)]
+    assert main(args) == 0
+    assert "RMSE" in capsys.readouterr().out and (out / "trajectory.txt").is_file()
+    assert main(args) == 2  # the folder is used now
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and err.count("\n") == 1 and "--force" in err
+
+
+@pytest.mark.parametrize("args, message", [
+    (["run", "nowhere_at_all"], "neither a preset"),
+    (["run", "boxes_like", "--bias-init", "1,2"], "--bias-init must be"),
+    (["run", "boxes_like", "--weights", "missing.pt", "--features", "superpoint"], "no such checkpoint"),
+    (["run", "boxes_like", "--frames", "video"], "--frames"),
+    (["table", "--rows", "nonsense"], "unknown table row"),
+])
+def test_command_errors_are_one_line(args, message, capsys, pipeline_cache):
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and message in err and "Traceback" not in err
+
+
+def test_corrupt_recording_file_is_one_line(boxes_aps, tmp_path, capsys):
+    from evio_lib.io.ecd import write_ecd
+
+    folder = tmp_path / "rec"
+    write_ecd(boxes_aps.sequence.slice_time(0.0, 1.0), folder)
+    lines = (folder / "imu.txt").read_text().splitlines()
+    lines[5] = "0.005 1.0 nan-ish 2.0"
+    (folder / "imu.txt").write_text("\n".join(lines) + "\n")
+    assert main(["run", str(folder), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and "imu.txt" in err and err.count("\n") == 1
+
+
+def test_table_fast_command(pipeline_cache, tmp_path, capsys):
+    out = tmp_path / "table"
+    assert main(["table", "--fast", "--presets", "boxes_like", "--rows", "imu", "imu_bias", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "IMU only (no bias correction)" in text and "IMU only (bias correction)" in text
+    rows = json.loads((out / "table.json").read_text())
+    assert [r["row"] for r in rows] == ["imu", "imu_bias"] and all(r["failed"] == 0 for r in rows)
+
+
+def test_aggregate_is_mean_and_sample_std():
+    records = [{"preset": "boxes_like", "row": "x", "label": "X", "seed": s, "rmse_m": v, "final_error_m": 2 * v,
+                "percent_of_distance": 1.0, "rmse_first_half_m": v, "rmse_second_half_m": v, "realtime_factor": 3.0}
+               for s, v in enumerate([1.0, 2.0, 4.0])]
+    records.append({"preset": "boxes_like", "row": "x", "label": "X", "seed": 3, "error": "diverged"})
+    (row,) = aggregate(records)
+    assert row["rmse_m"] == pytest.approx(7 / 3) and row["rmse_m_std"] == pytest.approx(np.std([1, 2, 4], ddof=1))
+    assert row["failed"] == 1 and row["errors"] == ["diverged"]
+    assert "2.333 ± 1.528" in format_table6([row]) and "3 (1 failed)" in format_table6([row])
+
+
+def test_table_rows():
+    assert "cnn_events_trained" not in [r.key for r in table_rows()]
+    trained = table_rows(["cnn_events_trained"], events_cnn="net.pt")
+    assert trained[0].options[-1] == ("detector_options", (("weights", "net.pt"),)) and trained[0].needs_events
+    assert isinstance(trained[0], TableRow)
+    with pytest.raises(ValueError, match="unknown table row"):
+        table_rows(["nope"])

@@ -1,0 +1,142 @@
+"""Tests of evio_lib.pipeline.run: the chain on simulated recordings, its metrics and its robustness."""
+import dataclasses
+
+import numpy as np
+import pytest
+
+from evio_lib.pipeline.dataset import LoadedDataset
+from evio_lib.pipeline.run import PipelineConfig, run_pipeline
+from evio_lib.sequence import ImuSamples
+
+
+def _with_sequence(data: LoadedDataset, **changes) -> LoadedDataset:
+    """Return data whose sequence is a copy with some fields replaced (the cached original is left alone)."""
+    seq = data.sequence
+    fields = {f: getattr(seq, f) for f in ("name", "camera", "events", "frame_times", "frames", "imu", "groundtruth",
+                                            "groundtruth_imu", "R_CtoI", "p_CinI", "metadata")}
+    fields.update(changes)
+    return dataclasses.replace(data, sequence=type(seq)(**fields))
+
+
+@pytest.fixture(scope="module")
+def sift_run(boxes_aps):
+    return run_pipeline(boxes_aps, PipelineConfig(features="sift"))
+
+
+@pytest.fixture(scope="module")
+def imu_runs(boxes_aps):
+    return (run_pipeline(boxes_aps, PipelineConfig(imu_only=True)),
+            run_pipeline(boxes_aps, PipelineConfig(imu_only=True, bias_init="groundtruth")))
+
+
+def test_vision_beats_imu_only(sift_run, imu_runs):
+    plain, corrected = imu_runs
+    assert np.all(np.isfinite(sift_run.p_IinG))
+    assert sift_run.metrics["rmse_m"] < 0.25 * plain.metrics["rmse_m"]
+    # the true biases help dead reckoning (the thesis's bias-corrected IMU row)
+    assert corrected.metrics["final_error_m"] < plain.metrics["final_error_m"]
+    assert len(sift_run.t) == len(plain.t)
+    assert sift_run.tracking["total"].mean() > 40  # about N = 60 features per frame
+
+
+def test_metrics_match_an_independent_computation(sift_run, boxes_aps):
+    """RMSE, final error and % of distance from the ground-truth camera poses, recomputed with np.interp."""
+    gt = boxes_aps.sequence.groundtruth_imu
+    p_gt = np.stack([np.interp(sift_run.t, gt.t, gt.p_BinG[:, k]) for k in range(3)], axis=1)
+    err = np.linalg.norm(sift_run.p_IinG - p_gt, axis=1)
+    m = sift_run.metrics
+    assert m["rmse_m"] == pytest.approx(np.sqrt(np.mean(err ** 2)), rel=1e-6)
+    assert m["final_error_m"] == pytest.approx(err[-1], rel=1e-6)
+    dense = gt.p_BinG[(gt.t >= sift_run.t[0]) & (gt.t <= sift_run.t[-1])]
+    distance = np.linalg.norm(np.diff(dense, axis=0), axis=1).sum()
+    assert m["distance_m"] == pytest.approx(distance, rel=0.02)
+    assert m["percent_of_distance"] == pytest.approx(100 * err.mean() / m["distance_m"], rel=1e-6)
+
+
+def test_camera_pose_composes_the_extrinsics(sift_run):
+    R_CtoG, p_CinG = sift_run.camera_pose()
+    k = len(sift_run.t) // 2
+    R_ItoG = sift_run.R_ItoG[k]
+    np.testing.assert_allclose(R_CtoG[k], R_ItoG @ sift_run.R_CtoI, atol=1e-12)
+    np.testing.assert_allclose(p_CinG[k], sift_run.p_IinG[k] + R_ItoG @ sift_run.p_CinI, atol=1e-12)
+
+
+def test_frames_without_features_are_survived(boxes_aps):
+    """Blank frames (nothing to detect) in the middle: the filter propagates across them, nothing is NaN."""
+    frames = boxes_aps.sequence.frames.copy()
+    blank = (boxes_aps.sequence.frame_times > 1.0) & (boxes_aps.sequence.frame_times < 1.5)
+    frames[blank] = 128
+    data = _with_sequence(boxes_aps, frames=frames)
+    result = run_pipeline(data, PipelineConfig(max_duration=2.0))
+    inside = (result.tracking["t"] > 1.0) & (result.tracking["t"] < 1.5)
+    assert inside.sum() == blank.sum() and np.all(result.tracking["total"][inside] == 0)
+    assert np.all(np.isfinite(result.p_IinG)) and np.all(np.isfinite(result.sigma))
+    assert result.metrics["rmse_m"] < 1.0
+
+
+def test_dropped_imu_samples_are_bridged_and_counted(boxes_aps):
+    imu = boxes_aps.sequence.imu
+    keep = ~((imu.t > 1.0) & (imu.t < 1.1))  # 100 ms without IMU: longer than imu_max_gap, short enough to bridge
+    data = _with_sequence(boxes_aps, imu=ImuSamples(t=imu.t[keep], gyro=imu.gyro[keep], accel=imu.accel[keep]))
+    result = run_pipeline(data, PipelineConfig(max_duration=2.0))
+    assert sum(result.faults.values()) >= 1
+    assert np.all(np.isfinite(result.p_IinG))
+
+
+def test_a_long_imu_gap_stops_with_a_clear_error(boxes_aps):
+    imu = boxes_aps.sequence.imu
+    keep = ~((imu.t > 1.0) & (imu.t < 1.6))
+    data = _with_sequence(boxes_aps, imu=ImuSamples(t=imu.t[keep], gyro=imu.gyro[keep], accel=imu.accel[keep]))
+    with pytest.raises(ValueError, match="gap"):
+        run_pipeline(data, PipelineConfig(max_duration=2.0))
+
+
+def test_static_initialisation_refuses_a_moving_start(boxes_aps):
+    with pytest.raises(ValueError, match="static initialisation failed: the IMU window is not static"):
+        run_pipeline(boxes_aps, PipelineConfig(init="static", max_duration=2.0))
+
+
+@pytest.mark.parametrize("changes, message", [
+    (dict(frames="video"), "frames must be one of"),
+    (dict(init="magic"), "init must be one of"),
+    (dict(bias_init=(1.0, 2.0)), "six finite numbers"),
+    (dict(max_duration=-1.0), "max_duration"),
+    (dict(tracker="sift"), "method must be one of"),
+])
+def test_bad_configs_are_refused(changes, message):
+    with pytest.raises(ValueError, match=message):
+        PipelineConfig(**changes)
+
+
+def test_event_frames_with_a_stretch_without_events(boxes_events):
+    """No events over 0.3 s: no frame there, the IMU carries the filter across, and nothing is NaN."""
+    ev = boxes_events.sequence.events
+    gap = (ev["t"] > 0.6) & (ev["t"] < 0.9)
+    data = _with_sequence(boxes_events, events=ev[~gap])
+    result = run_pipeline(data, PipelineConfig(frames="events", tracker="klt", features="fast",
+                                               reconstructor="high_pass"))
+    assert not np.any((result.t > 0.61) & (result.t < 0.89))
+    assert len(result.t) > 10 and np.all(np.isfinite(result.p_IinG))
+    assert result.timings["reconstruction"] > 0
+
+
+def test_event_frames_follow_the_window_size(boxes_events):
+    """Frames come at the ends of windows of N_e = n H W events (thesis Eq. 87)."""
+    from evio_lib.pipeline.frames import event_frames
+
+    seq = boxes_events.sequence
+    times = [t for t, _, _ in event_frames(seq, "direct", window_fraction=0.5)]
+    n_e = round(0.5 * 240 * 180)
+    expected = seq.events["t"][np.arange(n_e - 1, len(seq.events), n_e)]
+    np.testing.assert_allclose(times, expected[: len(times)])
+    assert len(times) == len(seq.events) // n_e
+
+
+def test_euroc_runs_with_static_initialisation(real_data_dir):
+    from evio_lib.pipeline.dataset import load_dataset
+
+    data = load_dataset(real_data_dir / "euroc_V1_01_easy_micro")
+    result = run_pipeline(data, PipelineConfig(init="static", tracker="klt", features="fast"))
+    assert result.metrics["init"] == "static"
+    assert np.isfinite(result.metrics["ate_se3_m"]) and np.isnan(result.metrics["rmse_m"])
+    assert result.metrics["ate_se3_m"] < 0.5  # the MAV barely moves in these 4.7 s
