@@ -95,6 +95,9 @@ def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, w
         os.close(fd)
         try:
             save_sequence_npz(sequence, tmp)
+            umask = os.umask(0)
+            os.umask(umask)
+            os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0o600; the cache should look like any written file
             os.replace(tmp, path)
         finally:
             if os.path.exists(tmp):
