@@ -452,3 +452,13 @@ def test_plot_tracks_on_the_real_tracker_output():
 def test_plot_tracks_rejects_bad_input(image, tracks, kwargs, match):
     with pytest.raises(ValueError, match=match):
         plot_tracks(image, tracks, **kwargs)
+
+
+def test_plot_tracks_names_a_frame_whose_pixels_do_not_match_its_ids():
+    from dataclasses import replace
+
+    frames = _tracked_frames()
+    frames[1] = replace(frames[1], pixels=np.zeros((3, 2)))  # 2 ids, 3 pixels
+    with pytest.raises(ValueError, match=r"frames\[1\]\.pixels must have shape \(K, 2\) = \(2, 2\) like its ids"):
+        plot_tracks(np.zeros((48, 64)), frames)
+    plot_tracks(np.zeros((48, 64)), iter(_tracked_frames()))  # any iterable of frames, e.g. a generator
