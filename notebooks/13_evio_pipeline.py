@@ -202,7 +202,8 @@ print(f"distance to the TRUE epipolar geometry: kept matches median {inlier_px:.
       f"median {np.median(sampson_px[~ransac.inliers]):.1f} px")
 pixel_pairs = np.stack([prev.keypoints[pairs[:, 0]], curr.keypoints[pairs[:, 1]]], axis=1).astype(float)
 plot_tracks(box_images[-1], {i: pixel_pairs[i] for i in np.flatnonzero(ransac.inliers)},
-            rejected=pixel_pairs[~ransac.inliers], title="one frame pair: matches kept (green) and rejected (red)")
+            rejected=pixel_pairs[~ransac.inliers], track_label="kept by RANSAC",
+            title="one frame pair: matches kept (green) and rejected (red)")
 plt.show()
 assert ransac.num_rejected >= 3
 assert inlier_px < 0.5 and kept_ok > 0.9 and rejected_off > 0.7

@@ -423,7 +423,8 @@ def _tracks_from_frames(frames: Sequence[Any], last: int | None) -> dict[int, ND
 
 
 def plot_tracks(image: ArrayLike, frames_or_tracks: Sequence[Any] | Mapping[Any, ArrayLike], *,
-                rejected: ArrayLike | None = None, last: int | None = None, title: str = "") -> "Figure":
+                rejected: ArrayLike | None = None, last: int | None = None, track_label: str = "tracked",
+                title: str = "") -> "Figure":
     """Return a figure of feature tracks drawn over the image they end in, with RANSAC's rejections marked.
 
     Args:
@@ -435,6 +436,7 @@ def plot_tracks(image: ArrayLike, frames_or_tracks: Sequence[Any] | Mapping[Any,
         rejected: optional candidates two-point RANSAC rejected in this frame: (M, 2) pixel positions, or
             (M, 2, 2) pairs [previous pixel, candidate pixel] (drawn as a segment ending in a cross).
         last: draw only each track's last ``last`` positions (None: all given).
+        track_label: legend name of the polylines (e.g. "kept by RANSAC" for one frame pair's matches).
         title: axes title (default: the counts).
 
     Tracks with two or more positions are green polylines ending in a dot (one Line2D, tracks separated by NaN);
@@ -488,7 +490,7 @@ def plot_tracks(image: ArrayLike, frames_or_tracks: Sequence[Any] | Mapping[Any,
         mean_length = float(np.mean([xy.shape[0] for xy in long_tracks]))
         joined = np.concatenate([np.vstack([xy, [np.nan, np.nan]]) for xy in long_tracks])[:-1]
         ax.plot(joined[:, 0], joined[:, 1], "-", color="lime", lw=1.2,
-                label=f"tracked ({len(long_tracks)}, mean {mean_length:.1f} frames)")
+                label=f"{track_label} ({len(long_tracks)}, mean {mean_length:.1f} frames)")
         ends = np.array([xy[-1] for xy in long_tracks])
         ax.plot(ends[:, 0], ends[:, 1], ".", color="lime", ms=5)
     if new_points.shape[0]:

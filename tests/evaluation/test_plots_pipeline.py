@@ -405,6 +405,8 @@ def test_plot_tracks_marks_rejected_candidates_as_points_or_segments():
     np.testing.assert_array_equal(pairs, pairs_before)
     fig3 = plot_tracks(np.zeros((48, 64)), tracks, rejected=np.zeros((0, 2)))  # none rejected: no entry
     assert _legend_labels(fig3.axes[0]) == ["tracked (1, mean 2.0 frames)"]
+    fig4 = plot_tracks(np.zeros((48, 64)), tracks, track_label="kept by RANSAC")
+    assert _legend_labels(fig4.axes[0]) == ["kept by RANSAC (1, mean 2.0 frames)"]
     _render(fig2)
 
 
