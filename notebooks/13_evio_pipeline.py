@@ -65,7 +65,7 @@ from evio_lib.pipeline.frames import default_window_fraction
 cv2.setNumThreads(1)
 torch.set_num_threads(1)
 FAST = fast_mode()  # CI sets EVIO_FAST=1: a few seconds of each run
-D_APS = 5.0 if FAST else 20.0  # seconds of boxes_like for the APS-frame runs
+D_APS = 5.0 if FAST else 20.0  # seconds of each preset for the APS-frame runs
 D_EVENTS = 2.0 if FAST else 8.0  # seconds simulated with events (slow: several CPU seconds per simulated second)
 TABLE_DURATION, TABLE_SEEDS = (3.0, (0,)) if FAST else (6.0, (0, 1))
 EUROC = Path(evio_lib.__file__).resolve().parents[1].parent / "shared" / "data" / "real" / "euroc_V1_01_easy_micro"
@@ -122,12 +122,12 @@ if HAVE_EUROC:
     assert kept.sum() > 0.5 * len(final) and np.median(drift_px) < 2.0
     assert euroc_stats["ransac_degenerate"][1:].sum() >= 5
 else:
-    print(f"EuRoC slice not found at {EUROC}: skipping the real-frame part (section 1b shows the same on "
+    print(f"EuRoC slice not found at {EUROC}: skipping the real-frame part (section 1b runs the front-end on "
           f"simulated frames)")
 
 # %% [markdown]
-# At the start of V1_01_easy the drone still sits on the floor: most features are tracked through all eight frames
-# and hardly move (median under 2 px). With no translation there is no epipolar geometry to test, and two-point
+# (When the slice is present.) At the start of V1_01_easy the drone still sits on the floor: most features are
+# tracked through all eight frames and hardly move (median under 2 px). With no translation there is no epipolar geometry to test, and two-point
 # RANSAC says so: it finds the translation **unobservable** (degenerate) and falls back to checking each match's
 # displacement after the gyro's rotation is removed. This is the situation of a filter's static start; parallax, and
 # with it depth, only comes once the camera moves.
