@@ -127,10 +127,10 @@ else:
 
 # %% [markdown]
 # (When the slice is present.) At the start of V1_01_easy the drone still sits on the floor: most features are
-# tracked through all eight frames and hardly move (median under 2 px). With no translation there is no epipolar geometry to test, and two-point
-# RANSAC says so: it finds the translation **unobservable** (degenerate) and falls back to checking each match's
-# displacement after the gyro's rotation is removed. This is the situation of a filter's static start; parallax, and
-# with it depth, only comes once the camera moves.
+# tracked through all eight frames and hardly move (median under 2 px). With no translation there is no epipolar
+# geometry to test, and two-point RANSAC says so: it finds the translation **unobservable** (degenerate) and falls
+# back to checking each match's displacement after the gyro's rotation is removed. This is the situation of a
+# filter's static start; parallax, and with it depth, only comes once the camera moves.
 #
 # ### 1b. Simulated frames: the `boxes_like` room
 #
