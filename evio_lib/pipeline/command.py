@@ -52,6 +52,9 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                         "(must be new or empty unless --force)")
     add_force_argument(p)
     p.add_argument("--no-figures", action="store_true", help="do not draw the figures (faster)")
+    p.add_argument("--threads", type=integer(minimum=1), default=1,
+                   help="threads of torch, OpenCV and BLAS (default 1: on a small, busy CPU more threads oversubscribe "
+                        "it and run several times slower)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -68,6 +71,19 @@ def _bias(text: str):
     return values
 
 
+def set_threads(threads: int) -> None:
+    """Limit torch, OpenCV and (for libraries loaded later) BLAS to ``threads`` threads."""
+    import os
+
+    import cv2
+    import torch
+
+    for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ[name] = str(threads)
+    torch.set_num_threads(threads)
+    cv2.setNumThreads(threads)
+
+
 def main_run(args: argparse.Namespace) -> int:
     """Run the pipeline on one recording; print the summary; write the output folder when --out is given."""
     from evio_lib.io.output_dir import check_output_dir
@@ -77,6 +93,7 @@ def main_run(args: argparse.Namespace) -> int:
 
     if args.out is not None:
         check_output_dir(args.out, args.force)  # before any work: a refused folder costs nothing
+    set_threads(args.threads)
     options = (("weights", str(args.weights)),) if args.weights is not None else ()
     if args.weights is not None and not args.weights.is_file():
         raise ValueError(f"--weights {args.weights}: no such checkpoint file")
@@ -105,7 +122,8 @@ def main_run(args: argparse.Namespace) -> int:
 
 def add_table_arguments(p: argparse.ArgumentParser) -> None:
     """Add the options of ``table``."""
-    p.add_argument("--presets", nargs="+", choices=["boxes_like", "aerial_like"], default=["boxes_like", "aerial_like"])
+    p.add_argument("--presets", nargs="+", choices=["boxes_like", "aerial_like"], default=["boxes_like", "aerial_like"],
+                   help="which presets (default both)")
     p.add_argument("--seeds", type=integer(minimum=1), default=3, help="seeds 0 .. S-1 per configuration (default 3)")
     p.add_argument("--duration", type=real(above=0.0), default=None,
                    help="seconds of each preset (default: the whole preset, 60 s boxes_like, 40 s aerial_like)")

@@ -114,9 +114,10 @@ def save_figures(result: PipelineResult, folder: Path) -> list[Path]:
     if truth:
         figs["position_errors"] = pp.plot_state_errors(t, truth["p_IinG"] - result.p_IinG, result.sigma[:, 12:15],
                                                        quantity="position", unit="m")
-        dR = np.einsum("nij,nkj->nik", truth["R_ItoG"], result.R_ItoG)  # R_true R_est^T: the error in G
+        # the filter's attitude error, in I: q_true = δq ⊗ q_est, C(δq) = I - [δθ]x, so δθ = log(R_est^T R_true)
+        # with R = R_ItoG; its standard deviations are the filter's sigma[0:3] (same frame)
+        dR = np.einsum("nji,njk->nik", result.R_ItoG, truth["R_ItoG"])
         err = np.degrees(np.array([so3_log(R) for R in dR]))
-        # the filter's attitude error lives in I; its sigma is rotated into G only approximately (same norm)
         figs["orientation_errors"] = pp.plot_state_errors(t, err, np.degrees(result.sigma[:, 0:3]),
                                                           quantity="orientation", unit="deg")
         if "v_IinG" in truth:

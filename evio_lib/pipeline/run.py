@@ -122,7 +122,8 @@ class PipelineConfig:
         """Return a short name, e.g. 'SIFT on APS frames' or 'IMU only'."""
         if self.imu_only:
             return "IMU only" + (" (bias correction)" if self.bias_init != "zero" else "")
-        name = {"sift": "SIFT", "superpoint": "CNN"}.get(self.features, self.features)
+        detector = self.frontend_config().detector_name
+        name = {"sift": "SIFT", "superpoint": "CNN", "fast": "FAST"}.get(detector, detector)
         if self.tracker == "klt":
             name = f"KLT + {name}"
         source = "APS frames" if self.frames == "aps" else f"event frames ({self.reconstructor})"
