@@ -184,7 +184,10 @@ class PipelineResult:
         m, tm = self.metrics, self.timings
         lines = [f"{self.config.label()} on {self.dataset['name']}: {len(self.t)} frames over "
                  f"{m.get('duration_s', 0.0):.1f} s, {tm.get('realtime_factor', float('nan')):.2f}x real time"]
-        if "rmse_m" in m:
+        if "rmse_m" in m and not math.isfinite(m["rmse_m"]):  # static start: another world frame, aligned only
+            lines.append(f"  ATE after alignment: {m['ate_se3_m']:.3f} m (SE(3)), {m['ate_4dof_m']:.3f} m (position + "
+                         f"yaw); ground-truth path {m['distance_m']:.2f} m")
+        elif "rmse_m" in m:
             lines.append(f"  RMSE {m['rmse_m']:.3f} m, final error {m['final_error_m']:.3f} m, "
                          f"{m['percent_of_distance']:.2f} % of {m['distance_m']:.1f} m, ATE (SE(3)) {m['ate_se3_m']:.3f} m, "
                          f"orientation RMSE {m['orientation_rmse_deg']:.2f} deg")
