@@ -47,7 +47,7 @@ from evio_lib.io.errors import DataFileError, read_table, require_file, time_for
 from evio_lib.io.tum import read_tum, write_tum
 from evio_lib.sequence import GroundTruth, ImuSamples, Sequence
 
-__all__ = ["read_ecd", "read_ecd_events", "write_ecd", "DAVIS240C_SIZE", "SIDECAR_NAME", "INCOMPLETE_MARKER"]
+__all__ = ["read_ecd", "read_ecd_events", "read_ecd_frames", "write_ecd", "DAVIS240C_SIZE", "SIDECAR_NAME", "INCOMPLETE_MARKER"]
 
 #: (width, height) of the DAVIS240C that recorded the ECD, assumed when nothing else gives the size.
 DAVIS240C_SIZE = (240, 180)
@@ -300,6 +300,35 @@ def read_ecd(folder: str | Path, *, load_events: bool = True, load_frames: bool 
     return Sequence(name=name, camera=camera, events=events, frame_times=frame_times, frames=frames, imu=imu,
                     groundtruth=groundtruth, groundtruth_imu=groundtruth_imu, R_CtoI=R_CtoI, p_CinI=p_CinI,
                     metadata=metadata)
+
+
+def read_ecd_frames(folder: str | Path) -> Sequence:
+    """Return the frames (images.txt + images/) and calibration (calib.txt) of an ECD-style folder, without events.
+
+    For folders whose event file is missing, named otherwise or too large to parse when only the frames are wanted
+    (e.g. a slice whose events are in ``slider_seg.txt``). The sensor size is the first frame's; ground truth
+    (``groundtruth.txt``) is read when present. Raises DataFileError when images.txt is missing or malformed.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise DataFileError(f"ECD folder not found: {folder}")
+    require_file(folder / "images.txt", "the ECD image list `t images/frame_XXXXXXXX.png`")
+    frame_times, image_files = _read_image_list(folder)
+    if not image_files:
+        raise DataFileError(f"{folder / 'images.txt'}: lists no image")
+    frames = np.stack([_load_gray(path, f"images.txt frame {i}") for i, path in enumerate(image_files)])
+    height, width = frames.shape[1:]
+    camera = None
+    if (folder / "calib.txt").is_file():
+        c = _read_single_row(folder / "calib.txt", _CALIB_COLUMNS)
+        camera = PinholeRadtan(fx=c[0], fy=c[1], cx=c[2], cy=c[3], width=width, height=height,
+                               k1=c[4], k2=c[5], p1=c[6], p2=c[7], k3=c[8])
+    groundtruth = None
+    if (folder / "groundtruth.txt").is_file():
+        t, p, q = read_tum(folder / "groundtruth.txt")
+        groundtruth = GroundTruth(t=t, p_BinG=p, q_GtoB=q, body="camera")
+    return Sequence(name=folder.name, camera=camera, frame_times=frame_times, frames=frames, groundtruth=groundtruth,
+                    metadata={"source": str(folder), "format": "ECD text (frames only)"})
 
 
 def _write_groundtruth_imu(path: Path, gt: GroundTruth) -> None:

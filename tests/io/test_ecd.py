@@ -287,3 +287,23 @@ def test_groundtruth_imu_quaternions_are_normalised_or_refused(tmp_path):
     path.write_text("0.0 0 0 0 0 0 0 1\n0.1 0 0 0 0 0 0 2\n")
     with pytest.raises(DataFileError, match="line 2: quaternion"):
         _read_groundtruth_imu(path)
+
+
+def test_read_frames_without_events(tmp_path, rng):
+    seq = _simulated_sequence(rng, ns_grid=True)
+    write_ecd(seq, tmp_path / "rec")
+    (tmp_path / "rec" / "events.txt").unlink()
+    back = ecd.read_ecd_frames(tmp_path / "rec")
+    np.testing.assert_array_equal(back.frames, seq.frames)
+    np.testing.assert_array_equal(back.frame_times, seq.frame_times)
+    assert back.camera == seq.camera and len(back.events) == 0
+    _assert_same_groundtruth(back.groundtruth, seq.groundtruth)
+    (tmp_path / "rec" / "images.txt").unlink()
+    with pytest.raises(DataFileError, match="images.txt"):
+        ecd.read_ecd_frames(tmp_path / "rec")
+
+
+def test_read_frames_of_the_real_slider(real_data_dir):
+    seq = ecd.read_ecd_frames(real_data_dir / "ecd_slider_depth_slice")
+    assert seq.frames.shape == (87, 180, 240) and seq.camera.fx == pytest.approx(335.419462958)
+    assert seq.groundtruth is not None and seq.groundtruth.body == "camera"
