@@ -31,7 +31,7 @@ from typing import Any, Iterator
 
 import numpy as np
 
-from evio_lib.evaluation.trajectory_metrics import orientation_errors, summarize
+from evio_lib.evaluation.trajectory_metrics import orientation_errors, relative_errors_by_length, summarize
 from evio_lib.frontend import FrontendConfig, camera_rotation_prior, create_tracker, stats_table
 from evio_lib.geometry.rotation import quat_to_rot
 from evio_lib.msckf.config import MsckfConfig
@@ -436,8 +436,10 @@ def trajectory_metrics(result: PipelineResult, aligned_only: bool = False) -> di
     """Return the error metrics of a result against its ``truth`` (IMU positions and orientations at ``t``).
 
     Keys: those of :func:`evio_lib.evaluation.trajectory_metrics.summarize` (rmse_m, final_error_m,
-    percent_of_distance, distance_m, ate_4dof_m, ate_se3_m, ...), orientation_rmse_deg, and rmse_first_half_m /
-    rmse_second_half_m (the run split at its middle time). With ``aligned_only`` (static initialisation: another
+    percent_of_distance, distance_m, ate_4dof_m, ate_se3_m, ...), orientation_rmse_deg, rmse_first_half_m /
+    rmse_second_half_m (the run split at its middle time), relative_errors (one summary per sub-trajectory length,
+    10-50 % of the path, :func:`~evio_lib.evaluation.trajectory_metrics.relative_errors_by_length`) and
+    relative_translation_percent (their mean translation error in % of the length, averaged over the lengths). With ``aligned_only`` (static initialisation: another
     world frame) the unaligned figures are NaN and only the ATEs are reported.
     """
     t, truth = result.t, result.truth
@@ -450,6 +452,16 @@ def trajectory_metrics(result: PipelineResult, aligned_only: bool = False) -> di
     first, second = t <= mid, t > mid
     row["rmse_first_half_m"] = float(np.sqrt(np.mean(err[first] ** 2))) if first.any() else float("nan")
     row["rmse_second_half_m"] = float(np.sqrt(np.mean(err[second] ** 2))) if second.any() else float("nan")
+    # relative errors over sub-trajectories of 10-50 % of the path (rpg_trajectory_evaluation): they need no
+    # alignment, so they also hold after a static start
+    if row["distance_m"] > 0 and len(t) >= 3:
+        try:
+            relative = relative_errors_by_length(result.R_ItoG, result.p_IinG, truth["R_ItoG"], truth["p_IinG"])
+        except ValueError:
+            relative = []
+        row["relative_errors"] = [r.summary() for r in relative]
+        means = [r.summary()["translation_percent_mean"] for r in relative if r.i.size]
+        row["relative_translation_percent"] = float(np.mean(means)) if means else float("nan")
     if aligned_only:
         for key in ("rmse_m", "final_error_m", "mean_error_m", "max_error_m", "percent_of_distance",
                     "orientation_rmse_deg", "rmse_first_half_m", "rmse_second_half_m"):

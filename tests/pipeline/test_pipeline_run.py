@@ -51,6 +51,9 @@ def test_metrics_match_an_independent_computation(sift_run, boxes_aps):
     distance = np.linalg.norm(np.diff(dense, axis=0), axis=1).sum()
     assert m["distance_m"] == pytest.approx(distance, rel=0.02)
     assert m["percent_of_distance"] == pytest.approx(100 * err.mean() / m["distance_m"], rel=1e-6)
+    lengths = [r["length_m"] for r in m["relative_errors"]]  # rpg's sub-trajectories: 10 ... 50 % of the path
+    np.testing.assert_allclose(lengths, np.array([0.1, 0.2, 0.3, 0.4, 0.5]) * m["distance_m"], rtol=0.02)
+    assert 0 < m["relative_translation_percent"] < 100
 
 
 def test_camera_pose_composes_the_extrinsics(sift_run):
