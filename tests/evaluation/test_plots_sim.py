@@ -3,7 +3,6 @@ import matplotlib
 
 matplotlib.use("Agg")
 
-import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
@@ -25,11 +24,6 @@ def events(rng: np.random.Generator) -> np.ndarray:
     t = np.sort(rng.uniform(0.0, 1.0, n))
     return make_events(t, rng.integers(0, 40, n), rng.integers(0, 30, n), rng.choice([-1, 1], n))
 
-
-@pytest.fixture(autouse=True)
-def close_figures():
-    yield
-    plt.close("all")
 
 
 def _render(fig) -> np.ndarray:
