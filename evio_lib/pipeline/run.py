@@ -140,7 +140,7 @@ class PipelineResult:
             [δθ, δb_g, δv, δb_a, δp]; features_used (K,) features in the updates at each frame.
         R_CtoI, p_CinI: the extrinsics used.
         tracking: the front-end's statistics as columns (``frontend.stats_table``), empty for IMU only.
-        track_lengths: frames each finished track lasted.
+        track_lengths: frames each track was observed in (tracks still alive at the end included).
         truth: ground truth of the IMU at t (keys p_IinG, R_ItoG, v_IinG, b_g, b_a; absent ones missing), or {}.
         metrics: the error metrics (empty without ground truth) and the counts.
         timings: seconds per stage (reconstruction, detection, matching, ransac, filter, total) and the real-time
@@ -358,7 +358,8 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
     filt.feed_imu(imu.t[k0:], imu.gyro[k0:], imu.accel[k0:])
     tracker = create_tracker(seq.camera, config.frontend_config(), detector=detector)
     sigma_px = config.pixel_noise_px
-    outputs, tracked, lengths = [], [], []
+    outputs: list = []
+    tracked: list = []
     last_seen: dict[int, int] = {}
     timings = dict(reconstruction=0.0, detection=0.0, matching=0.0, ransac=0.0, filter=0.0)
     bar = None
@@ -439,8 +440,9 @@ def trajectory_metrics(result: PipelineResult, aligned_only: bool = False) -> di
     percent_of_distance, distance_m, ate_4dof_m, ate_se3_m, ...), orientation_rmse_deg, rmse_first_half_m /
     rmse_second_half_m (the run split at its middle time), relative_errors (one summary per sub-trajectory length,
     10-50 % of the path, :func:`~evio_lib.evaluation.trajectory_metrics.relative_errors_by_length`) and
-    relative_translation_percent (their mean translation error in % of the length, averaged over the lengths). With ``aligned_only`` (static initialisation: another
-    world frame) the unaligned figures are NaN and only the ATEs are reported.
+    relative_translation_percent (their mean translation error in % of the length, averaged over the lengths).
+    With ``aligned_only`` (static initialisation: another world frame) the unaligned figures are NaN; the ATEs and
+    the relative errors (which need no alignment) remain.
     """
     t, truth = result.t, result.truth
     row = summarize(t, result.p_IinG, t, truth["p_IinG"])
