@@ -80,12 +80,17 @@ def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, w
     duration = full if duration is None else float(duration)
     if not np.isfinite(duration) or duration <= 0 or duration > full:
         raise ValueError(f"duration of {preset} must be in (0, {full:g}] s; got {duration!r}")
-    path = sequence_cache_dir() / f"{preset}_d{duration:g}_seed{seed}_{'events' if with_events else 'frames'}.npz"
-    if cache and path.is_file():
-        try:
-            return load_sequence_npz(path)
-        except (ValueError, OSError):
-            path.unlink(missing_ok=True)  # a damaged cache file is simulated again
+    stem = sequence_cache_dir() / f"{preset}_d{duration:g}_seed{seed}"
+    path = stem.with_name(stem.name + ("_events.npz" if with_events else "_frames.npz"))
+    # a recording simulated with events also serves a run that needs only the frames (the same seed gives the same
+    # frames, IMU and ground truth with or without events)
+    candidates = [path] if with_events else [path, stem.with_name(stem.name + "_events.npz")]
+    for found in candidates:
+        if cache and found.is_file():
+            try:
+                return load_sequence_npz(found)
+            except (ValueError, OSError):
+                found.unlink(missing_ok=True)  # a damaged cache file is simulated again
     config = SimulationConfig(preset=preset, duration=duration, trajectory_duration=full, seed=seed,
                               with_events=with_events)
     sequence = simulate_sequence(config, progress=progress)

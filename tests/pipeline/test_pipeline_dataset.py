@@ -113,3 +113,18 @@ def test_euroc_folder_reads_extrinsics_and_noise(real_data_dir):
     assert data.notes == ("extrinsics: from the recording (sensor.yaml)",)
     assert data.noise.gyro_noise_density == pytest.approx(1.6968e-4)
     np.testing.assert_allclose(data.R_CtoI @ data.R_CtoI.T, np.eye(3), atol=1e-6)
+
+
+def test_a_recording_with_events_serves_a_frames_only_run(boxes_events):
+    """The events cache is reused for an APS run (same seed: same frames and IMU), not simulated again."""
+    frames_only = load_dataset("boxes_like", duration=1.5)
+    assert not (sequence_cache_dir() / "boxes_like_d1.5_seed0_frames.npz").exists()
+    np.testing.assert_array_equal(frames_only.sequence.frames, boxes_events.sequence.frames)
+    np.testing.assert_array_equal(frames_only.sequence.imu.gyro, boxes_events.sequence.imu.gyro)
+
+
+def test_switching_events_off_keeps_frames_and_imu(pipeline_cache, boxes_events):
+    """What the reuse relies on: the simulator's sensors draw from independent streams."""
+    frames_only = simulate_preset("boxes_like", 1.5, 0, with_events=False, cache=False)
+    np.testing.assert_array_equal(frames_only.frames, boxes_events.sequence.frames)
+    np.testing.assert_array_equal(frames_only.imu.accel, boxes_events.sequence.imu.accel)
