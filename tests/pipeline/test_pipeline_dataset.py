@@ -128,3 +128,10 @@ def test_switching_events_off_keeps_frames_and_imu(pipeline_cache, boxes_events)
     frames_only = simulate_preset("boxes_like", 1.5, 0, with_events=False, cache=False)
     np.testing.assert_array_equal(frames_only.frames, boxes_events.sequence.frames)
     np.testing.assert_array_equal(frames_only.imu.accel, boxes_events.sequence.imu.accel)
+
+
+def test_ecd_folder_without_calibration_is_refused(boxes_aps, tmp_path):
+    folder = _ecd_folder(boxes_aps.sequence.slice_time(0.0, 1.0), tmp_path / "rec")
+    (folder / "calib.txt").unlink()
+    with pytest.raises(ValueError, match="no camera calibration"):
+        load_dataset(folder)
