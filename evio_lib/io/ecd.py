@@ -169,6 +169,23 @@ def _read_single_row(path: Path, columns: tuple[str, ...]) -> np.ndarray:
     return np.array([table[c][0] for c in columns], dtype=np.float64)
 
 
+def _read_camera(folder: Path, width: int, height: int) -> PinholeRadtan | None:
+    """Return the camera of calib.txt (fx fy cx cy k1 k2 p1 p2 k3) for a width x height sensor, or None without it."""
+    if not (folder / "calib.txt").is_file():
+        return None
+    c = _read_single_row(folder / "calib.txt", _CALIB_COLUMNS)
+    return PinholeRadtan(fx=c[0], fy=c[1], cx=c[2], cy=c[3], width=width, height=height,
+                         k1=c[4], k2=c[5], p1=c[6], p2=c[7], k3=c[8])
+
+
+def _read_camera_groundtruth(folder: Path) -> GroundTruth | None:
+    """Return the camera poses of groundtruth.txt, or None without it."""
+    if not (folder / "groundtruth.txt").is_file():
+        return None
+    t, p, q = read_tum(folder / "groundtruth.txt")
+    return GroundTruth(t=t, p_BinG=p, q_GtoB=q, body="camera")  # Hamilton q of R_CtoG == JPL q_GtoC
+
+
 def _read_groundtruth_imu(path: Path) -> GroundTruth:
     """Return the IMU-state ground truth of groundtruth_imu.txt (8, 11, 14 or 17 columns)."""
     first_line, n_columns = 0, 0
@@ -251,11 +268,7 @@ def read_ecd(folder: str | Path, *, load_events: bool = True, load_frames: bool 
     width, height = int(sensor_size[0]), int(sensor_size[1])
     size_unknown = size_unknown and not (folder / "calib.txt").is_file()
 
-    camera = None
-    if (folder / "calib.txt").is_file():
-        c = _read_single_row(folder / "calib.txt", _CALIB_COLUMNS)
-        camera = PinholeRadtan(fx=c[0], fy=c[1], cx=c[2], cy=c[3], width=width, height=height,
-                               k1=c[4], k2=c[5], p1=c[6], p2=c[7], k3=c[8])
+    camera = _read_camera(folder, width, height)
 
     if load_frames and image_files:
         frames = np.empty((len(image_files), height, width), dtype=np.uint8)
@@ -279,10 +292,7 @@ def read_ecd(folder: str | Path, *, load_events: bool = True, load_frames: bool 
                          gyro=np.stack([table[c] for c in ("gx", "gy", "gz")], axis=1),
                          accel=np.stack([table[c] for c in ("ax", "ay", "az")], axis=1))
 
-    groundtruth = None
-    if (folder / "groundtruth.txt").is_file():
-        t, p, q = read_tum(folder / "groundtruth.txt")
-        groundtruth = GroundTruth(t=t, p_BinG=p, q_GtoB=q, body="camera")  # Hamilton q of R_CtoG == JPL q_GtoC
+    groundtruth = _read_camera_groundtruth(folder)
     groundtruth_imu = None
     if (folder / "groundtruth_imu.txt").is_file():
         groundtruth_imu = _read_groundtruth_imu(folder / "groundtruth_imu.txt")
@@ -318,15 +328,8 @@ def read_ecd_frames(folder: str | Path) -> Sequence:
         raise DataFileError(f"{folder / 'images.txt'}: lists no image")
     frames = np.stack([_load_gray(path, f"images.txt frame {i}") for i, path in enumerate(image_files)])
     height, width = frames.shape[1:]
-    camera = None
-    if (folder / "calib.txt").is_file():
-        c = _read_single_row(folder / "calib.txt", _CALIB_COLUMNS)
-        camera = PinholeRadtan(fx=c[0], fy=c[1], cx=c[2], cy=c[3], width=width, height=height,
-                               k1=c[4], k2=c[5], p1=c[6], p2=c[7], k3=c[8])
-    groundtruth = None
-    if (folder / "groundtruth.txt").is_file():
-        t, p, q = read_tum(folder / "groundtruth.txt")
-        groundtruth = GroundTruth(t=t, p_BinG=p, q_GtoB=q, body="camera")
+    camera = _read_camera(folder, width, height)
+    groundtruth = _read_camera_groundtruth(folder)
     return Sequence(name=folder.name, camera=camera, frame_times=frame_times, frames=frames, groundtruth=groundtruth,
                     metadata={"source": str(folder), "format": "ECD text (frames only)"})
 
