@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from pathlib import Path
 
@@ -71,25 +70,12 @@ def _bias(text: str):
     return values
 
 
-def set_threads(threads: int) -> None:
-    """Limit torch, OpenCV and (for libraries loaded later) BLAS to ``threads`` threads."""
-    import os
-
-    import cv2
-    import torch
-
-    for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ[name] = str(threads)
-    torch.set_num_threads(threads)
-    cv2.setNumThreads(threads)
-
-
 def main_run(args: argparse.Namespace) -> int:
     """Run the pipeline on one recording; print the summary; write the output folder when --out is given."""
     from evio_lib.io.output_dir import check_output_dir
     from evio_lib.pipeline.dataset import load_dataset
     from evio_lib.pipeline.output import write_run
-    from evio_lib.pipeline.run import PipelineConfig, run_pipeline
+    from evio_lib.pipeline.run import PipelineConfig, run_pipeline, set_threads
 
     if args.out is not None:
         check_output_dir(args.out, args.force)  # before any work: a refused folder costs nothing
@@ -141,7 +127,7 @@ def add_table_arguments(p: argparse.ArgumentParser) -> None:
 def main_table(args: argparse.Namespace) -> int:
     """Run the Table 6 sweep and print it (and write it with --out)."""
     from evio_lib.io.output_dir import atomic_output_dir, check_output_dir
-    from evio_lib.pipeline.output import _json
+    from evio_lib.pipeline.output import write_json
     from evio_lib.pipeline.table import aggregate, format_table6, run_table, table_rows
 
     if args.out is not None:
@@ -166,7 +152,7 @@ def main_table(args: argparse.Namespace) -> int:
     if args.out is not None:
         with atomic_output_dir(args.out, args.force) as tmp:
             (tmp / "table.md").write_text(text + "\n", encoding="utf-8")
-            (tmp / "table.json").write_text(json.dumps(_json(table), indent=2) + "\n", encoding="utf-8")
-            (tmp / "runs.json").write_text(json.dumps(_json(records), indent=2) + "\n", encoding="utf-8")
+            write_json(tmp / "table.json", table)
+            write_json(tmp / "runs.json", records)
         print(f"wrote {args.out}")
     return 0

@@ -29,7 +29,7 @@ from evio_lib.io.tum import write_tum
 from evio_lib.pipeline.dataset import LoadedDataset
 from evio_lib.pipeline.run import PipelineResult
 
-__all__ = ["write_run", "trajectory_body", "STATE_COLUMNS"]
+__all__ = ["write_run", "write_json", "trajectory_body", "STATE_COLUMNS"]
 
 STATE_COLUMNS = (["t", "px", "py", "pz", "qx", "qy", "qz", "qw", "vx", "vy", "vz", "bgx", "bgy", "bgz", "bax", "bay",
                   "baz"] + [f"sigma_{n}" for n in ("thx", "thy", "thz", "bgx", "bgy", "bgz", "vx", "vy", "vz", "bax",
@@ -54,6 +54,11 @@ def _json(value: Any) -> Any:
     if isinstance(value, np.integer):
         return int(value)
     return value
+
+
+def write_json(path: Path, value: Any) -> None:
+    """Write ``value`` as indented, strict JSON (NaN and inf as null, so that every JSON reader accepts the file)."""
+    path.write_text(json.dumps(_json(value), indent=2, allow_nan=False) + "\n", encoding="utf-8")
 
 
 def _write_csv(path: Path, columns: list[str], data: np.ndarray) -> None:
@@ -90,7 +95,7 @@ def write_run(result: PipelineResult, data: LoadedDataset, out: str | Path, forc
             "tracking_mean": {k: float(np.mean(v)) for k, v in result.tracking.items() if k != "t"},
             "track_length_mean": float(np.mean(result.track_lengths)) if len(result.track_lengths) else None,
         }
-        (tmp / "metrics.json").write_text(json.dumps(_json(record), indent=2) + "\n", encoding="utf-8")
+        write_json(tmp / "metrics.json", record)
         (tmp / "summary.txt").write_text(result.summary() + "\n" + "\n".join(result.notes) + "\n", encoding="utf-8")
         if figures:
             save_figures(result, tmp / "figures")
