@@ -41,7 +41,7 @@ from evio_lib.msckf.initialization import initial_state_from_static, initial_sta
 from evio_lib.pipeline.dataset import LoadedDataset
 from evio_lib.pipeline.frames import FRAME_SOURCES, aps_frames, event_frames
 
-__all__ = ["INIT_MODES", "PipelineConfig", "PipelineResult", "run_pipeline"]
+__all__ = ["INIT_MODES", "PipelineConfig", "PipelineResult", "run_pipeline", "set_threads"]
 
 INIT_MODES = ("auto", "groundtruth", "static")
 
@@ -201,40 +201,53 @@ class PipelineResult:
 
 
 # ==================================================================================================== set-up
-def _truth_imu(data: LoadedDataset, t: np.ndarray) -> dict[str, np.ndarray]:
-    """Return the IMU's ground truth interpolated at times t (positions, orientations, velocity, biases) or {}."""
+def set_threads(threads: int) -> None:
+    """Limit torch, OpenCV and (for libraries loaded later) BLAS to ``threads`` threads (``run --threads``, each job of
+    ``table``): on a small, busy CPU more threads oversubscribe it and run several times slower."""
+    import os
+
+    import cv2
+    import torch
+
+    for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ[name] = str(threads)
+    torch.set_num_threads(threads)
+    cv2.setNumThreads(threads)
+
+
+def _groundtruth(data: LoadedDataset):
+    """Return the recording's ground truth: the IMU's when it has one, else the camera's, else None."""
     seq = data.sequence
-    if seq.groundtruth_imu is not None:
-        gt = seq.groundtruth_imu
-        inside = (t >= gt.t[0]) & (t <= gt.t[-1])
-        if not np.all(inside):
-            raise ValueError(f"the ground truth spans [{gt.t[0]:.3f}, {gt.t[-1]:.3f}] s, not every processed time "
-                             f"[{t[0]:.3f}, {t[-1]:.3f}] s")
-        g = gt.interpolate(t)
-        out = {"p_IinG": g.p_BinG, "R_ItoG": g.R_BtoG}
-        if g.v_BinG is not None:
-            out["v_IinG"] = g.v_BinG
-        if g.bias_gyro is not None:
-            out["b_g"], out["b_a"] = g.bias_gyro, g.bias_accel
-        return out
-    if seq.groundtruth is not None:  # camera poses: I = C composed with the extrinsics
-        gt = seq.groundtruth
-        if t[0] < gt.t[0] or t[-1] > gt.t[-1]:
-            raise ValueError(f"the ground truth spans [{gt.t[0]:.3f}, {gt.t[-1]:.3f}] s, not every processed time "
-                             f"[{t[0]:.3f}, {t[-1]:.3f}] s")
-        g = gt.interpolate(t)
+    return seq.groundtruth_imu if seq.groundtruth_imu is not None else seq.groundtruth
+
+
+def _truth_imu(data: LoadedDataset, t: np.ndarray) -> dict[str, np.ndarray]:
+    """Return the IMU's ground truth interpolated at times t (positions, orientations, velocity, biases) or {}.
+
+    ``GroundTruth.interpolate`` refuses times outside the ground truth's span (no extrapolation).
+    """
+    gt = _groundtruth(data)
+    if gt is None:
+        return {}
+    g = gt.interpolate(t)
+    if gt.body == "camera":  # camera poses: I = C composed with the extrinsics
         R_ItoG = g.R_BtoG @ data.R_CtoI.T  # R_ItoG = R_CtoG R_ItoC
         p_IinG = g.p_BinG - R_ItoG @ data.p_CinI  # p_CinG = p_IinG + R_ItoG p_CinI
         return {"p_IinG": p_IinG, "R_ItoG": R_ItoG}
-    return {}
+    out = {"p_IinG": g.p_BinG, "R_ItoG": g.R_BtoG}
+    if g.v_BinG is not None:
+        out["v_IinG"] = g.v_BinG
+    if g.bias_gyro is not None:
+        out["b_g"], out["b_a"] = g.bias_gyro, g.bias_accel
+    return out
 
 
-def _truth_velocity(data: LoadedDataset, t0: float) -> np.ndarray:
-    """Return v_IinG at t0: the recording's own velocity, else a central difference of positions over ±25 ms."""
-    truth = _truth_imu(data, np.array([t0]))
-    if "v_IinG" in truth:
-        return truth["v_IinG"][0]
-    gt = data.sequence.groundtruth_imu or data.sequence.groundtruth
+def _truth_velocity(data: LoadedDataset, t0: float, truth0: dict[str, np.ndarray]) -> np.ndarray:
+    """Return v_IinG at t0: the recording's own velocity (in ``truth0``, the truth at t0), else a central difference
+    of positions over ±25 ms."""
+    if "v_IinG" in truth0:
+        return truth0["v_IinG"][0]
+    gt = _groundtruth(data)
     h = 0.025
     a, b = max(t0 - h, gt.t[0]), min(t0 + h, gt.t[-1])
     if b <= a:
@@ -243,16 +256,15 @@ def _truth_velocity(data: LoadedDataset, t0: float) -> np.ndarray:
     return (p[1] - p[0]) / (b - a)
 
 
-def _bias_estimates(config: PipelineConfig, data: LoadedDataset, t0: float) -> tuple[np.ndarray, np.ndarray] | None:
-    """Return the initial (b_g, b_a) the config asks for, or None for 'zero'."""
+def _bias_estimates(config: PipelineConfig, truth0: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray] | None:
+    """Return the initial (b_g, b_a) the config asks for, or None for 'zero' (``truth0``: the truth at the start)."""
     if config.bias_init == "zero":
         return None
     if config.bias_init == "groundtruth":
-        truth = _truth_imu(data, np.array([t0]))
-        if "b_g" not in truth:
+        if "b_g" not in truth0:
             raise ValueError("bias_init 'groundtruth' needs a ground truth with biases (groundtruth_imu.txt with 14 or "
                              "17 columns, or EuRoC's state_groundtruth_estimate0)")
-        return truth["b_g"][0], truth["b_a"][0]
+        return truth0["b_g"][0], truth0["b_a"][0]
     values = np.asarray(config.bias_init, dtype=np.float64)
     return values[:3], values[3:]
 
@@ -260,7 +272,7 @@ def _bias_estimates(config: PipelineConfig, data: LoadedDataset, t0: float) -> t
 def msckf_config_for(config: PipelineConfig, data: LoadedDataset) -> MsckfConfig:
     """Return the filter's configuration: library defaults with the recording's IMU noise, the pixel noise and OC."""
     cam = data.sequence.camera
-    gravity = data.sequence.metadata.get("gravity_G") if isinstance(data.sequence.metadata, dict) else None
+    gravity = data.sequence.metadata.get("gravity_G")  # Sequence.metadata is always a dict
     cfg = MsckfConfig().with_imu_noise(data.noise)
     changes: dict[str, Any] = dict(pixel_noise_sigma=config.pixel_noise_px, focal_length_px=math.sqrt(cam.fx * cam.fy),
                                    observability_constrained=config.oc, imu_only=config.imu_only)
@@ -314,7 +326,7 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
         raise ValueError(f"config must be a PipelineConfig; got {type(config).__name__}")
     seq = data.sequence
     notes = list(data.notes)
-    has_truth = seq.groundtruth_imu is not None or seq.groundtruth is not None
+    has_truth = _groundtruth(data) is not None
     init = config.init if config.init != "auto" else ("groundtruth" if has_truth else "static")
     if init == "groundtruth" and not has_truth:
         raise ValueError("init 'groundtruth' needs a ground truth (groundtruth.txt); use init 'static'")
@@ -322,13 +334,12 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
     msckf_cfg = msckf_config_for(config, data)
 
     if init == "groundtruth":
-        gt = seq.groundtruth_imu or seq.groundtruth
-        t_first = max(t_first, float(gt.t[0]) + 0.025)
+        t_first = max(t_first, float(_groundtruth(data).t[0]) + 0.025)
         truth0 = _truth_imu(data, np.array([t_first]))
-        biases = _bias_estimates(config, data, t_first)
+        biases = _bias_estimates(config, truth0)
         b_g, b_a = biases if biases is not None else (np.zeros(3), np.zeros(3))
         state = initial_state_from_truth(t_first, truth0["R_ItoG"][0], truth0["p_IinG"][0],
-                                         _truth_velocity(data, t_first), data.R_CtoI, data.p_CinI, msckf_cfg,
+                                         _truth_velocity(data, t_first, truth0), data.R_CtoI, data.p_CinI, msckf_cfg,
                                          b_g=b_g, b_a=b_a)
         notes.append(f"initialisation: ground-truth pose and velocity at t = {t_first:.3f} s, biases "
                      f"{'zero' if biases is None else 'from ' + str(config.bias_init)}")
@@ -340,7 +351,8 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
         except ValueError as error:
             raise ValueError(f"static initialisation failed: {error}. Start the run where the sensor is still, or "
                              f"give a ground truth (init 'groundtruth')") from None
-        biases = _bias_estimates(config, data, stats.t_end)
+        wants_truth = has_truth and config.bias_init == "groundtruth"  # interpolate only when it is used
+        biases = _bias_estimates(config, _truth_imu(data, np.array([stats.t_end])) if wants_truth else {})
         if biases is not None:
             state = dataclasses.replace(state, imu=dataclasses.replace(state.imu, b_g=np.asarray(biases[0]),
                                                                         b_a=np.asarray(biases[1])))
@@ -360,7 +372,6 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
     sigma_px = config.pixel_noise_px
     outputs: list = []
     tracked: list = []
-    last_seen: dict[int, int] = {}
     timings = dict(reconstruction=0.0, detection=0.0, matching=0.0, ransac=0.0, filter=0.0)
     bar = None
     if progress:
@@ -393,8 +404,6 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
                 timings["matching"] += frame.stats.time_match_s
                 timings["ransac"] += frame.stats.time_ransac_s
                 tracked.append(frame)
-                for i in frame.ids.tolist():
-                    last_seen[i] = last_seen.get(i, 0) + 1
                 start = time.perf_counter()
                 cov = observation_covariance(seq.camera, frame.pixels, sigma_px) if len(frame) else None
                 outputs.append(filt.process_image(t, frame.ids, frame.xy, cov))
@@ -409,7 +418,7 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
     wall = time.perf_counter() - wall0
     if not outputs:
         raise ValueError(f"no frame to process in [{t_first:.3f}, {t_last:.3f}] s (no events or frames there)")
-    lengths = np.array(list(last_seen.values()), dtype=np.int64)
+    lengths = _track_lengths(tracked)
 
     t = np.array([o.t for o in outputs])
     P = np.array([o.P_imu for o in outputs])
@@ -431,6 +440,19 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
         result.truth = _truth_imu(data, t)
         result.metrics.update(trajectory_metrics(result, aligned_only=init == "static"))
     return result
+
+
+def _track_lengths(frames: list) -> np.ndarray:
+    """Return the number of frames each track was observed in: its largest age (ages count the frames a track has
+    been seen in, this one included), one entry per track id, in id order."""
+    if not frames:
+        return np.zeros(0, np.int64)
+    ids = np.concatenate([f.ids for f in frames])
+    ages = np.concatenate([f.ages for f in frames])
+    unique, index = np.unique(ids, return_inverse=True)
+    lengths = np.zeros(unique.shape[0], np.int64)
+    np.maximum.at(lengths, index, ages)
+    return lengths
 
 
 def trajectory_metrics(result: PipelineResult, aligned_only: bool = False) -> dict[str, Any]:
@@ -462,7 +484,7 @@ def trajectory_metrics(result: PipelineResult, aligned_only: bool = False) -> di
         except ValueError:
             relative = []
         row["relative_errors"] = [r.summary() for r in relative]
-        means = [r.summary()["translation_percent_mean"] for r in relative if r.i.size]
+        means = [summary["translation_percent_mean"] for summary in row["relative_errors"] if summary["pairs"] > 0]
         row["relative_translation_percent"] = float(np.mean(means)) if means else float("nan")
     if aligned_only:
         for key in ("rmse_m", "final_error_m", "mean_error_m", "max_error_m", "percent_of_distance",

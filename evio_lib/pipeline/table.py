@@ -88,18 +88,10 @@ def table_job(preset: str, duration: float, seed: int, row: TableRow, threads: i
     A run that fails (e.g. the filter diverges to a refused state) returns its error message under "error"
     instead of numbers, so one bad seed does not lose the rest of the table.
     """
-    import torch
-
     from evio_lib.pipeline.dataset import load_dataset
-    from evio_lib.pipeline.run import PipelineConfig, run_pipeline
+    from evio_lib.pipeline.run import PipelineConfig, run_pipeline, set_threads
 
-    torch.set_num_threads(threads)
-    try:
-        import cv2
-
-        cv2.setNumThreads(threads)
-    except ImportError:  # pragma: no cover - OpenCV is a dependency
-        pass
+    set_threads(threads)
     config = PipelineConfig(seed=seed, **dict(row.options))
     record: dict[str, Any] = {"preset": preset, "row": row.key, "label": row.label, "seed": seed,
                               "duration_s": duration}
