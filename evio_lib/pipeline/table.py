@@ -144,7 +144,8 @@ def run_table(presets: Sequence[str] = PRESETS, seeds: Sequence[int] = (0, 1, 2)
 def aggregate(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     """Return one row per (preset, row) with mean and standard deviation over seeds of each metric."""
     keys = ("rmse_m", "final_error_m", "percent_of_distance", "rmse_first_half_m", "rmse_second_half_m",
-            "ate_se3_m", "orientation_rmse_deg", "relative_translation_percent", "realtime_factor", "tracked_per_frame", "mean_track_length")
+            "ate_se3_m", "orientation_rmse_deg", "relative_translation_percent", "realtime_factor",
+            "tracked_per_frame", "mean_track_length")
     groups: dict[tuple[str, str], list[dict[str, Any]]] = {}
     for r in records:
         groups.setdefault((r["preset"], r["row"]), []).append(r)
