@@ -149,8 +149,11 @@ assert count_parameters(FireNet()) == 37777 and 10.6e6 < count_parameters(E2VIDR
 # simulated sequences of images on planes under random 6-DoF motion, with contrast thresholds, noise, hot pixels and
 # refractory periods drawn per sequence (`evio_lib.events.reconstruction_data`). Each training sample is 8 consecutive
 # windows with the sharp image at the end of each; the loss is L1 + (1 - SSIM) per window plus a temporal-consistency
-# term that warps the previous output with the true motion. The shipped weights come from the default schedule of
-# `python -m evio_lib reconstruct-train` (about an hour on a 2-core CPU); its validation curve:
+# term that warps the previous output with the true motion. The shipped weights were trained in two stages: the
+# default schedule of `python -m evio_lib reconstruct-train` (3 000 steps on 8-window samples, about an hour on a
+# 2-core CPU), then 1 500 steps of fine-tuning (`--init-from`) on samples of 24 windows. A network trained only on
+# 8 windows from an empty state never learned to run for long; in use it runs for hundreds of windows. The second
+# stage has its own, longer validation samples, so its curve starts at a different level:
 
 # %%
 import torch
@@ -162,9 +165,13 @@ checkpoint = torch.load(shipped_checkpoint("firenet"), map_location="cpu", weigh
 history = checkpoint["history"]
 plot_training_history(history)
 plt.show()
-print(f"shipped: step {checkpoint['step']}, validation SSIM {history[0]['val_ssim']:.3f} at step {history[0]['step']} "
-      f"-> {max(h['val_ssim'] for h in history):.3f} (the highest it reached)")
-assert max(h["val_ssim"] for h in history) > history[0]["val_ssim"]
+for stage in (1, 2):
+    part = [h for h in history if h["stage"] == stage]
+    print(f"stage {stage}: validation SSIM {part[0]['val_ssim']:.3f} at step {part[0]['step']} -> "
+          f"{part[-1]['val_ssim']:.3f} at step {part[-1]['step']}")
+print("shipped: the weights at step", checkpoint["step"])
+stage1 = [h for h in history if h["stage"] == 1]
+assert max(h["val_ssim"] for h in stage1) > stage1[0]["val_ssim"] and checkpoint["step"] == history[-1]["step"]
 
 # %% [markdown]
 # ### Scoring against the truth
@@ -194,15 +201,16 @@ print("(SSIM / MSE)")
 classical = {name: max(scores[name, "direct"]["ssim"], scores[name, "high_pass"]["ssim"]) for name in stretches}
 for name in ("boxes_like_slow", "boxes_like_fast"):
     assert scores[name, "firenet"]["ssim"] > classical[name] + 0.03, name
-assert abs(scores["aerial_like", "firenet"]["ssim"] - classical["aerial_like"]) < 0.03
+assert 0 < scores["aerial_like", "firenet"]["ssim"] - classical["aerial_like"] < 0.03
 assert scores["aerial_like", "firenet"]["mse"] > scores["aerial_like", "high_pass"]["mse"]
 
 # %% [markdown]
 # On both boxes stretches the learned network scores a higher SSIM than both classical integrators, by more than 0.03.
-# Over the sparse terrain it does **not** win: its SSIM is within 0.03 of the best integrator's and its MSE is
-# higher. Direct integration and the high-pass filter only know where the log intensity changed, so flat regions stay
-# at an arbitrary gray and old noise lingers; the network has learned what images look like and fills them in, which
-# pays off where many edges move and costs where it guesses a large flat field's brightness wrongly (the terrain).
+# Over the sparse terrain it wins by less than 0.03 SSIM, and its MSE is higher. Direct integration and the high-pass
+# filter only know where the log intensity changed, so flat regions stay at an arbitrary gray and old noise lingers;
+# the network has learned what images look like and fills them in, which pays off where many edges move and costs
+# where it guesses a large flat field's brightness wrongly (the terrain: a wrong field is wrong everywhere, which MSE
+# punishes more than SSIM).
 
 # %%
 from evio_lib.evaluation.plots_events import plot_image_grid
@@ -229,7 +237,7 @@ plt.show()
 # %%
 from evio_lib.evaluation.plots_events import plot_ssim_vs_fraction
 
-fractions = [0.1, 0.35, 0.7, 1.0] if FAST else [0.05, 0.1, 0.2, 0.35, 0.7, 1.0]
+fractions = [0.05, 0.1, 0.35, 1.0] if FAST else [0.05, 0.1, 0.2, 0.35, 0.7, 1.0]
 sweep = {}
 for name in ("boxes_like_slow", "aerial_like"):
     sweep[name] = [score_windows(create_reconstructor("firenet", W, H), stretches[name], n,
@@ -357,10 +365,12 @@ assert summary["last"]["val_loss"] < untrained["loss"]
 # - Direct integration and Scheerlinck's high-pass filter are fast and easy to reason about (a window in closed form),
 #   but they only see changes.
 # - A 38 k-parameter recurrent network trained on the project's own simulator beats both on SSIM on the simulated boxes
-#   and on real events; over sparse terrain it does not win, and on this simulator the APS frames still score higher.
+#   and on real events; over sparse terrain it wins narrowly on SSIM and loses on MSE, and on this simulator the APS
+#   frames still score higher.
 # - Measure the window fraction n on your own scene: here both simulated scenes peaked at the same n.
 # - To retrain the shipped network: `python -m evio_lib reconstruct-train --out runs/firenet` (about an hour on a
-#   2-core CPU; `--max-minutes` and `--resume` split it). To turn any ECD folder into frames:
+#   2-core CPU; `--max-minutes` and `--resume` split it), then the fine-tuning on 24-window samples recorded in the
+#   checkpoint (`checkpoint["command"]`, and docs/reconstruction.md). To turn any ECD folder into frames:
 #   `python -m evio_lib reconstruct FOLDER --out FRAMES`.
 #
 # Lesson 05 takes frames like these, and grayscale APS frames, to the feature detectors.

@@ -72,16 +72,26 @@ def plot_ssim_vs_fraction(fractions: Sequence[float], ssim: Mapping[str, Sequenc
 
 
 def plot_training_history(history: Sequence[Mapping[str, float]]) -> plt.Figure:
-    """Return the validation SSIM and loss of a reconstructor training run against the step."""
-    steps = [h["step"] for h in history]
+    """Return the validation SSIM and loss of a reconstructor training run against the step.
+
+    Entries with a ``stage`` key (a fine-tuning stage on other data, with its own validation set) are drawn as one
+    line per stage.
+    """
     fig, (a, b) = plt.subplots(1, 2, figsize=(9, 3.2))
-    a.plot(steps, [h["val_ssim"] for h in history], "o-")
+    stages = sorted({int(h.get("stage", 1)) for h in history})
+    for stage in stages:
+        part = [h for h in history if int(h.get("stage", 1)) == stage]
+        steps = [h["step"] for h in part]
+        label = f"stage {stage}" if len(stages) > 1 else None
+        a.plot(steps, [h["val_ssim"] for h in part], "o-", color=f"C{stage - 1}", label=label)
+        b.plot(steps, [h["val_loss"] for h in part], "o-", color=f"C{stage - 1}", label=label)
     a.set_xlabel("step")
     a.set_ylabel("validation SSIM")
-    b.plot(steps, [h["val_loss"] for h in history], "o-", color="C1")
     b.set_xlabel("step")
     b.set_ylabel("validation loss")
     for ax in (a, b):
         ax.grid(alpha=0.3)
+        if len(stages) > 1:
+            ax.legend()
     fig.tight_layout()
     return fig

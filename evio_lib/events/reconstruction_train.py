@@ -58,6 +58,7 @@ class ReconstructionTrainConfig:
     seed: int = 0
     threads: int = 1                   # torch threads: 1 is fastest on a loaded 2-core machine (OpenMP spin-waits)
     device: str = "cpu"
+    init_from: str | None = None       # a reconstruct-train checkpoint whose weights start the run (fine-tuning)
 
     def __post_init__(self) -> None:
         if isinstance(self.data, dict):
@@ -73,6 +74,8 @@ class ReconstructionTrainConfig:
         if self.seed < 0:
             raise ValueError(f"seed must be >= 0; got {self.seed}")
         build_network(self.architecture, self.data.num_bins, **self.network_options)  # fails early on a bad name
+        if self.init_from is not None and not Path(self.init_from).is_file():
+            raise ValueError(f"init_from must be a reconstruct-train checkpoint file; {self.init_from!r} does not exist")
 
     def to_dict(self) -> dict:
         """Return the config as plain JSON-able values."""
@@ -235,6 +238,19 @@ def _save(path: Path, net, optimizer, config: ReconstructionTrainConfig, step: i
     tmp.replace(path)
 
 
+def _load_initial_weights(net: torch.nn.Module, config: ReconstructionTrainConfig) -> None:
+    """Copy the weights of ``config.init_from`` into ``net``, refusing a checkpoint of another network."""
+    ckpt = torch.load(config.init_from, map_location=config.device, weights_only=True)
+    if not isinstance(ckpt, dict) or "state_dict" not in ckpt:
+        raise ValueError(f"init_from {config.init_from}: not a reconstruct-train checkpoint (no state_dict)")
+    theirs = (ckpt.get("architecture"), ckpt.get("num_bins"), ckpt.get("network_options", {}))
+    ours = (config.architecture, config.data.num_bins, config.network_options)
+    if theirs != ours:
+        raise ValueError(f"init_from {config.init_from} holds a {theirs[0]} network with {theirs[1]} bins and options "
+                         f"{theirs[2]}; this run trains a {ours[0]} with {ours[1]} bins and options {ours[2]}")
+    net.load_state_dict(ckpt["state_dict"])
+
+
 def train_reconstructor(config: ReconstructionTrainConfig, out: str | Path, resume: bool = False,
                         progress: bool = True, data: dict | None = None, val_data: dict | None = None) -> dict:
     """Train a reconstructor; write ``last.pt``, ``best.pt`` (lowest validation loss) and ``history.json`` in ``out``.
@@ -257,6 +273,8 @@ def train_reconstructor(config: ReconstructionTrainConfig, out: str | Path, resu
     rng = np.random.default_rng(config.seed)
     step, history, best = 0, [], math.inf
     last = out / "last.pt"
+    if config.init_from is not None and not resume:
+        _load_initial_weights(net, config)
     if resume:
         if not last.is_file():
             raise FileNotFoundError(f"--resume: no checkpoint {last} to continue from")
@@ -326,6 +344,8 @@ def add_reconstruct_train_arguments(parser: argparse.ArgumentParser) -> argparse
     parser.add_argument("--max-minutes", type=float, default=None,
                         help="stop after this many minutes (checkpoint written); --resume continues")
     parser.add_argument("--resume", action="store_true", help="continue from OUT/last.pt")
+    parser.add_argument("--init-from", type=Path, default=None, metavar="CHECKPOINT",
+                        help="start from these weights (a reconstruct-train checkpoint of the same network): fine-tuning")
     parser.add_argument("--force", action="store_true", help="start afresh even if OUT holds files")
     parser.add_argument("--seed", type=int, default=0, help="seed of the data and of the training (default 0)")
     parser.add_argument("--threads", type=int, default=None,
@@ -350,6 +370,8 @@ def main_reconstruct_train(args: argparse.Namespace | Sequence[str] | None = Non
         values["max_minutes"] = args.max_minutes
     if args.device is not None:
         values["device"] = args.device
+    if args.init_from is not None:
+        values["init_from"] = str(args.init_from)
     for item in args.set:
         key, sep, raw = item.partition("=")
         if not sep:

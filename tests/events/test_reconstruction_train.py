@@ -73,3 +73,25 @@ def test_command_line_refuses_a_used_folder_and_bad_settings(tmp_path):
     with pytest.raises(ValueError, match="--seed"):
         main_reconstruct_train(["--out", str(tmp_path / "new"), "--seed", "-5"])
     assert (tmp_path / "run" / "keep.txt").read_text() == "mine"
+
+
+def test_init_from_starts_from_the_checkpoint_and_refuses_another_network(tmp_path, tiny_data):
+    data, val = tiny_data
+    base = dict(data=DATA, n_train=6, n_val=2, batch_size=2, crop=24, validate_every=1)
+    train_reconstructor(ReconstructionTrainConfig(steps=3, **base), tmp_path / "a", data=data, val_data=val,
+                        progress=False)
+    start = torch.load(tmp_path / "a" / "last.pt", weights_only=True)["state_dict"]
+    # a run of one step at a vanishing learning rate from those weights ends where it started
+    tuned = ReconstructionTrainConfig(steps=1, lr=1e-12, init_from=str(tmp_path / "a" / "last.pt"), **base)
+    train_reconstructor(tuned, tmp_path / "b", data=data, val_data=val, progress=False)
+    after = torch.load(tmp_path / "b" / "last.pt", weights_only=True)["state_dict"]
+    for key in start:
+        torch.testing.assert_close(after[key], start[key], atol=1e-6, rtol=0)
+    scored = torch.load(tmp_path / "a" / "last.pt", weights_only=True)["history"][-1]["val_loss"]
+    assert abs(torch.load(tmp_path / "b" / "last.pt", weights_only=True)["history"][0]["val_loss"] - scored) < 1e-5
+    with pytest.raises(ValueError, match="does not exist"):
+        ReconstructionTrainConfig(init_from=str(tmp_path / "missing.pt"), **base)
+    wider = ReconstructionTrainConfig(steps=1, network_options={"channels": 8}, init_from=str(tmp_path / "a" / "last.pt"),
+                                      **base)
+    with pytest.raises(ValueError, match="holds a firenet network"):
+        train_reconstructor(wider, tmp_path / "c", data=data, val_data=val, progress=False)
