@@ -265,10 +265,20 @@ class TrainConfig:
                 raise ValueError("event_frames must be null for stage 'magicpoint' (synthetic shapes only)")
             if isinstance(self.event_frames, Mapping):
                 spec = dict(self.event_frames)
-                unknown = sorted(set(spec) - {"simulate", "duration", "seed", "events_per_frame"})
+                unknown = sorted(set(spec) - {"simulate", "duration", "seed", "events_per_frame", "reconstructor",
+                                              "window_fraction"})
                 if "simulate" not in spec or unknown:
                     raise _bad("event_frames", self.event_frames,
-                               "a path or {'simulate': preset, 'duration', 'seed', 'events_per_frame'}")
+                               "a path or {'simulate': preset, 'duration', 'seed', 'events_per_frame' or "
+                               "'window_fraction', 'reconstructor'}")
+                if "window_fraction" in spec:
+                    _real("event_frames window_fraction", spec["window_fraction"], 0.0, strict=True)
+                if spec.get("reconstructor") is not None:
+                    from evio_lib.events.reconstruct import available_reconstructors
+
+                    if spec["reconstructor"] not in available_reconstructors():
+                        raise _bad("event_frames reconstructor", spec["reconstructor"],
+                                   f"one of {available_reconstructors()}")
                 object.__setattr__(self, "event_frames", spec)
             elif not isinstance(self.event_frames, str) or not self.event_frames:
                 raise _bad("event_frames", self.event_frames, "null, a path to an .npy/.npz stack or a simulate dict")
