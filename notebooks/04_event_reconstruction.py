@@ -151,9 +151,11 @@ assert count_parameters(FireNet()) == 37777 and 10.6e6 < count_parameters(E2VIDR
 # windows with the sharp image at the end of each; the loss is L1 + (1 - SSIM) per window plus a temporal-consistency
 # term that warps the previous output with the true motion. The shipped weights were trained in two stages: the
 # default schedule of `python -m evio_lib reconstruct-train` (3 000 steps on 8-window samples, about an hour on a
-# 2-core CPU), then 1 500 steps of fine-tuning (`--init-from`) on samples of 24 windows. A network trained only on
-# 8 windows from an empty state never learned to run for long; in use it runs for hundreds of windows. The second
-# stage has its own, longer validation samples, so its curve starts at a different level:
+# 2-core CPU), then 1 500 steps of fine-tuning (`--init-from`) on samples of 24 windows. In use the network runs for
+# hundreds of windows; training longer on 8-window samples raised the validation score but lowered the scores on the
+# long held-out stretches below, so the second stage trains on longer runs of windows instead
+# (docs/reconstruction.md has the numbers). It has its own, longer validation samples, so its curve starts at a
+# different level:
 
 # %%
 import torch
@@ -202,15 +204,19 @@ classical = {name: max(scores[name, "direct"]["ssim"], scores[name, "high_pass"]
 for name in ("boxes_like_slow", "boxes_like_fast"):
     assert scores[name, "firenet"]["ssim"] > classical[name] + 0.03, name
 assert 0 < scores["aerial_like", "firenet"]["ssim"] - classical["aerial_like"] < 0.03
-assert scores["aerial_like", "firenet"]["mse"] > scores["aerial_like", "high_pass"]["mse"]
+assert scores["aerial_like", "firenet"]["mse"] > 1.5 * scores["aerial_like", "high_pass"]["mse"]   # about twice
+integrator_mse = max(scores["boxes_like_slow", m]["mse"] for m in ("direct", "high_pass"))
+assert scores["boxes_like_slow", "firenet"]["mse"] > integrator_mse
 
 # %% [markdown]
 # On both boxes stretches the learned network scores a higher SSIM than both classical integrators, by more than 0.03.
-# Over the sparse terrain it wins by less than 0.03 SSIM, and its MSE is higher. Direct integration and the high-pass
-# filter only know where the log intensity changed, so flat regions stay at an arbitrary gray and old noise lingers;
-# the network has learned what images look like and fills them in, which pays off where many edges move and costs
-# where it guesses a large flat field's brightness wrongly (the terrain: a wrong field is wrong everywhere, which MSE
-# punishes more than SSIM).
+# Over the sparse terrain it is ahead by less than 0.03 SSIM, a margin small enough that another, equally good
+# training checkpoint loses it (docs/reconstruction.md), and its MSE there is about twice the high-pass filter's.
+# Direct integration and the high-pass filter only know where the log intensity changed, so flat regions stay at an
+# arbitrary gray and old noise lingers; the network has learned what images look like and fills them in, which pays
+# off in structure (SSIM) where many edges move and costs where it guesses a large flat field's brightness wrongly:
+# a wrong field is wrong everywhere, which MSE punishes more than SSIM (its MSE is also the highest of the three on
+# the gentle boxes).
 
 # %%
 from evio_lib.evaluation.plots_events import plot_image_grid
@@ -254,7 +260,9 @@ assert best_n["boxes_like_slow"] == best_n["aerial_like"]
 # %% [markdown]
 # Too few events per frame (the smallest n) always scores below the best: each frame sees only part of the edges.
 # But here both scenes peak at the **same** n, so the thesis's finding that the sparse airfield wants a smaller n
-# (0.2 against 0.7, dotted lines) does not reproduce on our simulator with our network. Its n were chosen by eye, on
+# (0.2 against 0.7, dotted lines) does not reproduce on our simulator with our network. Mind the scale: away from
+# the smallest n the curves are flat within a few hundredths, so where exactly each peaks is weak evidence; that the
+# sparse scene does not need a different n is the robust part. Its n were chosen by eye, on
 # real recordings, for E2VID; ours are measured against a truth, on simulated ones, for a network trained on windows
 # of 0.1-0.8 H W events. What carries over is the method: measure n on your own scene. `adaptive_windows`
 # (exercise 3) is one way to let the scene choose.
@@ -284,6 +292,7 @@ for name in ("boxes_like_slow", "boxes_like_fast"):
 gap_slow = scores["boxes_like_slow", "APS"]["ssim"] - scores["boxes_like_slow", "firenet"]["ssim"]
 gap_fast = scores["boxes_like_fast", "APS"]["ssim"] - scores["boxes_like_fast", "firenet"]["ssim"]
 assert window_ms < 10 and gap_fast < gap_slow
+assert scores["boxes_like_fast", "firenet"]["ssim"] > scores["boxes_like_slow", "firenet"]["ssim"]
 assert scores["boxes_like_fast", "APS"]["ssim"] <= scores["boxes_like_slow", "APS"]["ssim"] + 0.01
 assert scores["boxes_like_fast", "APS"]["ssim"] > scores["boxes_like_fast", "firenet"]["ssim"]
 
@@ -291,8 +300,8 @@ assert scores["boxes_like_fast", "APS"]["ssim"] > scores["boxes_like_fast", "fir
 # Read the numbers honestly. On this simulator the APS frames (decoded to linear intensity, like every image scored
 # here) still score the highest SSIM, even at the violent end: the simulated APS camera has little noise, and a
 # reconstruction has to invent the brightness of everything that did not move. But the gap narrows from the gentle to
-# the violent stretch: the network scores higher where many more events
-# per second fill its state (part of that gain is only a faster warm-up), while the APS frames do not improve. Real cameras
+# the violent stretch: the network scores higher where many more events per second fill its state, while the APS
+# frames do not improve. Real cameras
 # add what the simulator leaves out (low light, high dynamic range, longer exposures), which is where the thesis's
 # event frames won.
 
@@ -365,8 +374,9 @@ assert summary["last"]["val_loss"] < untrained["loss"]
 # - Direct integration and Scheerlinck's high-pass filter are fast and easy to reason about (a window in closed form),
 #   but they only see changes.
 # - A 38 k-parameter recurrent network trained on the project's own simulator beats both on SSIM on the simulated boxes
-#   and on real events; over sparse terrain it wins narrowly on SSIM and loses on MSE, and on this simulator the APS
-#   frames still score higher.
+#   and on real events; over sparse terrain it is ahead on SSIM only by a margin within training noise, its MSE is
+#   higher than the integrators' there and on the gentle boxes, and on this simulator the APS frames still score
+#   higher.
 # - Measure the window fraction n on your own scene: here both simulated scenes peaked at the same n.
 # - To retrain the shipped network: `python -m evio_lib reconstruct-train --out runs/firenet` (about an hour on a
 #   2-core CPU; `--max-minutes` and `--resume` split it), then the fine-tuning on 24-window samples recorded in the
