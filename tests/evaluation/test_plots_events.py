@@ -23,4 +23,9 @@ def test_figures_have_their_panels():
     fig4 = plot_training_history([{"step": 1, "val_ssim": 0.5, "val_loss": 0.9}, {"step": 2, "val_ssim": 0.6,
                                                                                   "val_loss": 0.8}])
     assert len(fig4.axes) == 2
+    staged = [{"step": 1, "val_ssim": 0.5, "val_loss": 0.9, "stage": 1}, {"step": 2, "val_ssim": 0.6, "val_loss": 0.8,
+                                                                         "stage": 2}]
+    fig5 = plot_training_history(staged)
+    assert [len(ax.lines) for ax in fig5.axes] == [2, 2]       # one curve per stage on each panel
+    assert [t.get_text() for t in fig5.axes[0].get_legend().get_texts()] == ["stage 1", "stage 2"]
     plt.close("all")
