@@ -144,7 +144,8 @@ def main_table(args: argparse.Namespace) -> int:
     text = format_table6(table)
     print(text)
     if args.events_cnn is None:
-        print("(no row 'CNN trained with event frames': no such network is shipped yet; give --events-cnn CHECKPOINT)")
+        print("(no row 'CNN trained with event frames': none is shipped; train one with `python -m evio_lib "
+              "features-train pretrained_detdesc_round2_events` and give --events-cnn CHECKPOINT)")
     for r in table:
         for error in r["errors"]:
             print(f"{r['preset']} / {r['label']}: failed: {error}")
