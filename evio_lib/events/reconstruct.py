@@ -143,22 +143,24 @@ class LearnedReconstructor(Reconstructor):
 
         from evio_lib.events.reconstruction_nets import build_network
 
+        from evio_lib.io.checkpoint import CheckpointError, load_state, read_checkpoint
+
         path = Path(checkpoint)
-        if not path.is_file():
-            raise FileNotFoundError(f"reconstructor checkpoint {path} does not exist")
-        try:
-            ckpt = torch.load(path, map_location="cpu", weights_only=True)
-        except Exception as exc:  # a truncated or foreign file: say which and what was expected
-            raise ValueError(f"{path} is not a readable reconstructor checkpoint ({type(exc).__name__}: {exc})") from None
-        if not isinstance(ckpt, dict) or ckpt.get("format") != "evio-reconstructor-v1":
-            raise ValueError(f"{path} is not an evio reconstructor checkpoint (expected a file written by "
-                             f"`python -m evio_lib reconstruct-train`)")
+        # a missing (CheckpointNotFoundError, also a FileNotFoundError), empty, truncated, foreign or SuperPoint file
+        # is a one-line CheckpointError (a ValueError) naming it
+        ckpt = read_checkpoint(path, "reconstructor", map_location="cpu", weights_only=True)
         self.device = device or ("cuda" if torch.cuda.is_available() else "cpu")
         if threads is not None:
             torch.set_num_threads(int(threads))
-        self.num_bins = int(ckpt["num_bins"])
-        self.net = build_network(ckpt["architecture"], self.num_bins, **ckpt.get("network_options", {}))
-        self.net.load_state_dict(ckpt["state_dict"])
+        try:
+            self.num_bins = int(ckpt["num_bins"])
+            self.net = build_network(ckpt["architecture"], self.num_bins, **dict(ckpt.get("network_options") or {}))
+        except (ValueError, TypeError) as exc:
+            raise CheckpointError(f"{path}: its architecture {ckpt.get('architecture')!r}, num_bins "
+                                  f"{ckpt.get('num_bins')!r} and network_options {ckpt.get('network_options')!r} "
+                                  f"describe no network ({exc})") from None
+        load_state(self.net, ckpt["state_dict"], path,
+                   f"its state_dict does not fit the {ckpt['architecture']} network its settings describe")
         self.net.to(self.device).eval()
         self.checkpoint = path
         self.name = name

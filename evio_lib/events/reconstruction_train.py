@@ -31,6 +31,7 @@ from torch.nn import functional as F
 
 from evio_lib.events.reconstruction_data import ReconstructionDataConfig, reconstruction_dataset
 from evio_lib.events.reconstruction_nets import build_network, count_parameters
+from evio_lib.io.checkpoint import load_state, read_checkpoint
 
 __all__ = ["ReconstructionTrainConfig", "ssim_torch", "warp_with_homography", "temporal_consistency_loss",
            "sequence_loss", "train_reconstructor", "evaluate_on_samples", "add_reconstruct_train_arguments",
@@ -240,15 +241,20 @@ def _save(path: Path, net, optimizer, config: ReconstructionTrainConfig, step: i
 
 def _load_initial_weights(net: torch.nn.Module, config: ReconstructionTrainConfig) -> None:
     """Copy the weights of ``config.init_from`` into ``net``, refusing a checkpoint of another network."""
-    ckpt = torch.load(config.init_from, map_location=config.device, weights_only=True)
-    if not isinstance(ckpt, dict) or "state_dict" not in ckpt:
-        raise ValueError(f"init_from {config.init_from}: not a reconstruct-train checkpoint (no state_dict)")
+    try:  # a missing, empty, truncated, foreign or SuperPoint file: one line naming it
+        ckpt = read_checkpoint(config.init_from, "reconstructor", map_location=config.device, weights_only=True)
+    except ValueError as error:
+        raise ValueError(f"init_from {error}") from None
     theirs = (ckpt.get("architecture"), ckpt.get("num_bins"), ckpt.get("network_options", {}))
     ours = (config.architecture, config.data.num_bins, config.network_options)
     if theirs != ours:
         raise ValueError(f"init_from {config.init_from} holds a {theirs[0]} network with {theirs[1]} bins and options "
                          f"{theirs[2]}; this run trains a {ours[0]} with {ours[1]} bins and options {ours[2]}")
-    net.load_state_dict(ckpt["state_dict"])
+    try:
+        load_state(net, ckpt["state_dict"], config.init_from,
+                   f"its state_dict does not fit this run's {config.architecture} network")
+    except ValueError as error:
+        raise ValueError(f"init_from {error}") from None
 
 
 def train_reconstructor(config: ReconstructionTrainConfig, out: str | Path, resume: bool = False,
@@ -278,11 +284,22 @@ def train_reconstructor(config: ReconstructionTrainConfig, out: str | Path, resu
     if resume:
         if not last.is_file():
             raise FileNotFoundError(f"--resume: no checkpoint {last} to continue from")
-        ckpt = torch.load(last, map_location=config.device, weights_only=True)
-        if _run_defining(ckpt["config"]) != _run_defining(config.to_dict()):
+        try:  # a damaged last.pt (e.g. a full disk) is one line naming it
+            ckpt = read_checkpoint(last, "reconstructor", map_location=config.device, weights_only=True)
+        except ValueError as error:
+            raise ValueError(f"--resume: {error}") from None
+        missing = [key for key in ("config", "optimizer", "step", "history", "best_val_loss", "rng") if key not in ckpt]
+        if missing:
+            raise ValueError(f"--resume: {last} lacks {missing}: not the last.pt of a reconstruct-train run "
+                             f"(start a new --out folder)")
+        if not isinstance(ckpt["config"], dict) or _run_defining(ckpt["config"]) != _run_defining(config.to_dict()):
             raise ValueError(f"--resume: {last} was trained with a different config; start a new --out folder")
-        net.load_state_dict(ckpt["state_dict"])
-        optimizer.load_state_dict(ckpt["optimizer"])
+        try:
+            load_state(net, ckpt["state_dict"], last, f"its state_dict does not fit this run's {config.architecture} "
+                       f"network")
+            load_state(optimizer, ckpt["optimizer"], last, "its optimizer state does not fit this run's optimizer")
+        except ValueError as error:
+            raise ValueError(f"--resume: {error}") from None
         step, history, best = ckpt["step"], ckpt["history"], ckpt["best_val_loss"]
         rng.bit_generator.state = ckpt["rng"]
     out.mkdir(parents=True, exist_ok=True)

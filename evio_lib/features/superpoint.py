@@ -866,16 +866,11 @@ def save_checkpoint(
 
 def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") -> dict[str, Any]:
     """Return the checkpoint dict of a file written by :func:`save_checkpoint` (``torch.load(weights_only=True)``)."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"SuperPoint checkpoint not found: {path}")
-    checkpoint = torch.load(path, map_location=map_location, weights_only=True)
-    if not isinstance(checkpoint, dict) or "model_config" not in checkpoint or "state_dict" not in checkpoint:
-        keys = sorted(checkpoint) if isinstance(checkpoint, dict) else type(checkpoint).__name__
-        raise ValueError(
-            f"{path} is not a SuperPoint checkpoint: expected a dict with 'model_config' and 'state_dict'; got {keys}"
-        )
-    return checkpoint
+    from evio_lib.io.checkpoint import read_checkpoint
+
+    # refuses a missing, empty, truncated, foreign or other-kind file with a CheckpointError (a ValueError; a missing
+    # file is also a FileNotFoundError) naming the file
+    return read_checkpoint(path, "superpoint", map_location=map_location, weights_only=True)
 
 
 def shipped_weights() -> list[str]:
@@ -902,7 +897,9 @@ def resolve_weights(weights: str | Path) -> Path:
     if looks_like_path:
         if path.is_file():
             return path
-        raise FileNotFoundError(f"SuperPoint weights file not found: {path}")
+        from evio_lib.io.checkpoint import CheckpointNotFoundError  # a FileNotFoundError and a ValueError
+
+        raise CheckpointNotFoundError(f"SuperPoint weights file not found: {path}")
     shipped = WEIGHTS_DIR / f"{weights}.pt"
     if shipped.is_file():
         return shipped
@@ -916,12 +913,15 @@ def resolve_weights(weights: str | Path) -> Path:
 
 def load_model(weights: str | Path, device: str | torch.device = "cpu") -> SuperPointNet:
     """Return the SuperPointNet stored in a checkpoint (path or shipped name), in eval mode on ``device``."""
-    checkpoint = load_checkpoint(resolve_weights(weights), map_location="cpu")
-    model = SuperPointNet.from_config(checkpoint["model_config"])
+    from evio_lib.io.checkpoint import CheckpointError, load_state
+
+    path = resolve_weights(weights)
+    checkpoint = load_checkpoint(path, map_location="cpu")
     try:
-        model.load_state_dict(checkpoint["state_dict"])
-    except RuntimeError as err:
-        raise ValueError(f"weights {weights!r}: the state_dict does not match its model_config: {err}") from err
+        model = SuperPointNet.from_config(checkpoint["model_config"])
+    except (ValueError, TypeError) as err:
+        raise CheckpointError(f"{path}: its model_config is not a SuperPointNet configuration ({err})") from None
+    load_state(model, checkpoint["state_dict"], path, "its state_dict does not match its model_config")
     return model.to(_check_device(device)).eval()
 
 

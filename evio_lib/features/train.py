@@ -878,8 +878,12 @@ def _train(config: TrainConfig, progress: bool, resume: bool) -> TrainResult:
         if changed:
             raise ValueError(f"cannot resume {last_path}: the config differs in {changed}; only "
                              f"{sorted(_RESUME_FREE)} may change (or train without resume to start over)")
-        model.load_state_dict(checkpoint["state_dict"])
-        optimizer.load_state_dict(checkpoint["optimizer"])
+        from evio_lib.io.checkpoint import load_state
+
+        load_state(model, checkpoint["state_dict"], last_path,  # one line naming the file
+                   "cannot resume: its state_dict does not fit this run's network")
+        load_state(optimizer, checkpoint["optimizer"], last_path,
+                   "cannot resume: its optimizer state does not fit this run's optimizer")
         step = int(checkpoint["step"])
         train_loss = [float(v) for v in checkpoint["train_loss"]]
         validation = [dict(v) for v in checkpoint["validation"]]

@@ -134,6 +134,13 @@ def main_table(args: argparse.Namespace) -> int:
         check_output_dir(args.out, args.force)
     if args.events_cnn is not None and not args.events_cnn.is_file():
         raise ValueError(f"--events-cnn {args.events_cnn}: no such checkpoint file")
+    if args.events_cnn is not None:  # a damaged or foreign checkpoint fails now, not in every run of its row
+        from evio_lib.features.superpoint import load_model
+
+        try:
+            load_model(args.events_cnn)
+        except (ValueError, OSError) as error:  # evio_lib.io.checkpoint's one line "FILE: problem; expected ..."
+            raise ValueError(f"--events-cnn {error}") from None
     seeds = 1 if args.fast else args.seeds
     duration = 3.0 if args.fast and args.duration is None else args.duration
     durations = {p: duration for p in args.presets} if duration is not None else None

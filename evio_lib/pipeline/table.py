@@ -100,8 +100,11 @@ def table_job(preset: str, duration: float, seed: int, row: TableRow, threads: i
         data = load_dataset(preset, duration=duration, seed=seed, need_events=row.needs_events,
                             need_frames=True)
         result = run_pipeline(data, config)
-    except ValueError as error:
-        record["error"] = str(error).splitlines()[0]
+    except (ValueError, OSError) as error:  # a bad input of this row (e.g. its checkpoint): the row's error
+        record["error"] = (str(error).splitlines() or [type(error).__name__])[0]
+        return record
+    except Exception as error:  # anything else fails this row only, named by its type so that a bug stays visible
+        record["error"] = f"{type(error).__name__}: {(str(error).splitlines() or [''])[0]}"
         return record
     record.update({k: v for k, v in result.metrics.items() if isinstance(v, (int, float))})
     record["realtime_factor"] = result.timings["realtime_factor"]
