@@ -7,12 +7,15 @@ from __future__ import annotations
 import argparse
 import pickle
 import re
+import signal
 import subprocess
 import sys
+import threading
 import time
-from pathlib import Path
+from contextlib import contextmanager
+from typing import Iterator
 
-from evio_lib.cli_args import add_force_argument, integer, real
+from evio_lib.cli_args import add_force_argument, integer, output_folder, real
 
 #: Exceptions that mean "the input was wrong" (bad values, missing or unreadable files, a bad checkpoint): printed as
 #: one line "error: ..." with exit status 2. Anything else is a bug and keeps its traceback.
@@ -67,7 +70,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     from evio_lib.io.output_dir import atomic_output_dir, check_output_dir
     from evio_lib.sim.presets import SimulationConfig, simulate_sequence
 
-    out = check_output_dir(args.out, args.force)  # before the simulation: a refused folder costs nothing
+    out = check_output_dir(args.out, args.force, name="--out")  # before the simulation: a refused folder costs nothing
     config = SimulationConfig(preset=args.preset, duration=args.duration, seed=args.seed,
                               with_events=not args.no_events, with_frames=not args.no_frames)
     if not args.quiet:
@@ -117,7 +120,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "byte for byte.")
     p.add_argument("preset", choices=["boxes_like", "aerial_like"],
                    help="boxes_like: a textured room, hand-held motion; aerial_like: a downward camera over terrain")
-    p.add_argument("--out", type=Path, required=True,
+    p.add_argument("--out", type=output_folder(), required=True,
                    help="output folder (created; must be new or empty unless --force)")
     add_force_argument(p)
     p.add_argument("--duration", type=real(above=0.0), default=10.0, help="seconds to simulate, > 0 (default 10)")
@@ -210,26 +213,69 @@ def _one_line(error: BaseException) -> str:
     return first if first == text else f"{first} ... (--debug shows the rest)"
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (what CI, ``timeout`` and schedulers send), raised like Ctrl-C so that every cleanup runs: an output
+    folder being written (:func:`evio_lib.io.output_dir.atomic_output_dir`) removes its temporary folder."""
+
+
+@contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """Within the block, SIGTERM raises :class:`Terminated` (once: a second one does not cut the cleanup short).
+
+    Only the main thread can install a signal handler; elsewhere the block runs with the handler as it was. The old
+    handler is restored at the end.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    received: list[int] = []
+
+    def handler(signum: int, frame: object) -> None:
+        if not received:
+            received.append(signum)
+            raise Terminated()
+
+    old = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL if old is None else old)
+
+
+def _stopped(stop: KeyboardInterrupt) -> int:
+    """Print the one line of an interruption and return its exit status: 143 SIGTERM, 130 Ctrl-C."""
+    if isinstance(stop, Terminated):
+        print("error: terminated", file=sys.stderr)
+        return 143
+    print("error: interrupted", file=sys.stderr)
+    return 130
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line on ``argv`` (default ``sys.argv[1:]``); return the process exit code.
 
     Exit codes: 0 success; 2 a mistake in the input (one line ``error: ...`` on stderr; ``--debug`` re-raises it
-    with its traceback); 130 interrupted (Ctrl-C); 1 a command that ran but failed (e.g. a benchmarked detector).
+    with its traceback); 130 interrupted (Ctrl-C, ``error: interrupted``); 143 terminated (SIGTERM, as sent by CI,
+    ``timeout`` and schedulers: ``error: terminated``; handled like Ctrl-C, so no half-written output folder is
+    left); 1 a command that ran but failed (e.g. a benchmarked detector).
     """
-    parser = build_parser()
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit as stop:  # --help (0) or a usage error (2, already printed)
-        return stop.code if isinstance(stop.code, int) else 2
-    try:
-        return int(args.func(args) or 0)
-    except KeyboardInterrupt:
-        if args.debug:
-            raise
-        print("error: interrupted", file=sys.stderr)
-        return 130
-    except USER_ERRORS as error:
-        if args.debug:
-            raise
-        print(f"error: {_one_line(error)}", file=sys.stderr)
-        return 2
+    with _sigterm_as_interrupt():
+        try:
+            parser = build_parser()  # imports the commands' modules: Ctrl-C here is still one line
+            try:
+                args = parser.parse_args(argv)
+            except SystemExit as stop:  # --help (0) or a usage error (2, already printed)
+                return stop.code if isinstance(stop.code, int) else 2
+        except KeyboardInterrupt as stop:
+            return _stopped(stop)
+        try:
+            return int(args.func(args) or 0)
+        except KeyboardInterrupt as stop:
+            if args.debug:
+                raise
+            return _stopped(stop)
+        except USER_ERRORS as error:
+            if args.debug:
+                raise
+            print(f"error: {_one_line(error)}", file=sys.stderr)
+            return 2

@@ -15,9 +15,10 @@ from __future__ import annotations
 
 import argparse
 import math
+from pathlib import Path
 from typing import Callable
 
-__all__ = ["integer", "real", "add_force_argument"]
+__all__ = ["integer", "real", "add_force_argument", "output_folder"]
 
 
 def _show(value: float) -> str:
@@ -69,3 +70,25 @@ def add_force_argument(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--force", action="store_true",
                         help="replace the output folder if it already holds files (without it the command refuses, "
                              "before doing any work)")
+
+
+def output_folder() -> Callable[[str], Path]:
+    """Return an argparse type for an output folder: the text as a ``Path``, refusing an empty text.
+
+    ``type=Path`` would turn ``--out ''`` into ``Path('.')``, the working folder, so the check must see the raw text.
+
+    >>> output_folder()("runs/a")
+    PosixPath('runs/a')
+    >>> output_folder()("")
+    Traceback (most recent call last):
+    ...
+    argparse.ArgumentTypeError: must be a folder path such as runs/out; got ''
+    """
+
+    def parse(text: str) -> Path:
+        if not text.strip():
+            raise argparse.ArgumentTypeError(f"must be a folder path such as runs/out; got {text!r}")
+        return Path(text)
+
+    parse.__name__ = "folder"
+    return parse

@@ -55,11 +55,13 @@ def read_times_file(path: str | Path) -> np.ndarray:
 
 def add_reconstruct_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     """Add the options of ``python -m evio_lib reconstruct`` to ``parser``."""
+    from evio_lib.cli_args import output_folder
     from evio_lib.events.reconstruct import available_reconstructors
 
     parser.add_argument("sequence", metavar="SEQUENCE",
                         help="an ECD-layout folder (events.txt, optional calib.txt) or a preset: boxes_like, aerial_like")
-    parser.add_argument("--out", type=Path, required=True, help="output folder for images.txt and images/ (created)")
+    parser.add_argument("--out", type=output_folder(), required=True,
+                        help="output folder for images.txt and images/ (created; never an input or inside one)")
     parser.add_argument("--method", default="firenet",
                         help=f"reconstructor: {', '.join(available_reconstructors())} (default firenet, the shipped "
                              f"network), or a checkpoint file written by reconstruct-train")
@@ -149,7 +151,7 @@ def main_reconstruct(args: argparse.Namespace | Sequence[str] | None = None) -> 
     """Run ``reconstruct`` (see :func:`add_reconstruct_arguments`); return the exit code."""
     import cv2
 
-    from evio_lib.events.reconstruct import reconstruct_at_times
+    from evio_lib.events.reconstruct import available_reconstructors, reconstruct_at_times
     from evio_lib.events.representations import adaptive_windows, count_windows, time_windows, window_size_from_fraction
     from evio_lib.io.output_dir import atomic_output_dir, check_output_dir
 
@@ -161,7 +163,10 @@ def main_reconstruct(args: argparse.Namespace | Sequence[str] | None = None) -> 
         raise ValueError(f"--window-time must be > 0 seconds; got {args.window_time}")
     if args.times is not None and (args.window_time is not None or args.adaptive):
         raise ValueError("--times takes its frame times from FILE; combine it only with --window-fraction")
-    check_output_dir(args.out, args.force)
+    method_file = None if args.method in available_reconstructors() else args.method
+    check_output_dir(args.out, args.force, name="--out", inputs=[  # a preset name is no path: only a folder counts
+        ("the input recording", args.sequence if Path(args.sequence).exists() else None),
+        ("the --events file", args.events), ("the --times file", args.times), ("the --method checkpoint", method_file)])
     times = read_times_file(args.times) if args.times is not None else None
     events, width, height = _load_events(args)
     if events is None or events.size == 0:

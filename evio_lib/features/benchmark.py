@@ -785,7 +785,7 @@ def _lookup_eps(values: dict[Any, float], eps: float) -> float:
 # ---------------------------------------------------------------------------------------------- command line
 def add_benchmark_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     """Return ``parser`` with the options of ``python -m evio_lib features-benchmark`` added."""
-    from evio_lib.cli_args import add_force_argument, integer
+    from evio_lib.cli_args import add_force_argument, integer, output_folder
 
     parser.add_argument("--detectors", nargs="+", metavar="NAME",
                         help="detector names (create_detector); default: every available detector. A named detector "
@@ -811,7 +811,7 @@ def add_benchmark_arguments(parser: argparse.ArgumentParser) -> argparse.Argumen
                              "option with no value to skip the timing)")
     parser.add_argument("--speed-frames", type=integer(minimum=1), default=None,
                         help="timed frames per resolution (default 20; 5 with --fast)")
-    parser.add_argument("--out", type=Path,
+    parser.add_argument("--out", type=output_folder(),
                         help="folder to write results.json and tables.md into (new or empty unless --force; written "
                              "when the run is complete)")
     add_force_argument(parser)
@@ -930,7 +930,10 @@ def main_benchmark(args: argparse.Namespace | Sequence[str] | None = None) -> in
     failed: list[str] = []
     try:  # every check before the first pair is evaluated
         if args.out is not None:
-            check_output_dir(args.out, force)
+            weights_file = weights if weights is not None and Path(str(weights)).exists() else None  # or a shipped name
+            check_output_dir(args.out, force, name="--out", inputs=[
+                ("the --hpatches-root folder", args.hpatches_root), ("the --event-frames file", args.event_frames),
+                ("the --weights checkpoint", weights_file)])
         shapes = [_parse_shape(text) for text in args.speed_shapes]
         if weights is not None:
             from evio_lib.features.superpoint import load_checkpoint, resolve_weights

@@ -3,7 +3,9 @@
 Every command that writes a folder follows two rules (issue 17, docs/reliability.md):
 
 * :func:`check_output_dir`, called before any work starts, refuses an existing non-empty folder unless the user
-  said ``--force``, a path that is a file, and a place where the folder cannot be created;
+  said ``--force``, a path that is a file, and a place where the folder cannot be created; and, with or without
+  ``--force``, the working folder, an input of the command, a folder inside an input and a folder that contains one
+  (issue 25: replacing it would delete what the user gave);
 * :func:`atomic_output_dir` yields a fresh temporary folder beside the target (same parent, so the final
   ``rename`` is atomic on one file system), and moves it into place only when the ``with`` block ends normally.
   On any exception, Ctrl-C included, the temporary folder is removed and the target is exactly as it was.
@@ -27,9 +29,9 @@ import shutil
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterator
+from typing import Iterable, Iterator
 
-__all__ = ["OutputExistsError", "check_output_dir", "atomic_output_dir"]
+__all__ = ["OutputExistsError", "check_output_dir", "check_inputs_apart", "atomic_output_dir"]
 
 
 class OutputExistsError(ValueError):
@@ -44,26 +46,95 @@ def _nearest_existing(path: Path) -> Path:
     return path
 
 
-def check_output_dir(path: str | Path, force: bool = False) -> Path:
+def _real(path: str | Path) -> str:
+    """Return the absolute path of ``path`` with every symbolic link resolved (the path need not exist)."""
+    return os.path.realpath(os.path.abspath(path))
+
+
+def _within(inner: str, outer: str) -> bool:
+    """Return whether the resolved path ``inner`` is ``outer`` or lies below it."""
+    return inner == outer or inner.startswith(outer.rstrip(os.sep) + os.sep)
+
+
+#: The installed library (its code and shipped weights): never an output folder nor inside one.
+_PACKAGE_DIR = Path(__file__).resolve().parents[1]
+
+
+def check_inputs_apart(path: str | Path, inputs: Iterable[tuple[str, str | Path | None]] = (),
+                       name: str = "output folder") -> None:
+    """Raise ValueError when the output folder ``path`` would overlap the working folder or one of ``inputs``.
+
+    Refused, with or without ``--force`` (replacing such a folder would delete what the command reads, or the user's
+    working folder): the working folder itself and any folder that contains it; a folder that is an input, lies
+    inside an input or contains one; the ``evio_lib`` package, a folder that contains it, and an existing folder
+    inside it (its code and shipped weights). Symbolic links are resolved
+    (``os.path.realpath``), so a link to the input is the input.
+
+    Args:
+        path: the output folder as the user gave it.
+        inputs: (description, path) pairs, e.g. ``("the input recording", "REC")``; None paths are skipped. A
+            preset name is no path: leave it out.
+        name: how the message names the output folder, e.g. ``"--out"``.
+
+    >>> check_inputs_apart("REC/images", [("the input recording", "REC")], name="--out")
+    Traceback (most recent call last):
+    ...
+    ValueError: --out REC/images lies inside the input recording REC; choose a folder outside every input
+    """
+    out = _real(path)
+    try:
+        cwd = _real(os.getcwd())
+    except OSError:  # the working folder was deleted: nothing there to protect
+        cwd = None
+    if cwd is not None and _within(cwd, out):
+        where = "is" if out == cwd else "contains"
+        raise ValueError(f"{name} {path} {where} the working folder {cwd}; choose a new folder for the output, e.g. "
+                         f"a subfolder of the working folder")
+    for description, given in [*inputs, ("the evio_lib package", _PACKAGE_DIR)]:
+        if given is None or str(given) == "":
+            continue
+        source = _real(given)
+        if out == source:
+            relation = "is"
+        elif _within(out, source):
+            relation = "lies inside"
+        elif _within(source, out):
+            relation = "contains"
+        else:
+            continue
+        if description == "the evio_lib package" and relation == "lies inside" and not os.path.lexists(path):
+            continue  # a new folder below the package (e.g. for new weights) replaces nothing of it
+        raise ValueError(f"{name} {path} {relation} {description} {given}; choose a folder outside every input")
+
+
+def check_output_dir(path: str | Path, force: bool = False, *, inputs: Iterable[tuple[str, str | Path | None]] = (),
+                     name: str = "output folder") -> Path:
     """Return ``Path(path)`` after checking that a command may write its output folder there.
 
     Args:
         path: the output folder (may not exist yet; missing parents are allowed).
         force: allow an existing non-empty folder (it will be replaced).
+        inputs: the command's input paths as (description, path) pairs (see :func:`check_inputs_apart`).
+        name: how messages about the inputs name the output folder, e.g. ``"--out"``.
 
     Raises:
         OutputExistsError (a ValueError): ``path`` is a folder that holds files and ``force`` is False.
-        ValueError: ``path`` exists and is not a folder; or the nearest existing parent folder is not a folder or
-            not writable (the output and its temporary sibling could not be created there).
+        ValueError: ``path`` is empty, the working folder or contains it, is, contains or lies inside an input (all
+            of these with or without ``force``); ``path`` exists and is not a folder; or the nearest existing parent
+            folder is not a folder or not writable (the output and its temporary sibling could not be created there).
     """
     if not isinstance(path, (str, os.PathLike)) or str(path) == "":
         raise ValueError(f"output folder must be a path; got {path!r}")
+    check_inputs_apart(path, inputs, name)
     path = Path(path)
     if path.exists() or path.is_symlink():
         if not path.is_dir():
             raise ValueError(f"output path {path} exists and is not a folder; expected a new or empty folder")
         if not force and any(path.iterdir()):
             raise OutputExistsError(f"output folder {path} already exists and is not empty; use --force to replace it")
+        if force and not os.access(path, os.W_OK | os.X_OK) and any(path.iterdir()):
+            raise ValueError(f"cannot replace output folder {path}: the folder is not writable, so its old content "
+                             f"could not be removed; make it writable or choose another folder")
     parent = _nearest_existing(Path(os.path.abspath(path)).parent)
     if not parent.is_dir():
         raise ValueError(f"cannot create output folder {path}: {parent} is a file, not a folder")

@@ -1,5 +1,7 @@
 """Tests of evio_lib.io.output_dir: refused non-empty folders, atomic replacement, nothing left behind on failure."""
 import os
+import re
+from pathlib import Path
 
 import pytest
 
@@ -140,3 +142,93 @@ def test_target_filled_meanwhile_is_not_overwritten(tmp_path):
             target.mkdir()
             (target / "other.txt").write_text("someone else's")
     assert _tree(target) == {"other.txt": b"someone else's"} and _siblings(target) == ["out"]
+
+
+# ---------------------------------------------------------------------------------------------- inputs (issue 25)
+@pytest.fixture
+def recording(tmp_path, monkeypatch):
+    """A user's recording REC (and a sibling REC2) below the working folder tmp_path/work."""
+    work = tmp_path / "work"
+    (work / "REC" / "images").mkdir(parents=True)
+    (work / "REC" / "events.txt").write_text("0.1 1 2 1\n")
+    (work / "REC" / "images" / "frame_00000000.png").write_bytes(b"user's image")
+    (work / "REC2").mkdir()
+    monkeypatch.chdir(work)
+    return work
+
+
+INPUT_CASES = [  # (output folder, force, message); the input is ("the input recording", "REC")
+    ("REC", False, "--out REC is the input recording REC; choose a folder outside every input"),
+    ("REC", True, "--out REC is the input recording REC; choose a folder outside every input"),
+    ("REC/images", True, "--out REC/images lies inside the input recording REC; choose a folder outside every input"),
+    ("REC/new/deeper", False, "--out REC/new/deeper lies inside the input recording REC"),
+    ("REC/../REC", True, "--out REC/../REC is the input recording REC"),
+    ("link", True, "--out link is the input recording REC"),  # a symbolic link to the recording is the recording
+    ("link/images", True, "--out link/images lies inside the input recording REC"),
+    ("{work}/..", True, "--out {work}/.. contains the working folder {work}"),  # also an ancestor of the input
+    (".", True, "--out . is the working folder {work}; choose a new folder for the output"),
+    ("..", False, "--out .. contains the working folder {work}"),
+]
+
+
+@pytest.mark.parametrize("out, force, message", INPUT_CASES, ids=[f"{o}-force" if f else o for o, f, _ in INPUT_CASES])
+def test_check_refuses_inputs_and_the_working_folder_even_with_force(recording, out, force, message):
+    (recording / "link").symlink_to(recording / "REC")
+    before = _tree(recording)
+    out = out.replace("{work}", str(recording))
+    with pytest.raises(ValueError, match=re.escape(message.replace("{work}", str(recording)))):
+        check_output_dir(out, force, inputs=[("the input recording", "REC")], name="--out")
+    assert _tree(recording) == before
+
+
+@pytest.mark.parametrize("out", [".", "..", "REC/.."])
+def test_atomic_refuses_the_working_folder_before_the_block_runs(recording, out):
+    before, ran = _tree(recording.parent), []
+    with pytest.raises(ValueError, match="the working folder"):
+        with atomic_output_dir(out, force=True):
+            ran.append(True)
+    assert not ran and _tree(recording.parent) == before
+
+
+def test_check_refuses_a_folder_that_contains_an_input(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "data" / "rec").mkdir(parents=True)
+    (tmp_path / "data" / "w.pt").write_bytes(b"weights")
+    with pytest.raises(ValueError, match=r"^--out data contains the input recording data/rec; choose a folder outside"):
+        check_output_dir("data", True, inputs=[("the input recording", "data/rec")], name="--out")
+    with pytest.raises(ValueError, match=r"^--out data/w.pt is the --weights checkpoint data/w.pt"):
+        check_output_dir("data/w.pt", True, inputs=[("the --weights checkpoint", "data/w.pt")], name="--out")
+    assert sorted(p.name for p in (tmp_path / "data").iterdir()) == ["rec", "w.pt"]
+
+
+def test_check_accepts_siblings_and_skips_missing_inputs(recording):
+    inputs = [("the input recording", "REC"), ("the --weights checkpoint", None), ("the --times file", "")]
+    assert check_output_dir("REC2", inputs=inputs, name="--out") == Path("REC2")  # REC2 starts with REC, is not in it
+    assert check_output_dir("out/run", inputs=inputs, name="--out") == Path("out/run")
+    assert check_output_dir("RE", inputs=inputs, name="--out") == Path("RE")
+
+
+def test_check_protects_the_library(tmp_path, monkeypatch):
+    import evio_lib
+
+    monkeypatch.chdir(tmp_path)  # elsewhere than the checkout, so the working folder is not what is refused
+
+    package = Path(evio_lib.__file__).resolve().parent
+    with pytest.raises(ValueError, match="is the evio_lib package"):
+        check_output_dir(package, force=True)
+    with pytest.raises(ValueError, match="lies inside the evio_lib package"):
+        check_output_dir(package / "weights", force=True)  # the shipped weights
+    with pytest.raises(ValueError, match="contains the evio_lib package"):
+        check_output_dir(package.parent.parent, force=True)
+    assert check_output_dir(package / "weights" / "not_yet_there") == package / "weights" / "not_yet_there"
+
+
+def test_check_refuses_to_replace_an_unwritable_folder(tmp_path, monkeypatch):
+    folder = tmp_path / "ro"
+    folder.mkdir()
+    (folder / "old.txt").write_text("old")
+    real_access = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode: False if os.path.abspath(p) == str(folder) else real_access(p, mode))
+    with pytest.raises(ValueError, match=r"cannot replace output folder .*ro: the folder is not writable"):
+        check_output_dir(folder, force=True)
+    assert _tree(folder) == {"old.txt": b"old"}
