@@ -354,7 +354,10 @@ def train_reconstructor(config: ReconstructionTrainConfig, out: str | Path, resu
 
 def add_reconstruct_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     """Add the options of ``python -m evio_lib reconstruct-train`` to ``parser``."""
-    parser.add_argument("--out", type=Path, required=True, help="run folder: last.pt, best.pt, history.json, config.json")
+    from evio_lib.cli_args import output_folder
+
+    parser.add_argument("--out", type=output_folder(), required=True,
+                        help="run folder: last.pt, best.pt, history.json, config.json")
     parser.add_argument("--architecture", choices=["firenet", "e2vid"], default="firenet",
                         help="firenet (38k parameters, the default) or e2vid (10.7 M parameters; needs a GPU to train)")
     parser.add_argument("--steps", type=int, default=None, help="total optimisation steps (default 3000: about an hour on a 2-core CPU)")
@@ -401,6 +404,10 @@ def main_reconstruct_train(args: argparse.Namespace | Sequence[str] | None = Non
         raise ValueError(f"--seed must be >= 0; got {values['seed']}")
     config = ReconstructionTrainConfig.from_dict(values)
     out = Path(args.out)
+    from evio_lib.io.output_dir import check_output_dir
+
+    # not the working folder, no input nor inside one, a folder that can be created (OUT itself is --resume's input)
+    check_output_dir(out, force=True, name="--out", inputs=[("the --init-from checkpoint", args.init_from)])
     if not args.resume and out.exists() and any(out.iterdir()) and not args.force:
         raise ValueError(f"--out {out} is not empty; use --resume to continue the run there or --force to start afresh")
     print(f"training {config.architecture} ({count_parameters(build_network(config.architecture, config.data.num_bins))} "

@@ -1134,7 +1134,7 @@ def _parse_set(text: str) -> tuple[str, Any]:
 
 def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     """Add the ``features-train`` options to a parser and return it (the lead wires it into the CLI)."""
-    from evio_lib.cli_args import integer, real
+    from evio_lib.cli_args import integer, output_folder, real
 
     parser.add_argument("variants", nargs="*", metavar="VARIANT",
                         help="variant names (configs in evio_lib/features/configs) or config file paths")
@@ -1159,7 +1159,7 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentPar
     parser.add_argument("--max-minutes", type=real(above=0.0), dest="max_minutes",
                         help="stop each training call after this many minutes (validate and save first); "
                              "--resume continues")
-    parser.add_argument("--out", type=str, dest="checkpoint_dir",
+    parser.add_argument("--out", type=output_folder(), dest="checkpoint_dir",
                         help="checkpoint folder (default runs/features); each variant trains into OUT/VARIANT, "
                              "which must be new or empty unless --resume or --force")
     parser.add_argument("--set", type=_parse_set, action="append", default=[], metavar="KEY=VALUE",
@@ -1217,9 +1217,15 @@ def main_train(args: argparse.Namespace | Sequence[str] | None = None) -> int:
     set_aside: list[tuple[Path, Path]] = []  # (run folder, where its old content waits) for --force
     try:
         for name in args.variants:  # before any training: the named variants' run folders
-            run_dir = load_config(name, **overrides).run_dir
+            config = load_config(name, **overrides)
+            run_dir = config.run_dir
+            inputs = [("the variant config", name if Path(name).is_file() else None)]
+            for key in ("init_from", "labels_from", "event_frames"):  # paths among them (else variant names)
+                value = getattr(config, key)
+                if isinstance(value, str) and Path(value).exists():
+                    inputs.append((f"the {key} file", value))
             try:
-                check_output_dir(run_dir, force=force or args.resume)
+                check_output_dir(run_dir, force=force or args.resume, inputs=inputs)
             except OutputExistsError as error:
                 raise OutputExistsError(f"{error}, or --resume to continue that run") from None
         for name in dict.fromkeys(args.variants):  # each run folder once, even when named twice

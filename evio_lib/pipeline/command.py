@@ -5,7 +5,7 @@ import argparse
 import time
 from pathlib import Path
 
-from evio_lib.cli_args import add_force_argument, integer, real
+from evio_lib.cli_args import add_force_argument, integer, output_folder, real
 
 __all__ = ["add_run_arguments", "main_run", "add_table_arguments", "main_table"]
 
@@ -46,7 +46,7 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-oc", action="store_true", help="plain EKF instead of the observability-constrained one")
     p.add_argument("--extrinsics", type=Path, default=None,
                    help="a Kalibr YAML with T_cam_imu, overriding the recording's extrinsics")
-    p.add_argument("--out", type=Path, default=None,
+    p.add_argument("--out", type=output_folder(), default=None,
                    help="write trajectory.txt (TUM), states.csv, tracking.csv, metrics.json and figures/ here "
                         "(must be new or empty unless --force)")
     add_force_argument(p)
@@ -70,19 +70,38 @@ def _bias(text: str):
     return values
 
 
+def _check_detector(name: str, options: tuple) -> None:
+    """Raise ValueError naming ``--features`` when the detector ``name`` (with ``options``) cannot be created."""
+    import pickle
+
+    from evio_lib.features.base import create_detector
+
+    try:
+        create_detector(name, **dict(options))
+    except (ValueError, OSError, RuntimeError, EOFError, pickle.UnpicklingError) as error:  # torch.load's too
+        detail = (str(error).strip().splitlines() or [type(error).__name__])[0]
+        given = f" with --weights {dict(options)['weights']}" if options else ""
+        raise ValueError(f"--features {name}{given}: {detail}") from None
+
+
 def main_run(args: argparse.Namespace) -> int:
     """Run the pipeline on one recording; print the summary; write the output folder when --out is given."""
     from evio_lib.io.output_dir import check_output_dir
-    from evio_lib.pipeline.dataset import load_dataset
+    from evio_lib.pipeline.dataset import PRESETS, load_dataset, sequence_cache_dir
     from evio_lib.pipeline.output import write_run
     from evio_lib.pipeline.run import PipelineConfig, run_pipeline, set_threads
 
-    if args.out is not None:
-        check_output_dir(args.out, args.force)  # before any work: a refused folder costs nothing
+    if args.out is not None:  # before any work: a refused folder costs nothing
+        preset = str(args.dataset) in PRESETS  # a preset name is no path; its recording lives in the cache
+        check_output_dir(args.out, args.force, name="--out", inputs=[
+            ("the input recording", None if preset else args.dataset), ("the --weights checkpoint", args.weights),
+            ("the --extrinsics file", args.extrinsics), ("the --calib file", getattr(args, "calib", None)),
+            ("the recording cache", sequence_cache_dir() if preset else None)])
     set_threads(args.threads)
     options = (("weights", str(args.weights)),) if args.weights is not None else ()
     if args.weights is not None and not args.weights.is_file():
         raise ValueError(f"--weights {args.weights}: no such checkpoint file")
+    _check_detector(args.features, options)  # an unknown name fails now, not after loading the recording
     config = PipelineConfig(frames=args.frames, features=args.features, detector_options=options, tracker=args.tracker,
                             max_features=args.max_features, reconstructor=args.reconstructor,
                             window_fraction=args.window_fraction, adaptive_windows=args.adaptive, init=args.init,
@@ -120,18 +139,20 @@ def add_table_arguments(p: argparse.ArgumentParser) -> None:
                    help="checkpoint of a CNN trained with event frames (the 'CNN trained with event frames' row)")
     p.add_argument("--jobs", type=integer(minimum=1), default=1, help="parallel joblib workers (default 1)")
     p.add_argument("--fast", action="store_true", help="CI size: 3 s of each preset, one seed")
-    p.add_argument("--out", type=Path, default=None, help="write table.md, table.json and runs.json here")
+    p.add_argument("--out", type=output_folder(), default=None, help="write table.md, table.json and runs.json here")
     add_force_argument(p)
 
 
 def main_table(args: argparse.Namespace) -> int:
     """Run the Table 6 sweep and print it (and write it with --out)."""
     from evio_lib.io.output_dir import atomic_output_dir, check_output_dir
+    from evio_lib.pipeline.dataset import sequence_cache_dir
     from evio_lib.pipeline.output import write_json
     from evio_lib.pipeline.table import aggregate, format_table6, run_table, table_rows
 
     if args.out is not None:
-        check_output_dir(args.out, args.force)
+        check_output_dir(args.out, args.force, name="--out", inputs=[
+            ("the --events-cnn checkpoint", args.events_cnn), ("the recording cache", sequence_cache_dir())])
     if args.events_cnn is not None and not args.events_cnn.is_file():
         raise ValueError(f"--events-cnn {args.events_cnn}: no such checkpoint file")
     if args.events_cnn is not None:  # a damaged or foreign checkpoint fails now, not in every run of its row
@@ -141,10 +162,13 @@ def main_table(args: argparse.Namespace) -> int:
             load_model(args.events_cnn)
         except (ValueError, OSError) as error:  # evio_lib.io.checkpoint's one line "FILE: problem; expected ..."
             raise ValueError(f"--events-cnn {error}") from None
+    try:  # a bad row name fails before any run
+        rows = table_rows(args.rows, None if args.events_cnn is None else str(args.events_cnn))
+    except ValueError as error:
+        raise ValueError(f"--rows: {error}") from None
     seeds = 1 if args.fast else args.seeds
     duration = 3.0 if args.fast and args.duration is None else args.duration
     durations = {p: duration for p in args.presets} if duration is not None else None
-    rows = table_rows(args.rows, None if args.events_cnn is None else str(args.events_cnn))
     start = time.perf_counter()
     records = run_table(args.presets, list(range(seeds)), rows, durations, jobs=args.jobs)
     table = aggregate(records)
