@@ -260,8 +260,12 @@ def reconstruction_dataset(split: str, n_samples: int, seed: int = 0,
                      sort_keys=True)
     path = default_cache_dir() / f"reconstruction_{split}_{hashlib.sha1(key.encode()).hexdigest()[:12]}.npz"
     if cache and path.is_file():
-        with np.load(path) as data:
-            return {k: data[k] for k in ("voxels", "frames", "H_prev")}
+        from evio_lib.io.cache import CacheError, discard_damaged_cache, load_npz_arrays
+
+        try:
+            return load_npz_arrays(path, ("voxels", "frames", "H_prev"))
+        except CacheError as error:  # empty, truncated, damaged: deleted, said, made again
+            discard_damaged_cache(error, "simulating the samples again")
     jobs = [(int(seed), split, i, config) for i in range(int(n_samples))]
     if workers > 1:
         import multiprocessing

@@ -102,9 +102,16 @@ def simulated_eval_sequence(stretch: str, duration: float | None = None, seed: i
     from evio_lib.features.datasets import default_cache_dir  # the project's one cache folder ($EVIO_CACHE_DIR)
 
     path = default_cache_dir() / f"reconstruction_eval_{stretch}_{duration:g}s_seed{seed}.npz"
+    from evio_lib.io.cache import CacheError, discard_damaged_cache, load_npz_arrays
+
+    data = None
     if cache and path.is_file():
-        with np.load(path) as data:
-            events, frame_times, frames = data["events"], data["frame_times"], data["frames"]
+        try:
+            data = load_npz_arrays(path, ("events", "frame_times", "frames"))
+        except CacheError as error:  # empty, truncated, damaged: deleted, said, simulated again
+            discard_damaged_cache(error, "re-simulating")
+    if data is not None:
+        events, frame_times, frames = data["events"], data["frame_times"], data["frames"]
     else:
         sequence = simulate_sequence(config)
         events, frame_times, frames = sequence.events, sequence.frame_times, sequence.frames

@@ -699,14 +699,25 @@ def save_labels(path: str | Path, labels: Sequence[np.ndarray], fingerprint: str
 
 
 def load_labels(path: str | Path, fingerprint: str | None = None) -> list[np.ndarray] | None:
-    """Return the per-image keypoints saved by :func:`save_labels`, or None if absent or the fingerprint differs."""
+    """Return the per-image keypoints saved by :func:`save_labels`, or None if absent or the fingerprint differs.
+
+    A damaged file (empty, truncated) is deleted with a note on stderr and counts as absent (None: labelled again).
+    """
+    from evio_lib.io.cache import CacheError, discard_damaged_cache, load_npz_arrays
+
     file = Path(path)
     if not file.is_file():
         return None
-    with np.load(file, allow_pickle=False) as data:
+    try:
+        data = load_npz_arrays(file, ("fingerprint", "keypoints", "offsets"))
         if fingerprint is not None and str(data["fingerprint"]) != fingerprint:
             return None
         keypoints, offsets = data["keypoints"], data["offsets"]
+        if offsets.ndim != 1 or offsets.size < 1 or offsets[-1] != len(keypoints) or np.any(np.diff(offsets) < 0):
+            raise CacheError(file, f"offsets do not index the {len(keypoints)} keypoints")
+    except CacheError as error:
+        discard_damaged_cache(error, "labelling the images again")
+        return None
     return [keypoints[offsets[i] : offsets[i + 1]].copy() for i in range(len(offsets) - 1)]
 
 

@@ -26,6 +26,9 @@ from evio_lib.io.errors import DataFileError
 from evio_lib.sequence import GroundTruth, ImuSamples, Sequence
 
 __all__ = [
+    "CacheError",
+    "load_npz_arrays",
+    "discard_damaged_cache",
     "save_sequence_npz",
     "load_sequence_npz",
     "to_json_value",
@@ -33,6 +36,57 @@ __all__ = [
     "camera_to_dict",
     "camera_from_dict",
 ]
+
+class CacheError(DataFileError):
+    """A cache file is damaged (empty, truncated, not an npz, missing entries, invalid content): the message names it.
+
+    Its users delete it and make it again (:func:`discard_damaged_cache`); ``path`` and ``reason`` are attributes.
+    """
+
+    def __init__(self, path: str | Path, reason: str) -> None:
+        self.path, self.reason = Path(path), reason
+        super().__init__(f"{self.path.name}: {reason}")
+
+
+def load_npz_arrays(path: str | Path, keys: tuple[str, ...] | None = None) -> dict[str, np.ndarray]:
+    """Return every array of the npz cache ``path`` (or only ``keys``, which must all be there), read whole.
+
+    Raises:
+        DataFileError: the file does not exist.
+        CacheError: it is empty, truncated, no npz, a member is damaged (zip CRC, zlib) or a key is missing.
+    """
+    import zipfile
+    import zlib
+
+    path = Path(path)
+    if not path.is_file():
+        raise DataFileError(f"{path.name}: file not found at {path} (expected an evio cache .npz)")
+    if path.stat().st_size == 0:
+        raise CacheError(path, "the file is empty (0 bytes)")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            missing = [k for k in keys or () if k not in z.files]
+            if missing:
+                raise CacheError(path, f"missing entries {missing}; it has {sorted(z.files)}")
+            return {key: z[key] for key in (keys or z.files)}
+    except CacheError:
+        raise
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error, KeyError) as exc:
+        detail = (str(exc).strip().splitlines() or [""])[0][:160]
+        raise CacheError(path, f"not a readable npz file ({type(exc).__name__}: {detail}): truncated or damaged"
+                         ) from None
+
+
+def discard_damaged_cache(error: CacheError, action: str) -> str:
+    """Delete the damaged cache file of ``error``, print the note "cache X was damaged (reason); ACTION" on stderr
+    and return it (the caller then makes the cache again)."""
+    import sys
+
+    error.path.unlink(missing_ok=True)
+    note = f"note: cache {error.path} was damaged ({error.reason}); {action}"
+    print(note, file=sys.stderr, flush=True)
+    return note
+
 
 _FORMAT = "evio-sequence-npz"
 _VERSION = 1
@@ -148,8 +202,9 @@ def load_sequence_npz(path: str | Path) -> Sequence:
     """Return the Sequence stored by :func:`save_sequence_npz` (arrays identical, metadata restored).
 
     Raises:
-        DataFileError (a ValueError): the file is missing, is not an evio sequence cache, or holds a sequence that
-            the Sequence checks refuse (e.g. unsorted events), with the problem in the message.
+        DataFileError (a ValueError): the file is missing.
+        CacheError (a DataFileError): the file is empty, truncated or damaged, is not an evio sequence cache, or holds
+            a sequence that the Sequence checks refuse (e.g. unsorted events), with the problem in the message.
 
     >>> import tempfile, os
     >>> from evio_lib.events.array import make_events
@@ -162,27 +217,22 @@ def load_sequence_npz(path: str | Path) -> Sequence:
     path = Path(path)
     if not path.is_file():
         raise DataFileError(f"{path.name}: file not found at {path} (expected an evio sequence cache .npz)")
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            arrays = {key: z[key] for key in z.files}
-    except (OSError, ValueError) as exc:
-        raise DataFileError(f"{path.name}: not a readable npz file ({exc})") from None
+    arrays = load_npz_arrays(path)  # CacheError for an empty, truncated or damaged file
     if "header" not in arrays:
-        raise DataFileError(f"{path.name}: not an evio sequence cache (no 'header' entry); keys {sorted(arrays)}")
+        raise CacheError(path, f"not an evio sequence cache (no 'header' entry); keys {sorted(arrays)}")
     try:
         header = json.loads(str(arrays.pop("header")[()]))
     except json.JSONDecodeError as exc:
-        raise DataFileError(f"{path.name}: the 'header' entry is not valid JSON ({exc.msg})") from None
-    if header.get("format") != _FORMAT or header.get("version") != _VERSION:
-        raise DataFileError(
-            f"{path.name}: header format {header.get('format')!r} version {header.get('version')!r}; "
-            f"expected {_FORMAT!r} version {_VERSION}"
-        )
+        raise CacheError(path, f"the 'header' entry is not valid JSON ({exc.msg})") from None
+    if not isinstance(header, dict) or header.get("format") != _FORMAT or header.get("version") != _VERSION:
+        header = header if isinstance(header, dict) else {}
+        raise CacheError(path, f"header format {header.get('format')!r} version {header.get('version')!r}; "
+                               f"expected {_FORMAT!r} version {_VERSION}")
     try:
         return _sequence_from_arrays(arrays, header)
-    except (KeyError, TypeError, ValueError) as exc:  # a damaged or hand-made file: say which and why
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:  # a damaged or hand-made file: say which, why
         problem = f"missing entry {exc}" if isinstance(exc, KeyError) else str(exc)
-        raise DataFileError(f"{path.name}: the cached sequence is not valid ({problem})") from None
+        raise CacheError(path, f"the cached sequence is not valid ({problem})") from None
 
 
 def _sequence_from_arrays(arrays: dict[str, np.ndarray], header: dict) -> Sequence:

@@ -71,7 +71,7 @@ def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, w
     The motion is always the preset's whole trajectory (60 s boxes_like: gentle start, violent end; 40 s
     aerial_like), so a shorter duration is the start of the same recording, not a faster one.
     """
-    from evio_lib.io.cache import load_sequence_npz, save_sequence_npz
+    from evio_lib.io.cache import CacheError, discard_damaged_cache, load_sequence_npz, save_sequence_npz
     from evio_lib.sim.presets import SimulationConfig, simulate_sequence
 
     if preset not in PRESETS:
@@ -89,8 +89,8 @@ def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, w
         if cache and found.is_file():
             try:
                 return load_sequence_npz(found)
-            except (ValueError, OSError):
-                found.unlink(missing_ok=True)  # a damaged cache file is simulated again
+            except CacheError as error:  # empty, truncated, damaged: deleted, said, simulated again
+                discard_damaged_cache(error, "re-simulating")
     config = SimulationConfig(preset=preset, duration=duration, trajectory_duration=full, seed=seed,
                               with_events=with_events)
     sequence = simulate_sequence(config, progress=progress)
