@@ -27,7 +27,7 @@ from numbers import Integral, Real
 import cv2
 import numpy as np
 
-__all__ = ["PinholeRadtan"]
+__all__ = ["PinholeRadtan", "intrinsics_problem", "PLAUSIBLE_FOV_DEG"]
 
 # Image dtypes that cv2.remap handles directly.
 _REMAP_DTYPES = tuple(np.dtype(name) for name in ("float32", "float64", "uint8", "uint16", "int16"))
@@ -487,3 +487,40 @@ class PinholeRadtan:
         if out.ndim == 2 and array.ndim == 3:  # OpenCV drops a trailing channel axis of length 1
             out = out[:, :, None]
         return out
+
+
+#: Field of view (degrees, horizontal and vertical) that a pinhole calibration may give: narrower is no lens a
+#: feature tracker can use (f > 28.6 x the image size), wider no pinhole model can describe (f < 0.088 x the size).
+PLAUSIBLE_FOV_DEG = (2.0, 160.0)
+
+
+def intrinsics_problem(camera: PinholeRadtan) -> str | None:
+    """Return what is implausible about a calibration read from a file, or None.
+
+    Checked against the image size: the principal point inside the image (``-0.5 <= cx <= width - 0.5``, the same for
+    cy: a point outside is a calibration for another resolution, or fx fy cx cy in another order); focal lengths that
+    give a field of view within :data:`PLAUSIBLE_FOV_DEG` (``fov = 2 atan(size / (2 f))``); ``fy / fx`` within
+    [0.5, 2] (pixels are close to square). Readers call it on every calibration file; constructing a camera does
+    not (tests and simulations may build any camera).
+
+    >>> intrinsics_problem(PinholeRadtan(fx=199.1, fy=198.8, cx=132.2, cy=110.7, width=240, height=180)) is None
+    True
+    >>> intrinsics_problem(PinholeRadtan(fx=199.1, fy=198.8, cx=367.2, cy=248.4, width=240, height=180))
+    'principal point (cx, cy) = (367.2, 248.4) lies outside the 240 x 180 image (expected -0.5 <= cx <= 239.5, -0.5 <= cy <= 179.5): a calibration for another resolution, or the values in another order (fx fy cx cy)?'
+    """
+    w, h = camera.width, camera.height
+    if not (-0.5 <= camera.cx <= w - 0.5 and -0.5 <= camera.cy <= h - 0.5):
+        return (f"principal point (cx, cy) = ({camera.cx:g}, {camera.cy:g}) lies outside the {w} x {h} image (expected "
+                f"-0.5 <= cx <= {w - 0.5:g}, -0.5 <= cy <= {h - 0.5:g}): a calibration for another resolution, or the "
+                f"values in another order (fx fy cx cy)?")
+    low, high = PLAUSIBLE_FOV_DEG
+    for name, f, size in (("fx", camera.fx, w), ("fy", camera.fy, h)):
+        fov = math.degrees(2.0 * math.atan(size / (2.0 * f)))
+        if not low <= fov <= high:
+            return (f"{name} = {f:g} px gives a field of view of {fov:.3g} degrees over {size} px; a pinhole calibration "
+                    f"gives {low:g} to {high:g} degrees ({size / (2 * math.tan(math.radians(high / 2))):.3g} <= {name} <= "
+                    f"{size / (2 * math.tan(math.radians(low / 2))):.4g} px): a calibration for another resolution or "
+                    f"another unit?")
+    if not 0.5 <= camera.fy / camera.fx <= 2.0:
+        return f"fy / fx = {camera.fy / camera.fx:.3g} (fx {camera.fx:g}, fy {camera.fy:g}); pixels are close to square (0.5 .. 2)"
+    return None

@@ -41,13 +41,14 @@ import cv2
 import numpy as np
 
 from evio_lib.events.array import EVENT_DTYPE
-from evio_lib.geometry.camera import PinholeRadtan
+from evio_lib.geometry.camera import PinholeRadtan, intrinsics_problem
 from evio_lib.io.cache import from_json_value, to_json_value
 from evio_lib.io.errors import DataFileError, read_table, require_file, time_format, write_table
+from evio_lib.io.imu_checks import check_imu_units
 from evio_lib.io.tum import read_tum, write_tum
 from evio_lib.sequence import GroundTruth, ImuSamples, Sequence
 
-__all__ = ["read_ecd", "read_ecd_events", "read_ecd_frames", "write_ecd", "DAVIS240C_SIZE", "SIDECAR_NAME", "INCOMPLETE_MARKER"]
+__all__ = ["read_ecd", "read_calib", "read_ecd_events", "read_ecd_frames", "write_ecd", "DAVIS240C_SIZE", "SIDECAR_NAME", "INCOMPLETE_MARKER"]
 
 #: (width, height) of the DAVIS240C that recorded the ECD, assumed when nothing else gives the size.
 DAVIS240C_SIZE = (240, 180)
@@ -174,8 +175,43 @@ def _read_camera(folder: Path, width: int, height: int) -> PinholeRadtan | None:
     if not (folder / "calib.txt").is_file():
         return None
     c = _read_single_row(folder / "calib.txt", _CALIB_COLUMNS)
-    return PinholeRadtan(fx=c[0], fy=c[1], cx=c[2], cy=c[3], width=width, height=height,
-                         k1=c[4], k2=c[5], p1=c[6], p2=c[7], k3=c[8])
+    try:
+        camera = PinholeRadtan(fx=c[0], fy=c[1], cx=c[2], cy=c[3], width=width, height=height,
+                               k1=c[4], k2=c[5], p1=c[6], p2=c[7], k3=c[8])
+    except ValueError as error:
+        raise DataFileError(f"calib.txt: {error}") from None
+    problem = intrinsics_problem(camera)
+    if problem is not None:
+        raise DataFileError(f"calib.txt (fx fy cx cy k1 k2 p1 p2 k3): {problem}")
+    return camera
+
+
+def read_calib(path: str | Path, width: int, height: int) -> PinholeRadtan:
+    """Return the camera of a calibration file in the ECD ``calib.txt`` format for a width x height sensor.
+
+    One line ``fx fy cx cy k1 k2 p1 p2 [k3]`` (pixels; radial-tangential distortion, k3 optional, 0 when absent), as
+    ``run FILE.aedat4 --calib FILE`` takes it. Raises DataFileError naming the file for a missing file, a line with
+    another number of values, or intrinsics that do not fit the image (:func:`intrinsics_problem`).
+    """
+    path = require_file(path, "a calibration `fx fy cx cy k1 k2 p1 p2 [k3]` (the ECD calib.txt format)")
+    rows = [line.split("#", 1)[0].split() for line in path.read_text(encoding="utf-8", errors="replace").splitlines()]
+    rows = [(number, tokens) for number, tokens in enumerate(rows, start=1) if tokens]
+    layout = "fx fy cx cy k1 k2 p1 p2 [k3]"
+    if len(rows) != 1:
+        raise DataFileError(f"{path.name}: expected one line ({layout}); found {len(rows)} lines with values")
+    number, tokens = rows[0]
+    if len(tokens) not in (8, 9):
+        raise DataFileError(f"{path.name} line {number}: expected 8 or 9 numbers ({layout}), got {len(tokens)}")
+    try:
+        c = [float(v) for v in tokens] + ([0.0] if len(tokens) == 8 else [])
+        camera = PinholeRadtan(fx=c[0], fy=c[1], cx=c[2], cy=c[3], width=width, height=height,
+                               k1=c[4], k2=c[5], p1=c[6], p2=c[7], k3=c[8])
+    except ValueError as error:
+        raise DataFileError(f"{path.name} line {number}: {error} ({layout})") from None
+    problem = intrinsics_problem(camera)
+    if problem is not None:
+        raise DataFileError(f"{path.name} ({layout}): {problem}")
+    return camera
 
 
 def _read_camera_groundtruth(folder: Path) -> GroundTruth | None:
@@ -296,6 +332,12 @@ def read_ecd(folder: str | Path, *, load_events: bool = True, load_frames: bool 
     groundtruth_imu = None
     if (folder / "groundtruth_imu.txt").is_file():
         groundtruth_imu = _read_groundtruth_imu(folder / "groundtruth_imu.txt")
+    if imu is not None:  # units and axes, before the events are parsed (see evio_lib.io.imu_checks)
+        side_meta = sidecar.get("metadata", {}) if sidecar is not None else {}
+        check_imu_units(imu.t, imu.gyro, imu.accel, groundtruth_imu if groundtruth_imu is not None else groundtruth,
+                        source="imu.txt", columns="t ax ay az gx gy gz (accelerometer m/s^2, then gyro rad/s)",
+                        R_CtoI=sidecar.get("R_CtoI") if sidecar is not None else None,
+                        gravity_G=side_meta.get("gravity_G") if isinstance(side_meta, dict) else None)
 
     event_size = None if size_unknown else (width, height)
     events = read_ecd_events(events_path, sensor_size=event_size) if load_events else np.empty(0, EVENT_DTYPE)

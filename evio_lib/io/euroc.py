@@ -31,9 +31,10 @@ from typing import Any
 import cv2
 import numpy as np
 
-from evio_lib.geometry.camera import PinholeRadtan
+from evio_lib.geometry.camera import PinholeRadtan, intrinsics_problem
 from evio_lib.geometry.rotation import rot_to_quat
 from evio_lib.io.errors import DataFileError, read_table, require_file
+from evio_lib.io.imu_checks import check_imu_units, check_noise_values
 from evio_lib.io.tum import read_tum
 from evio_lib.sequence import GroundTruth, ImuSamples, Sequence
 
@@ -155,9 +156,16 @@ def _read_camera(yaml: dict, where: str) -> PinholeRadtan:
     if not (isinstance(res, list) and len(res) == 2):
         raise DataFileError(f"{where}: resolution must be [width, height]; got {res!r}")
     k3 = dist[4] if len(dist) == 5 else 0.0
-    return PinholeRadtan(fx=float(intr[0]), fy=float(intr[1]), cx=float(intr[2]), cy=float(intr[3]),
-                         width=int(res[0]), height=int(res[1]),
-                         k1=float(dist[0]), k2=float(dist[1]), p1=float(dist[2]), p2=float(dist[3]), k3=float(k3))
+    try:
+        camera = PinholeRadtan(fx=float(intr[0]), fy=float(intr[1]), cx=float(intr[2]), cy=float(intr[3]),
+                               width=int(res[0]), height=int(res[1]),
+                               k1=float(dist[0]), k2=float(dist[1]), p1=float(dist[2]), p2=float(dist[3]), k3=float(k3))
+    except (TypeError, ValueError) as error:
+        raise DataFileError(f"{where}: {error}") from None
+    problem = intrinsics_problem(camera)
+    if problem is not None:
+        raise DataFileError(f"{where}: intrinsics [fu, fv, cu, cv] against resolution [width, height]: {problem}")
+    return camera
 
 
 def _read_image_index(path: Path, name: str) -> tuple[np.ndarray, list[Path]]:
@@ -382,7 +390,8 @@ def read_euroc(folder: str | Path, *, load_frames: bool = True, camera: str | No
 
     metadata: dict[str, Any] = {"source": str(folder), "format": "EuRoC ASL", "camera_name": camera_name,
                                 "imu_file": rel(imu_csv)}
-    noise = {key: float(imu_yaml[key]) for key in _NOISE_KEYS if key in imu_yaml}
+    # negative, NaN or non-numbers are refused here, never replaced by defaults downstream
+    noise = check_noise_values({key: imu_yaml[key] for key in _NOISE_KEYS if key in imu_yaml}, rel(imu_yaml_path))
     if noise:
         metadata["imu_noise"] = noise
     if "rate_hz" in imu_yaml:
@@ -397,5 +406,7 @@ def read_euroc(folder: str | Path, *, load_frames: bool = True, camera: str | No
         if R_CtoI is not None:
             gt_cam = camera_groundtruth(gt_imu, R_CtoI, p_CinI)
             metadata["groundtruth_camera"] = "derived from groundtruth_imu and R_CtoI/p_CinI"
+    check_imu_units(imu.t, imu.gyro, imu.accel, gt_imu, source=rel(imu_csv),
+                    columns="timestamp [ns], w_x w_y w_z [rad/s], a_x a_y a_z [m/s^2]")
     return Sequence(name=folder.name, camera=cam, frame_times=frame_times, frames=frames, imu=imu,
                     groundtruth=gt_cam, groundtruth_imu=gt_imu, R_CtoI=R_CtoI, p_CinI=p_CinI, metadata=metadata)

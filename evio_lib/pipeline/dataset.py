@@ -1,4 +1,4 @@
-"""What ``python -m evio_lib run DATASET`` reads: a simulated preset, an ECD folder or a EuRoC ASL folder.
+"""What ``python -m evio_lib run DATASET`` reads: a simulated preset, an ECD or EuRoC ASL folder, an AEDAT4 file.
 
 :func:`load_dataset` turns the DATASET argument into a :class:`LoadedDataset`: the :class:`~evio_lib.sequence.Sequence`
 plus the camera-IMU extrinsics and IMU noise model the filter needs, and notes saying where each came from.
@@ -10,6 +10,14 @@ plus the camera-IMU extrinsics and IMU noise model the filter needs, and notes s
   the evio sidecar when present, else camera = IMU frame (the DAVIS chip's own IMU; about a centimetre off in reality),
   said in the notes. IMU noise from the sidecar, else the DAVIS's MPU-6150 model of :class:`ImuNoiseParams`.
 - A EuRoC ASL folder (``mav0/`` or the ``mav0`` folder itself): extrinsics and noise from the ``sensor.yaml`` files.
+- An AEDAT4 file (``.aedat4``, e.g. a DAVIS346): events, APS frames and IMU (g and deg/s converted to m/s^2 and
+  rad/s). It holds no calibration: ``calib=`` (``--calib FILE``, the ECD ``calib.txt`` format) is required, and
+  refused when missing, never guessed. Extrinsics camera = IMU frame (the DAVIS's own IMU, as for the ECD), noise the
+  MPU-6150 model, no ground truth (the run starts static and reports no error metrics); all said in the notes.
+
+Every recording's IMU is checked by :func:`evio_lib.io.imu_checks.check_imu_units` (accelerometer in g, gyro in deg/s,
+swapped columns, gravity on an axis the ground truth contradicts), and stored noise densities that are negative or
+NaN are refused, never replaced by defaults (defaults for missing ones are named in the notes).
 
 ``extrinsics=PATH`` (a Kalibr camchain YAML with ``T_cam_imu``) overrides every source of extrinsics.
 """
@@ -24,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from evio_lib.io.errors import DataFileError
+from evio_lib.io.imu_checks import check_imu_units
 from evio_lib.sequence import Sequence
 from evio_lib.sim.imu import ImuNoiseParams
 
@@ -41,7 +50,7 @@ class LoadedDataset:
 
     Attributes:
         sequence: the recording (frames, events, IMU, ground truth, camera).
-        kind: 'preset', 'ecd' or 'euroc'.
+        kind: 'preset', 'ecd', 'euroc' or 'aedat4'.
         source: the preset name or the folder read.
         R_CtoI, p_CinI: camera-IMU extrinsics used (x_I = R_CtoI x_C + p_CinI).
         noise: IMU noise densities for the filter.
@@ -146,18 +155,26 @@ def read_kalibr_extrinsics(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     return R.T.copy(), -R.T @ t
 
 
-def _noise_from_metadata(metadata: dict) -> ImuNoiseParams | None:
-    """Return the IMU noise stored in a recording's metadata (simulator names or Kalibr names), or None."""
+def _noise_from_metadata(metadata: dict, source: str) -> tuple[ImuNoiseParams | None, list[str]]:
+    """Return (the IMU noise stored in a recording's metadata, or None; the names that took their defaults).
+
+    Simulator names or Kalibr names. A stored value that is negative, NaN or no number is refused (ValueError
+    naming it), never replaced by the default: the filter would otherwise run with another noise model than the
+    recording states. Values the metadata lacks take the defaults of :class:`ImuNoiseParams`, and the caller says so.
+    """
+    from evio_lib.io.imu_checks import check_noise_values
+
     noise = metadata.get("imu_noise") if isinstance(metadata, dict) else None
     if not isinstance(noise, dict):
-        return None
+        return None, []
     kalibr = {"gyroscope_noise_density": "gyro_noise_density", "accelerometer_noise_density": "accel_noise_density",
               "gyroscope_random_walk": "gyro_random_walk", "accelerometer_random_walk": "accel_random_walk"}
-    values = {kalibr.get(k, k): v for k, v in noise.items()}
-    try:
-        return ImuNoiseParams.from_dict({k: v for k, v in values.items() if k in ImuNoiseParams.__dataclass_fields__})
-    except (ValueError, TypeError):
-        return None
+    fields = ImuNoiseParams.__dataclass_fields__
+    stored = {k: v for k, v in noise.items() if kalibr.get(k, k) in fields}
+    values = {kalibr.get(k, k): v for k, v in check_noise_values(stored, f"{source}: IMU noise").items()}
+    missing = [name for name in ("gyro_noise_density", "accel_noise_density", "gyro_random_walk", "accel_random_walk")
+               if name not in values]
+    return ImuNoiseParams.from_dict(values), missing
 
 
 def _is_euroc(folder: Path) -> bool:
@@ -166,17 +183,23 @@ def _is_euroc(folder: Path) -> bool:
 
 def load_dataset(dataset: str | Path | None = None, *, duration: float | None = None, seed: int = 0,
                  need_events: bool = False, need_frames: bool = True, extrinsics: str | Path | None = None,
-                 progress: bool = False) -> LoadedDataset:
-    """Return the recording named by ``dataset`` (a preset name or a folder; None: ``boxes_like``).
+                 progress: bool = False, calib: str | Path | None = None) -> LoadedDataset:
+    """Return the recording named by ``dataset`` (a preset name, a folder or a file; None: ``boxes_like``).
 
     Args:
-        dataset: 'boxes_like', 'aerial_like', an ECD folder or a EuRoC ASL folder.
+        dataset: 'boxes_like', 'aerial_like', an ECD folder, a EuRoC ASL folder or an AEDAT4 file (``.aedat4``:
+            events, APS frames and IMU, converted from g and deg/s; no ground truth, so the run starts static).
         duration: presets only: seconds simulated (default: the preset's whole 60 / 40 s).
         seed: presets only: the simulation seed.
         need_events, need_frames: what the run uses (a preset is simulated with events only when needed; a folder
             without them is refused with a message saying what is missing).
         extrinsics: a Kalibr YAML with T_cam_imu overriding the recording's extrinsics.
         progress: show the simulator's progress bars.
+        calib: a calibration file in the ECD ``calib.txt`` format (``fx fy cx cy k1 k2 p1 p2 [k3]``): required for
+            an AEDAT4 file (it holds none), overrides the calibration of a folder; refused for a preset.
+
+    The IMU of every recording goes through :func:`evio_lib.io.imu_checks.check_imu_units` (units, swapped columns,
+    gravity against the ground truth).
 
     Raises ValueError (DataFileError) naming what is missing or malformed.
     """
@@ -184,8 +207,23 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
     dataset = "boxes_like" if dataset is None else dataset
     text = str(dataset)
     if text in PRESETS:
+        if calib is not None:
+            raise ValueError(f"--calib applies to recordings; the preset {text} knows its camera")
         seq = simulate_preset(text, duration, seed, with_events=need_events, progress=progress)
         kind, source = "preset", text
+    elif Path(text).is_file() and Path(text).suffix.lower() == ".aedat4":
+        from evio_lib.io.aedat4 import read_aedat4
+
+        if duration is not None:
+            raise ValueError("--duration applies to simulated presets; for a recording use --max-duration")
+        if calib is None:
+            raise ValueError(f"{text}: an AEDAT4 recording holds no camera calibration; give one with --calib FILE "
+                             f"(one line fx fy cx cy k1 k2 p1 p2 [k3] in pixels, the ECD calib.txt format, e.g. from "
+                             f"a Kalibr or OpenCV calibration of this camera)")
+        seq, kind, source = read_aedat4(text, load_frames=need_frames), "aedat4", text
+        notes.append("IMU units: " + str(seq.metadata.get("imu_units", "none in the file")))
+        notes.append("ground truth: none in an AEDAT4 file: static initialisation (the sensor must start still), "
+                     "no error metrics")
     else:
         if duration is not None:
             raise ValueError("--duration applies to simulated presets; for a recording folder use --max-duration")
@@ -194,7 +232,7 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
             raise ValueError(f"DATASET {text!r} is neither a preset ({', '.join(PRESETS)}) nor an existing folder")
         if not folder.is_dir():
             raise ValueError(f"DATASET {text!r} is a file; expected a preset name, an ECD folder (events.txt, imu.txt, "
-                             f"...) or a EuRoC ASL folder (mav0/)")
+                             f"...), a EuRoC ASL folder (mav0/) or an AEDAT4 file (.aedat4)")
         if _is_euroc(folder):
             from evio_lib.io.euroc import read_euroc
 
@@ -209,6 +247,14 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
             raise ValueError(f"{folder} is not a recording folder: expected events.txt (ECD layout) or mav0/ "
                              f"(EuRoC ASL layout)")
         source = str(folder)
+    if calib is not None:
+        from evio_lib.io.ecd import read_calib
+
+        if seq.sensor_size is None:
+            raise ValueError(f"{source}: the sensor size is unknown (no frames, no sidecar), so --calib cannot be "
+                             f"checked against it")
+        seq.camera = read_calib(calib, *seq.sensor_size)
+        notes.append(f"camera: from --calib {calib}" + ("" if kind == "aedat4" else " (replaces the recording's)"))
     if seq.imu is None or len(seq.imu.t) < 2:
         raise ValueError(f"{source} has no IMU samples (imu.txt / mav0/imu0/data.csv): the MSCKF needs the IMU")
     if seq.camera is None:
@@ -225,14 +271,22 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
     elif seq.R_CtoI is not None and seq.p_CinI is not None:
         R_CtoI, p_CinI = np.asarray(seq.R_CtoI, float), np.asarray(seq.p_CinI, float)
         notes.append("extrinsics: from the recording (" + {"preset": "simulator", "ecd": "evio_sim.json",
-                                                           "euroc": "sensor.yaml"}[kind] + ")")
+                                                           "euroc": "sensor.yaml", "aedat4": "file"}[kind] + ")")
     else:
         R_CtoI, p_CinI = np.eye(3), np.zeros(3)
         notes.append("extrinsics: none in the recording; assumed camera = IMU frame (the DAVIS's own IMU); "
                      "give --extrinsics FILE if it differs")
-    noise = _noise_from_metadata(seq.metadata)
+    truth = seq.groundtruth_imu if seq.groundtruth_imu is not None else seq.groundtruth
+    known_R = R_CtoI if (extrinsics is not None or seq.R_CtoI is not None) else None  # not an assumed one
+    gravity_G = seq.metadata.get("gravity_G") if isinstance(seq.metadata, dict) else None
+    check_imu_units(seq.imu.t, seq.imu.gyro, seq.imu.accel, truth, source=f"{source} IMU", R_CtoI=known_R,
+                    gravity_G=gravity_G)  # the readers checked already; presets and --extrinsics are checked here
+    noise, defaulted = _noise_from_metadata(seq.metadata, source)
     if noise is None:
         noise = ImuNoiseParams()
         notes.append("IMU noise: not in the recording; assumed the DAVIS's MPU-6150 model (ImuNoiseParams defaults)")
+    elif defaulted:
+        notes.append(f"IMU noise: from the recording, except {', '.join(defaulted)}: not in it, assumed the DAVIS's "
+                     f"MPU-6150 model (ImuNoiseParams defaults)")
     return LoadedDataset(sequence=seq, kind=kind, source=source, R_CtoI=R_CtoI, p_CinI=p_CinI, noise=noise,
                          notes=tuple(notes))

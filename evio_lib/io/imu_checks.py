@@ -1,0 +1,349 @@
+"""Units and frames of an IMU recording, checked at the door: a wrong unit is refused with the fix, never run.
+
+Every reader and loader (:func:`evio_lib.io.ecd.read_ecd`, :func:`evio_lib.io.euroc.read_euroc`,
+:func:`evio_lib.io.aedat4.read_aedat4`, :func:`evio_lib.pipeline.dataset.load_dataset`) calls
+:func:`check_imu_units` on the samples it returns. Without it a recording with the accelerometer in g runs to
+the end and prints a confident, wrong trajectory (423 % of the distance instead of 23 %).
+
+The physics the checks rely on (specific force ``a_m = R_GtoI (a - g_G)`` in m/s^2, gyro ``w_m = w + b_g`` in
+rad/s):
+
+* **Accelerometer units.** At rest, and on average during any motion a person or a vehicle makes, the
+  accelerometer reads gravity: ``|a_m| ≈ 9.81 m/s^2``. A median ``|a_m|`` near 1 is the unit g (multiply by
+  9.80665), near 1000 milli-g (multiply by 0.00980665). Only free fall reads less than half of g for long.
+* **Columns swapped.** A gyro column whose median norm is near 9.81 while the "accelerometer" is small holds the
+  accelerometer: the file's column order differs from the reader's.
+* **Gyro units.** Still, the gyro reads its bias, a few mrad/s (MEMS: below about 0.1 rad/s, 5 deg/s, even
+  uncalibrated); in deg/s the same bias reads 57.3 times more (1 deg/s reads as "1 rad/s"). In motion a gyro in
+  deg/s reads 57.3x the true angular rate. With a ground truth the check compares the gyro with the truth's
+  angular rate (the ratio of norms is about 1 in rad/s, 57.3 in deg/s; norms do not depend on the frame, so no
+  extrinsics are needed). Without one: a still stretch (the accelerometer steady: gravity does not turn, so the
+  sensor turns slower than about 0.35 rad/s about any horizontal axis) whose gyro reads more than
+  :data:`STILL_GYRO_BOUND` = 0.5 rad/s everywhere, or a gyro beyond ±2000 deg/s = 34.9 rad/s (the largest range of
+  a MEMS gyroscope, so no real sample reads more) for :data:`SUSTAINED_FRACTION` = 5 % of the samples.
+* **Gravity axis.** With a ground truth of the IMU orientation ``R_ItoG`` (world z up, or the recording's own
+  ``gravity_G``), integrating the specific force in the world gives the change of velocity::
+
+      mean over [t0, t1] of R_ItoG a_m = (v(t1) - v(t0)) / (t1 - t0) - g_G
+
+  so the mean specific force in the world must point up within :data:`GRAVITY_ANGLE_TOL_DEG` = 30 degrees
+  (at any speed; over 2 s or more, a change of speed of 1 m/s tilts it by 3 degrees). An accelerometer whose axes
+  the truth contradicts (columns in another order, a sign flipped, another sensor frame) is refused, naming the
+  IMU axis on which the truth expects the specific force and the one on which the file has it.
+
+Bounds for user-given values (``--bias-init``): :data:`GYRO_BIAS_BOUND` 0.5 rad/s and :data:`ACCEL_BIAS_BOUND`
+3 m/s^2 per axis, see :func:`check_bias_values`.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from evio_lib.io.errors import DataFileError
+
+__all__ = ["ImuUnitsError", "check_imu_units", "check_bias_values", "check_noise_values", "STANDARD_GRAVITY",
+           "DEG_PER_RAD", "GYRO_FULL_SCALE_BOUND", "STILL_GYRO_BOUND", "SUSTAINED_FRACTION", "GRAVITY_ANGLE_TOL_DEG",
+           "GYRO_BIAS_BOUND", "ACCEL_BIAS_BOUND", "MIN_GRAVITY_SPAN_S"]
+
+#: Standard gravity [m/s^2]: one g.
+STANDARD_GRAVITY = 9.80665
+#: Degrees per radian: a gyro in deg/s reads this many times its rate in rad/s.
+DEG_PER_RAD = 180.0 / math.pi
+#: rad/s: ±2000 deg/s, the largest measurement range of a MEMS gyroscope (InvenSense, Bosch, ADI data sheets).
+GYRO_FULL_SCALE_BOUND = math.radians(2000.0)
+#: rad/s: a still gyro reads its bias, below about 0.1 rad/s for a MEMS part; above this it is not rad/s.
+STILL_GYRO_BOUND = 0.5
+#: Fraction of the samples beyond GYRO_FULL_SCALE_BOUND that counts as "sustained".
+SUSTAINED_FRACTION = 0.05
+#: Largest angle between the measured and the predicted mean specific force in the world [deg].
+GRAVITY_ANGLE_TOL_DEG = 30.0
+#: Shortest overlap of IMU and ground truth over which gravity is checked [s].
+MIN_GRAVITY_SPAN_S = 2.0
+#: rad/s per axis: the largest plausible gyro bias. Consumer MEMS data sheets give a zero-rate offset of ±5 deg/s
+#: (0.09 rad/s) at most, tactical parts far less; 0.5 rad/s (29 deg/s) is five times that, so a larger value is a
+#: unit mistake (deg/s) or a typo.
+GYRO_BIAS_BOUND = 0.5
+#: m/s^2 per axis: the largest plausible accelerometer bias. Consumer MEMS data sheets give a zero-g offset of
+#: ±150 mg (1.5 m/s^2) at most; 3 m/s^2 is twice that.
+ACCEL_BIAS_BOUND = 3.0
+
+_STILL_WINDOW_S = 0.1  # length of the windows tested for stillness [s]
+_STILL_BIN_S = 0.01  # samples are averaged into bins of this length before the steadiness test (noise / sqrt(n))
+_STILL_ACCEL_STD = 0.1  # m/s^2: per-axis std of the binned accelerometer in a still window
+_STILL_GRAVITY_TOL = 1.0  # m/s^2: a still window reads |a| within this of g
+_TRUTH_STEP_S = 0.05  # the truth's angular rate is taken over steps of at least this length (its noise averages)
+_TRUTH_MOVING_RATE = 0.2  # rad/s: truth steps faster than this compare the gyro with the truth (bias < 0.1 rad/s)
+_TRUTH_MOVING_MIN_S = 0.5  # s of such steps needed for the ratio
+_GYRO_RATIO_BOUND = 10.0  # gyro / truth rate ratio beyond which the gyro is not rad/s (1 in rad/s, 57.3 in deg/s)
+
+
+class ImuUnitsError(DataFileError):
+    """The IMU samples are not in the library's units or frame (accel m/s^2, gyro rad/s, axes of the truth)."""
+
+
+def _norms(x: np.ndarray) -> np.ndarray:
+    return np.linalg.norm(x, axis=1)
+
+
+def _accel_problem(accel_median: float, gyro_median: float, columns: str) -> str | None:
+    """Return what is wrong with the magnitudes of accelerometer and gyro, or None."""
+    if 0.5 * STANDARD_GRAVITY <= accel_median <= 4.0 * STANDARD_GRAVITY:
+        return None
+    if accel_median < 0.5 * STANDARD_GRAVITY and 0.5 * STANDARD_GRAVITY <= gyro_median <= 4.0 * STANDARD_GRAVITY:
+        return (f"the gyro and accelerometer columns look swapped: the gyro's median |w| is {gyro_median:.3g} (gravity "
+                f"reads 9.81 m/s^2) and the accelerometer's median |a| is {accel_median:.3g}; put the columns in the "
+                f"order {columns}")
+    if 0.5 <= accel_median <= 2.0:
+        return (f"the accelerometer looks like it is in g: median |a| = {accel_median:.3g} instead of about 9.81 "
+                f"m/s^2; multiply the accelerometer by 9.80665 to get m/s^2")
+    if 500.0 <= accel_median <= 2000.0:
+        return (f"the accelerometer looks like it is in milli-g: median |a| = {accel_median:.4g} instead of about "
+                f"9.81 m/s^2; multiply the accelerometer by 0.00980665 to get m/s^2")
+    return (f"the accelerometer's median |a| = {accel_median:.4g} is no specific force in m/s^2 (about 9.81 when "
+            f"still or moving as people and vehicles do); convert it to m/s^2 (raw counts: divide by the LSB per g "
+            f"and multiply by 9.80665)")
+
+
+def _window_ids(t: np.ndarray, length: float) -> np.ndarray:
+    return np.floor((t - t[0]) / length).astype(np.int64)
+
+
+def _still_gyro_norms(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray) -> np.ndarray:
+    """Return |mean gyro| of every still window (accelerometer steady and reading about g)."""
+    bins = _window_ids(t, _STILL_BIN_S)
+    windows = _window_ids(t, _STILL_WINDOW_S)
+    out = []
+    for w in np.unique(windows):
+        sel = windows == w
+        if sel.sum() < 5:
+            continue
+        b = bins[sel]
+        _, inverse, counts = np.unique(b, return_inverse=True, return_counts=True)
+        if counts.size < 3:
+            continue
+        binned = np.zeros((counts.size, 3))
+        np.add.at(binned, inverse, accel[sel])
+        binned /= counts[:, None]
+        if binned.std(axis=0).max() > _STILL_ACCEL_STD:
+            continue
+        if abs(np.linalg.norm(accel[sel].mean(axis=0)) - STANDARD_GRAVITY) > _STILL_GRAVITY_TOL:
+            continue
+        out.append(np.linalg.norm(gyro[sel].mean(axis=0)))
+    return np.asarray(out)
+
+
+def _truth_rates(truth: Any, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return (start, end, |angular rate|) of the truth's steps of at least _TRUTH_STEP_S within [t0, t1]."""
+    inside = np.flatnonzero((truth.t >= t0) & (truth.t <= t1))
+    if inside.size < 2:
+        return np.zeros(0), np.zeros(0), np.zeros(0)
+    keep = [inside[0]]
+    for i in inside[1:]:
+        if truth.t[i] - truth.t[keep[-1]] >= _TRUTH_STEP_S:
+            keep.append(i)
+    keep = np.asarray(keep)
+    if keep.size < 2:
+        return np.zeros(0), np.zeros(0), np.zeros(0)
+    R = truth.R_BtoG[keep]
+    dR = np.einsum("nji,njk->nik", R[:-1], R[1:])  # R_k^T R_k+1: the rotation of the body between the samples
+    cos = np.clip((np.trace(dR, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0)
+    dt = np.diff(truth.t[keep])
+    return truth.t[keep][:-1], truth.t[keep][1:], np.arccos(cos) / dt
+
+
+def _gyro_truth_ratio(t: np.ndarray, gyro: np.ndarray, truth: Any) -> float | None:
+    """Return the median ratio |mean gyro| / |truth rate| over the truth's fast steps, or None without enough motion."""
+    start, end, rate = _truth_rates(truth, t[0], t[-1])
+    moving = rate > _TRUTH_MOVING_RATE
+    if np.sum(end[moving] - start[moving]) < _TRUTH_MOVING_MIN_S:
+        return None
+    cumulative = np.concatenate([np.zeros((1, 3)), np.cumsum(gyro, axis=0)])
+    i0 = np.searchsorted(t, start[moving])
+    i1 = np.searchsorted(t, end[moving])
+    ok = i1 > i0
+    if ok.sum() < 3:
+        return None
+    mean_gyro = (cumulative[i1[ok]] - cumulative[i0[ok]]) / (i1[ok] - i0[ok])[:, None]
+    return float(np.median(np.linalg.norm(mean_gyro, axis=1) / rate[moving][ok]))
+
+
+def _gravity_problem(t: np.ndarray, accel: np.ndarray, truth: Any, R_CtoI: Any, gravity_G: Any) -> str | None:
+    """Return what the truth contradicts about the accelerometer's axes, or None (also when it cannot tell)."""
+    if truth.body == "camera":
+        if R_CtoI is None:
+            return None
+        R_CtoI = np.asarray(R_CtoI, dtype=np.float64)
+    t0, t1 = max(t[0], truth.t[0]), min(t[-1], truth.t[-1])
+    if t1 - t0 < MIN_GRAVITY_SPAN_S:
+        return None
+    sel = (t >= t0) & (t <= t1)
+    at = truth.interpolate(t[sel])
+    R_BtoG = at.R_BtoG
+    R_ItoG = R_BtoG if truth.body == "imu" else np.einsum("nij,kj->nik", R_BtoG, R_CtoI)  # R_CtoG R_CtoI^T
+    g = np.array([0.0, 0.0, -9.81]) if gravity_G is None else np.asarray(gravity_G, dtype=np.float64).reshape(3)
+    span = t[sel][-1] - t[sel][0]
+    if at.v_BinG is not None and truth.body == "imu":
+        dv = at.v_BinG[-1] - at.v_BinG[0]
+    else:  # velocities at both ends from positions 0.2 s apart (the camera's velocity: rotation adds little)
+        h = min(0.2, span / 4)
+        ends = truth.interpolate(np.array([t[sel][0], t[sel][0] + h, t[sel][-1] - h, t[sel][-1]]))
+        dv = (ends.p_BinG[3] - ends.p_BinG[2]) / h - (ends.p_BinG[1] - ends.p_BinG[0]) / h
+    expected = dv / span - g  # mean of R_ItoG a_m
+
+    def angle(P: np.ndarray) -> float:
+        measured = np.einsum("nij,nj->i", R_ItoG, accel[sel] @ P.T) / sel.sum()
+        c = measured @ expected / (np.linalg.norm(measured) * np.linalg.norm(expected) + 1e-300)
+        return math.degrees(math.acos(max(-1.0, min(1.0, c))))
+
+    found = angle(np.eye(3))
+    if found <= GRAVITY_ANGLE_TOL_DEG:
+        return None
+    # where the truth expects the specific force in the IMU frame, against where the file has it
+    expected_I = np.einsum("nji,j->ni", R_ItoG, expected).mean(axis=0)
+    measured_I = accel[sel].mean(axis=0)
+
+    def axis(v: np.ndarray) -> str:
+        k = int(np.argmax(np.abs(v)))
+        return f"{'-' if v[k] < 0 else '+'}{'xyz'[k]} ({', '.join(f'{c:.2f}' for c in v / np.linalg.norm(v))})"
+
+    return (f"gravity lies on an axis the ground truth contradicts: over {span:.1f} s the mean specific force in the "
+            f"world points {found:.0f} deg away from up (tolerance {GRAVITY_ANGLE_TOL_DEG:.0f} deg); the truth puts "
+            f"it on the IMU's {axis(expected_I)}, the accelerometer on {axis(measured_I)}: reorder or flip the "
+            f"accelerometer columns to the IMU axes of the truth (the specific force reads +9.81 up when still), or "
+            f"check the ground truth's frame and the camera-IMU extrinsics")
+
+
+def check_imu_units(t: Any, gyro: Any, accel: Any, truth: Any = None, *, source: str = "the IMU",
+                    columns: str = "gyro (rad/s) then accelerometer (m/s^2)", R_CtoI: Any = None,
+                    gravity_G: Any = None) -> str:
+    """Refuse IMU samples that are not gyro [rad/s] and specific force [m/s^2] in the frame the truth says.
+
+    Args:
+        t: (N,) sample times [s], increasing.
+        gyro, accel: (N, 3) samples as the reader will return them (after any unit conversion).
+        truth: optional :class:`~evio_lib.sequence.GroundTruth` (body 'imu', or 'camera' with ``R_CtoI``) for the
+            angular-rate and gravity-axis checks.
+        source: how the message names the samples, e.g. "mav0/imu0/data.csv".
+        columns: the column order the reader expects, for the swapped-columns message.
+        R_CtoI: the recording's own camera-IMU rotation, needed with a camera ground truth.
+        gravity_G: gravity in the truth's world frame (default (0, 0, -9.81): z up).
+
+    Returns:
+        One line saying what was checked (for the dataset notes).
+
+    Raises:
+        ImuUnitsError (a ValueError): one line "SOURCE: what is wrong; the fix".
+
+    >>> t = np.arange(400) * 0.005
+    >>> accel = np.tile([0.0, 0.0, 9.81], (400, 1)); gyro = np.tile([0.002, -0.001, 0.003], (400, 1))
+    >>> check_imu_units(t, gyro, accel)[:33]
+    'IMU units: median |a| 9.81 m/s^2,'
+    >>> check_imu_units(t, gyro, accel / 9.81, source="imu.txt")
+    Traceback (most recent call last):
+    ...
+    evio_lib.io.imu_checks.ImuUnitsError: imu.txt: the accelerometer looks like it is in g: median |a| = 1 instead of about 9.81 m/s^2; multiply the accelerometer by 9.80665 to get m/s^2
+    >>> check_imu_units(t, np.degrees(gyro) * 100, accel, source="imu.txt")
+    Traceback (most recent call last):
+    ...
+    evio_lib.io.imu_checks.ImuUnitsError: imu.txt: the gyro looks like it is in deg/s: where the accelerometer is still it reads |w| = 21.4 (a MEMS gyro's bias is below 0.1 rad/s; this bound is 0.5 rad/s); multiply the gyro by pi/180 = 0.0174533 to get rad/s
+    """
+    t = np.asarray(t, dtype=np.float64).reshape(-1)
+    gyro = np.asarray(gyro, dtype=np.float64).reshape(-1, 3)
+    accel = np.asarray(accel, dtype=np.float64).reshape(-1, 3)
+    if t.size < 2 or gyro.shape[0] != t.size or accel.shape[0] != t.size:
+        return "IMU units: not checked (fewer than 2 samples)"
+    finite = np.isfinite(t) & np.isfinite(gyro).all(axis=1) & np.isfinite(accel).all(axis=1)
+    t, gyro, accel = t[finite], gyro[finite], accel[finite]
+    if t.size < 2:
+        return "IMU units: not checked (fewer than 2 finite samples)"
+
+    accel_median = float(np.median(_norms(accel)))
+    gyro_median = float(np.median(_norms(gyro)))
+    problem = _accel_problem(accel_median, gyro_median, columns)
+    if problem is not None:
+        raise ImuUnitsError(f"{source}: {problem}")
+
+    degs = ("; multiply the gyro by pi/180 = 0.0174533 to get rad/s")
+    done = [f"median |a| {accel_median:.3g} m/s^2"]
+    beyond = float(np.mean(np.abs(gyro).max(axis=1) > GYRO_FULL_SCALE_BOUND))
+    if beyond >= SUSTAINED_FRACTION:
+        raise ImuUnitsError(f"{source}: the gyro looks like it is in deg/s: {100 * beyond:.0f} % of the samples read "
+                            f"more than 34.9 rad/s, beyond the ±2000 deg/s range of any MEMS gyroscope{degs}")
+    ratio = None
+    if truth is not None and len(truth) >= 2:
+        ratio = _gyro_truth_ratio(t, gyro, truth)
+    if ratio is not None:
+        if ratio > _GYRO_RATIO_BOUND:
+            unit = "deg/s" if 20.0 <= ratio <= 200.0 else "another unit than rad/s"
+            raise ImuUnitsError(f"{source}: the gyro looks like it is in {unit}: it reads {ratio:.1f} times the "
+                                f"ground truth's angular rate (1 in rad/s, 57.3 in deg/s)"
+                                + (degs if unit == "deg/s" else "; convert it to rad/s"))
+        done.append(f"gyro / truth angular rate {ratio:.2f}")
+    else:
+        still = _still_gyro_norms(t, gyro, accel)
+        if still.size and still.min() > STILL_GYRO_BOUND:
+            raise ImuUnitsError(f"{source}: the gyro looks like it is in deg/s: where the accelerometer is still it "
+                                f"reads |w| = {still.min():.3g} (a MEMS gyro's bias is below 0.1 rad/s; this bound is "
+                                f"{STILL_GYRO_BOUND:g} rad/s){degs}")
+        done.append(f"still gyro {still.min():.3g} rad/s" if still.size else "no still stretch for the gyro check")
+    if truth is not None and len(truth) >= 2:
+        problem = _gravity_problem(t, accel, truth, R_CtoI, gravity_G)
+        if problem is not None:
+            raise ImuUnitsError(f"{source}: {problem}")
+        done.append("gravity axis checked against the ground truth")
+    return "IMU units: " + ", ".join(done)
+
+
+def check_bias_values(values: Any, what: str = "--bias-init") -> tuple[float, ...]:
+    """Return six biases (b_g [rad/s], b_a [m/s^2]) as floats, or raise ValueError naming the implausible one.
+
+    Bounds per axis: |b_g| <= GYRO_BIAS_BOUND (0.5 rad/s) and |b_a| <= ACCEL_BIAS_BOUND (3 m/s^2), five and two
+    times the worst zero-rate / zero-g offsets of consumer MEMS data sheets (±5 deg/s, ±150 mg).
+
+    >>> check_bias_values([0.01, 0, 0, 0.1, 0, 0])
+    (0.01, 0.0, 0.0, 0.1, 0.0, 0.0)
+    >>> check_bias_values([1e6, 0, 0, 0, 0, 0])
+    Traceback (most recent call last):
+    ...
+    ValueError: --bias-init: gyro bias bgx = 1e+06 rad/s is implausible: |b_g| must be <= 0.5 rad/s per axis (consumer MEMS gyros are within ±5 deg/s = 0.09 rad/s; a larger value is a deg/s or typing mistake)
+    """
+    try:
+        numbers = tuple(float(v) for v in values)
+    except (TypeError, ValueError):
+        raise ValueError(f"{what} must be six numbers 'bgx,bgy,bgz,bax,bay,baz' (rad/s, m/s^2); got {values!r}") from None
+    if len(numbers) != 6 or not all(math.isfinite(v) for v in numbers):
+        raise ValueError(f"{what} must be six finite numbers 'bgx,bgy,bgz,bax,bay,baz' (rad/s, m/s^2); got {values!r}")
+    for name, value in zip(("bgx", "bgy", "bgz"), numbers[:3]):
+        if abs(value) > GYRO_BIAS_BOUND:
+            raise ValueError(f"{what}: gyro bias {name} = {value:g} rad/s is implausible: |b_g| must be <= "
+                             f"{GYRO_BIAS_BOUND:g} rad/s per axis (consumer MEMS gyros are within ±5 deg/s = 0.09 "
+                             f"rad/s; a larger value is a deg/s or typing mistake)")
+    for name, value in zip(("bax", "bay", "baz"), numbers[3:]):
+        if abs(value) > ACCEL_BIAS_BOUND:
+            raise ValueError(f"{what}: accelerometer bias {name} = {value:g} m/s^2 is implausible: |b_a| must be <= "
+                             f"{ACCEL_BIAS_BOUND:g} m/s^2 per axis (consumer MEMS accelerometers are within ±150 mg = "
+                             f"1.5 m/s^2; a larger value is a g or typing mistake)")
+    return numbers
+
+
+def check_noise_values(noise: dict, where: str) -> dict[str, float]:
+    """Return the IMU noise parameters of ``noise`` as floats; raise DataFileError for a negative, NaN or non-number.
+
+    >>> check_noise_values({"gyroscope_noise_density": -1e-4}, "imu0/sensor.yaml")
+    Traceback (most recent call last):
+    ...
+    evio_lib.io.errors.DataFileError: imu0/sensor.yaml: gyroscope_noise_density must be a finite number >= 0; got -0.0001 (a noise density or random walk is a standard deviation)
+    """
+    out = {}
+    for key, value in noise.items():
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            number = math.nan
+        if isinstance(value, bool) or not math.isfinite(number) or number < 0:
+            raise DataFileError(f"{where}: {key} must be a finite number >= 0; got {value!r} (a noise density or "
+                                f"random walk is a standard deviation)")
+        out[key] = number
+    return out

@@ -1,0 +1,299 @@
+"""Units and frames at the door (evio_lib.io.imu_checks): each refused case is a real or simulated recording with its
+columns scaled, swapped or rotated, and the message must name the fix; the real recordings and the presets pass."""
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from evio_lib import cli
+from evio_lib.geometry.camera import PinholeRadtan, intrinsics_problem
+from evio_lib.io.ecd import read_calib, read_ecd, write_ecd
+from evio_lib.io.errors import DataFileError
+from evio_lib.io.euroc import read_euroc
+from evio_lib.io.imu_checks import ImuUnitsError, check_bias_values, check_imu_units
+from evio_lib.pipeline.command import _bias
+from evio_lib.pipeline.dataset import load_dataset
+from evio_lib.sequence import ImuSamples
+
+EUROC = "euroc_V1_01_easy_micro"
+DEG = 180.0 / math.pi
+
+
+def _tree(folder: Path) -> dict[str, bytes]:
+    """{relative path: bytes} of every regular file under ``folder`` (symbolic links by their target's name)."""
+    out = {}
+    for root, dirs, files in os.walk(folder, followlinks=False):
+        for name in files + [d for d in dirs if os.path.islink(os.path.join(root, d))]:
+            path = Path(root) / name
+            key = str(path.relative_to(folder))
+            out[key] = ("-> " + os.readlink(path)).encode() if path.is_symlink() else path.read_bytes()
+    return out
+
+
+REAL_DATA_DIR = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "real"
+
+
+@pytest.fixture(scope="module")
+def euroc():
+    if not REAL_DATA_DIR.is_dir():
+        pytest.skip(f"real recordings not found at {REAL_DATA_DIR} (only present beside a CI checkout)")
+    return read_euroc(REAL_DATA_DIR / EUROC, load_frames=False)
+
+
+@pytest.fixture(scope="module")
+def boxes():
+    """3 s of the simulated boxes_like IMU and ground truth (no frames or events: 0.5 s)."""
+    from evio_lib.sim.presets import SimulationConfig, simulate_sequence
+
+    return simulate_sequence(SimulationConfig(preset="boxes_like", duration=3.0, trajectory_duration=60.0,
+                                              with_events=False, with_frames=False))
+
+
+def _refused(imu_t, gyro, accel, truth=None, **kw) -> str:
+    with pytest.raises(ImuUnitsError) as info:
+        check_imu_units(imu_t, gyro, accel, truth, source="rec", **kw)
+    message = str(info.value)
+    assert "\n" not in message and message.startswith("rec: ")
+    return message
+
+
+# ----------------------------------------------------------------------------- what must pass
+
+def test_real_euroc_and_simulated_presets_pass(euroc, boxes):
+    imu = euroc.imu
+    summary = check_imu_units(imu.t, imu.gyro, imu.accel, euroc.groundtruth_imu)
+    assert "gyro / truth angular rate 1.0" in summary and "gravity axis checked" in summary
+    assert "still gyro" in check_imu_units(imu.t, imu.gyro, imu.accel)  # without the truth: the still stretch
+    summary = check_imu_units(boxes.imu.t, boxes.imu.gyro, boxes.imu.accel, boxes.groundtruth_imu,
+                              gravity_G=boxes.metadata["gravity_G"])
+    assert "gravity axis checked" in summary
+    # the camera ground truth with the recording's extrinsics gives the same verdict
+    check_imu_units(boxes.imu.t, boxes.imu.gyro, boxes.imu.accel, boxes.groundtruth, R_CtoI=boxes.R_CtoI)
+
+
+def test_preset_through_load_dataset_passes(tmp_path, monkeypatch):
+    monkeypatch.setenv("EVIO_CACHE_DIR", str(tmp_path))  # never the project's cache
+    import evio_lib.pipeline.dataset as dataset
+    from evio_lib.sim.presets import SimulationConfig, simulate_sequence
+
+    def imu_only(preset, duration=None, seed=0, with_events=False, cache=True, progress=False):  # skip rendering
+        return simulate_sequence(SimulationConfig(preset=preset, duration=duration, trajectory_duration=60.0,
+                                                  seed=seed, with_events=False, with_frames=False))
+    monkeypatch.setattr(dataset, "simulate_preset", imu_only)
+    data = load_dataset("boxes_like", duration=2.5, need_frames=False)
+    assert data.notes == ("extrinsics: from the recording (simulator)",)  # the stored noise: no default named
+
+
+def test_real_slider_and_rotation_calibrations_pass(real_data_dir):
+    assert intrinsics_problem(read_calib(real_data_dir / "ecd_slider_depth_slice" / "calib.txt", 240, 180)) is None
+    for calib in sorted((real_data_dir / "ecd_rotation_slices").glob("*/calib.txt")):
+        read_calib(calib, 240, 180)
+
+
+# ----------------------------------------------------------------------------- refused: units and columns
+
+def test_accelerometer_in_g_and_milli_g(euroc, boxes):
+    imu = euroc.imu
+    message = _refused(imu.t, imu.gyro, imu.accel / 9.80665, euroc.groundtruth_imu)
+    assert "accelerometer looks like it is in g" in message and "multiply the accelerometer by 9.80665" in message
+    message = _refused(boxes.imu.t, boxes.imu.gyro, boxes.imu.accel / 9.80665)
+    assert "multiply the accelerometer by 9.80665" in message
+    message = _refused(imu.t, imu.gyro, imu.accel / 9.80665 * 1000.0)
+    assert "milli-g" in message and "multiply the accelerometer by 0.00980665" in message
+    message = _refused(imu.t, imu.gyro, imu.accel * 16384 / 9.80665)  # raw counts of a ±2 g part
+    assert "divide by the LSB per g" in message
+
+
+def test_gyro_and_accelerometer_columns_swapped(euroc, boxes):
+    message = _refused(euroc.imu.t, euroc.imu.accel, euroc.imu.gyro, euroc.groundtruth_imu,
+                       columns="timestamp, w xyz, a xyz")
+    assert "columns look swapped" in message and "put the columns in the order timestamp, w xyz, a xyz" in message
+    assert "swapped" in _refused(boxes.imu.t, boxes.imu.accel, boxes.imu.gyro)
+
+
+def test_gyro_in_deg_per_s_with_ground_truth(euroc, boxes):
+    message = _refused(euroc.imu.t, euroc.imu.gyro * DEG, euroc.imu.accel, euroc.groundtruth_imu)
+    assert "gyro looks like it is in deg/s" in message and "times the ground truth's angular rate" in message
+    assert "multiply the gyro by pi/180" in message
+    ratio = float(message.split("reads ")[1].split(" times")[0])
+    assert 50 < ratio < 65  # 57.3
+    assert "pi/180" in _refused(boxes.imu.t, boxes.imu.gyro * DEG, boxes.imu.accel, boxes.groundtruth_imu)
+
+
+def test_gyro_in_deg_per_s_without_ground_truth(euroc, boxes):
+    # a still stretch: the gyro reads its bias, 57.3 times too large
+    message = _refused(euroc.imu.t, euroc.imu.gyro * DEG, euroc.imu.accel)
+    assert "where the accelerometer is still it reads" in message and "pi/180" in message
+    assert "pi/180" in _refused(boxes.imu.t, boxes.imu.gyro * DEG, boxes.imu.accel)
+    # no still stretch: a steady spin of 1 rad/s about gravity, in deg/s, is beyond any MEMS gyro's range
+    t = np.arange(2000) * 1e-3
+    gyro = np.tile([0.0, 0.0, 1.0 * DEG], (2000, 1))
+    message = _refused(t, gyro, np.tile([0.0, 0.0, 9.81], (2000, 1)))
+    assert "100 % of the samples read more than 34.9 rad/s" in message and "pi/180" in message
+
+
+# ----------------------------------------------------------------------------- refused: gravity on the wrong axis
+
+def test_gravity_on_an_axis_the_truth_contradicts(euroc, boxes):
+    imu, truth = euroc.imu, euroc.groundtruth_imu
+    message = _refused(imu.t, imu.gyro, imu.accel[:, [2, 1, 0]], truth)  # x and z exchanged
+    assert "gravity lies on an axis the ground truth contradicts" in message
+    assert "the truth puts it on the IMU's +x" in message and "the accelerometer on +z" in message
+    assert "reorder or flip the accelerometer columns" in message
+    message = _refused(imu.t, imu.gyro, -imu.accel, truth)  # gravity instead of the specific force
+    assert "deg away from up" in message and "the truth puts it on the IMU's +x" in message
+    assert "the accelerometer on -x" in message
+    rotated = boxes.imu.accel @ np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]).T
+    message = _refused(boxes.imu.t, boxes.imu.gyro, rotated[:, [0, 2, 1]], boxes.groundtruth_imu)
+    assert "contradicts" in message
+    # the camera ground truth with the recording's extrinsics sees it too
+    assert "contradicts" in _refused(boxes.imu.t, boxes.imu.gyro, boxes.imu.accel[:, [1, 2, 0]], boxes.groundtruth,
+                                     R_CtoI=boxes.R_CtoI)
+
+
+# ----------------------------------------------------------------------------- readers and the command line
+
+def _euroc_copy(real: Path, tmp: Path, gyro_scale: float = 1.0, accel_scale: float = 1.0, noise: str | None = None,
+                intrinsics: str | None = None) -> Path:
+    """A EuRoC folder of links to the real slice, with imu0 (and optionally cam0/sensor.yaml) rewritten."""
+    root = tmp / "V1_01_user"
+    (root / "mav0" / "imu0").mkdir(parents=True)
+    os.symlink(real / "groundtruth_openvins", root / "groundtruth_openvins")
+    if intrinsics is None:
+        os.symlink(real / "mav0" / "cam0", root / "mav0" / "cam0")
+    else:
+        (root / "mav0" / "cam0").mkdir()
+        os.symlink(real / "mav0" / "cam0" / "data", root / "mav0" / "cam0" / "data")
+        os.symlink(real / "mav0" / "cam0" / "data.csv", root / "mav0" / "cam0" / "data.csv")
+        text = (real / "mav0" / "cam0" / "sensor.yaml").read_text()
+        start = text.index("intrinsics:")
+        end = text.index("\n", start)
+        (root / "mav0" / "cam0" / "sensor.yaml").write_text(text[:start] + f"intrinsics: {intrinsics}" + text[end:])
+    lines = (real / "mav0" / "imu0" / "data.csv").read_text().splitlines()
+    out = [lines[0]]
+    for line in lines[1:]:
+        v = line.split(",")
+        w = [repr(float(x) * gyro_scale) for x in v[1:4]]
+        a = [repr(float(x) * accel_scale) for x in v[4:7]]
+        out.append(",".join([v[0], *w, *a]))
+    (root / "mav0" / "imu0" / "data.csv").write_text("\n".join(out) + "\n")
+    yaml = (real / "mav0" / "imu0" / "sensor.yaml").read_text()
+    if noise is not None:
+        start = yaml.index("gyroscope_noise_density:")
+        end = yaml.index("\n", start)
+        yaml = yaml[:start] + f"gyroscope_noise_density: {noise}" + yaml[end:]
+    (root / "mav0" / "imu0" / "sensor.yaml").write_text(yaml)
+    return root
+
+
+def _run_refused(capsys, args: list[str], folder: Path) -> str:
+    before = _tree(folder.parent)
+    code = cli.main(["run", *args, "--quiet"])
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert code == 2, captured.err
+    assert len(lines) == 1 and lines[0].startswith("error: "), captured.err
+    assert _tree(folder.parent) == before  # the user's recording is unchanged, nothing written beside it
+    return lines[0]
+
+
+def test_run_refuses_a_euroc_gyro_in_deg_per_s(real_data_dir, tmp_path, capsys):
+    folder = _euroc_copy(real_data_dir / EUROC, tmp_path, gyro_scale=DEG)
+    line = _run_refused(capsys, [str(folder)], folder)
+    assert line.startswith("error: mav0/imu0/data.csv: the gyro looks like it is in deg/s") and "pi/180" in line
+
+
+def test_run_refuses_an_ecd_accelerometer_in_g(boxes, tmp_path, capsys):
+    seq = boxes.slice_time(0.0, 3.1)
+    seq.imu = ImuSamples(boxes.imu.t, boxes.imu.gyro, boxes.imu.accel / 9.80665)
+    folder = write_ecd(seq, tmp_path / "user_rec")
+    line = _run_refused(capsys, [str(folder)], folder)
+    assert line.startswith("error: imu.txt: the accelerometer looks like it is in g") and "9.80665" in line
+    with pytest.raises(ImuUnitsError, match="imu.txt: the accelerometer looks like it is in g"):
+        read_ecd(folder)
+
+
+def test_run_refuses_implausible_bias_init(tmp_path, capsys):
+    folder = tmp_path / "rec"
+    folder.mkdir()
+    line = _run_refused(capsys, [str(folder), "--bias-init", "1e6,0,0,0,0,0"], folder)
+    assert "--bias-init: gyro bias bgx = 1e+06 rad/s is implausible: |b_g| must be <= 0.5 rad/s" in line
+    with pytest.raises(ValueError, match=r"accelerometer bias baz = 9.81 m/s\^2 is implausible: \|b_a\| must be <= 3"):
+        _bias("0,0,0,0,0,9.81")
+    with pytest.raises(ValueError, match=r"gyro bias bgy = -0.6"):
+        check_bias_values([0.0, -0.6, 0.0, 0.0, 0.0, 0.0])
+    with pytest.raises(ValueError, match="six finite numbers"):
+        _bias("nan,0,0,0,0,0")
+    assert _bias("0.01,-0.02,0.03,0.1,-0.2,0.3") == (0.01, -0.02, 0.03, 0.1, -0.2, 0.3)
+
+
+# ----------------------------------------------------------------------------- noise densities and intrinsics
+
+@pytest.mark.parametrize("value, shown", [("-1.6968e-04", "-0.00016968"), (".nan", "'.nan'"), ("nan", "nan")])
+def test_euroc_negative_or_nan_noise_is_refused(real_data_dir, tmp_path, value, shown):
+    folder = _euroc_copy(real_data_dir / EUROC, tmp_path, noise=value)
+    with pytest.raises(DataFileError, match=r"mav0/imu0/sensor.yaml: gyroscope_noise_density must be a finite number "
+                                            r">= 0; got " + shown.replace(".", r"\.")):
+        read_euroc(folder, load_frames=False)
+
+
+def test_stored_noise_is_refused_or_named_never_replaced(boxes, tmp_path):
+    import evio_lib.pipeline.dataset as dataset
+
+    seq = boxes.slice_time(0.0, 3.1)
+    seq.metadata = dict(boxes.metadata, imu_noise={"gyro_noise_density": -1e-4, "accel_noise_density": 2e-3})
+    folder = write_ecd(seq, tmp_path / "neg")
+    with pytest.raises(ValueError, match=r"IMU noise: gyro_noise_density must be a finite number >= 0; got -0.0001"):
+        dataset._noise_from_metadata(read_ecd(folder).metadata, str(folder))
+    noise, missing = dataset._noise_from_metadata({"imu_noise": {"gyroscope_noise_density": 2e-4}}, "x")
+    assert noise.gyro_noise_density == 2e-4 and missing == ["accel_noise_density", "gyro_random_walk",
+                                                            "accel_random_walk"]
+
+
+@pytest.mark.parametrize("calib, message", [
+    ("199.1 198.8 367.2 248.4 -0.36 0.15 0 0 0", r"principal point \(cx, cy\) = \(367.2, 248.4\) lies outside the 240 x "
+                                                 r"180 image"),
+    ("199.1 198.8 -20 110.7 -0.36 0.15 0 0 0", r"principal point .* outside"),
+    ("0.199 0.198 132.2 110.7 -0.36 0.15 0 0 0", r"fx = 0.199 px gives a field of view of 180 degrees"),
+    ("19910 19880 132.2 110.7 0 0 0 0 0", r"fx = 19910 px gives a field of view of 0.691 degrees"),
+    ("199.1 598.8 132.2 110.7 0 0 0 0 0", r"fy / fx = 3.01"),
+    ("-199.1 198.8 132.2 110.7 0 0 0 0 0", r"fx must be a positive focal length"),
+])
+def test_ecd_calibration_outside_the_image_is_refused(tmp_path, calib, message):
+    folder = tmp_path / "rec"
+    folder.mkdir()
+    (folder / "events.txt").write_text("0.1 1 2 1\n")
+    (folder / "calib.txt").write_text(calib + "\n")
+    before = _tree(folder)
+    with pytest.raises(DataFileError, match=r"calib.txt.*: " + message):
+        read_ecd(folder)
+    with pytest.raises(DataFileError, match=message):
+        read_calib(folder / "calib.txt", 240, 180)
+    assert _tree(folder) == before
+
+
+def test_euroc_intrinsics_outside_the_resolution_are_refused(real_data_dir, tmp_path):
+    folder = _euroc_copy(real_data_dir / EUROC, tmp_path, intrinsics="[458.654, 457.296, 867.215, 248.375]")
+    with pytest.raises(DataFileError, match=r"mav0/cam0/sensor.yaml: intrinsics \[fu, fv, cu, cv\] against resolution "
+                                            r"\[width, height\]: principal point \(cx, cy\) = \(867.215, 248.375\) lies "
+                                            r"outside the 752 x 480 image"):
+        read_euroc(folder, load_frames=False)
+
+
+def test_calib_file_format(tmp_path):
+    path = tmp_path / "davis.txt"
+    path.write_text("# DAVIS346\n250 251 172.5 129.5 -0.1 0.01 0 0\n")
+    cam = read_calib(path, 346, 260)
+    assert (cam.fx, cam.fy, cam.cx, cam.cy, cam.k1, cam.k3, cam.width) == (250.0, 251.0, 172.5, 129.5, -0.1, 0.0, 346)
+    path.write_text("250 251 172.5 129.5 -0.1 0.01 0\n")
+    with pytest.raises(DataFileError, match=r"davis.txt line 1: expected 8 or 9 numbers \(fx fy cx cy k1 k2 p1 p2 "
+                                            r"\[k3\]\), got 7"):
+        read_calib(path, 346, 260)
+    path.write_text("250 251 172.5 129.5 0 0 0 0\n250 251 172.5 129.5 0 0 0 0\n")
+    with pytest.raises(DataFileError, match="expected one line"):
+        read_calib(path, 346, 260)
+    with pytest.raises(DataFileError, match="file not found"):
+        read_calib(tmp_path / "none.txt", 346, 260)
+    assert intrinsics_problem(PinholeRadtan(fx=250, fy=250, cx=172.5, cy=129.5, width=346, height=260)) is None
