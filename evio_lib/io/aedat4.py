@@ -15,10 +15,20 @@ converted here to the library's SI units::
 
 Timestamps stay absolute (Unix time): microseconds are exact in float64 seconds at that magnitude
 (float64 spacing ~2.4e-7 s). The IMU is expressed in the IMU chip frame; the file holds no calibration and no
-camera-IMU extrinsics, so ``camera``, ``R_CtoI`` and ``p_CinI`` are None.
+camera-IMU extrinsics, so ``camera``, ``R_CtoI`` and ``p_CinI`` are None. The converted samples go through
+:func:`evio_lib.io.imu_checks.check_imu_units` (a file whose IMU is not in g and deg/s is refused, not run).
+
+To run the pipeline on a file (``python -m evio_lib run FILE.aedat4 --calib calib.txt``) the calibration comes from
+an ECD-style ``calib.txt`` (``fx fy cx cy k1 k2 p1 p2 [k3]``, :func:`evio_lib.io.ecd.read_calib`); the extrinsics
+are taken as camera = IMU frame, as for the ECD: on a DAVIS the IMU chip sits on the camera's board, a centimetre or
+so from the sensor, its axes assumed aligned with the camera's (give ``--extrinsics`` when they are not).
 """
 from __future__ import annotations
 
+import contextlib
+import os
+import sys
+import tempfile
 from pathlib import Path
 
 import cv2
@@ -26,6 +36,7 @@ import numpy as np
 
 from evio_lib.events.array import EVENT_DTYPE
 from evio_lib.io.errors import DataFileError, require_file
+from evio_lib.io.imu_checks import check_imu_units
 from evio_lib.sequence import ImuSamples, Sequence
 
 __all__ = ["read_aedat4", "STANDARD_GRAVITY", "us_to_seconds"]
@@ -58,6 +69,30 @@ def _frame_to_gray(frame: dict, where: str) -> np.ndarray:
     return pixels
 
 
+@contextlib.contextmanager
+def _native_stderr_captured():
+    """Send what native code writes to file descriptor 2 into a temporary file; yield a function returning it.
+
+    The Rust decoder panics on some damaged files, and its panic hook prints "thread ... panicked at ..." (and a
+    backtrace with RUST_BACKTRACE) on the process's stderr before Python sees the exception: the command line's
+    one-line error would come with a screenful of Rust. What was captured is written back to stderr when decoding
+    succeeds, and dropped when the damage is reported as one DataFileError.
+    """
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError):  # no real stderr (e.g. some embedded interpreters): capture nothing
+        yield lambda: b""
+        return
+    with tempfile.TemporaryFile() as captured:
+        os.dup2(captured.fileno(), 2)
+        try:
+            yield lambda: (captured.seek(0), captured.read())[1]
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+
+
 def read_aedat4(path: str | Path, *, load_frames: bool = True) -> Sequence:
     """Return the Sequence of an AEDAT4 file: events, APS frames and IMU samples in SI units.
 
@@ -78,12 +113,26 @@ def read_aedat4(path: str | Path, *, load_frames: bool = True) -> Sequence:
 
     path = require_file(path, "an AEDAT4 recording")
     name = path.name
-    try:
-        decoder = aedat.Decoder(str(path))
-        streams = decoder.id_to_stream()
-        packets = list(decoder)
-    except Exception as exc:  # the Rust decoder raises plain Exceptions/OSErrors with its own messages
-        raise DataFileError(f"{name}: not a readable AEDAT4 file ({type(exc).__name__}: {exc})") from None
+    failure = None
+    with _native_stderr_captured() as native_output:
+        try:
+            decoder = aedat.Decoder(str(path))
+            streams = decoder.id_to_stream()
+            packets = list(decoder)
+        except (KeyboardInterrupt, SystemExit):
+            raise
+        except BaseException as exc:  # noqa: B036 - the Rust decoder raises RuntimeErrors, and on a damaged header
+            # panics with pyo3's PanicException, which derives from BaseException, not Exception
+            failure = exc
+        else:
+            leftover = native_output()
+    if failure is not None:
+        detail = (str(failure).strip().splitlines() or [""])[0][:200]
+        raise DataFileError(f"{name}: not a readable AEDAT4 file, damaged or truncated? ({type(failure).__name__}: "
+                            f"{detail})") from None
+    if leftover:  # the decoder's own messages of a successful read go where they would have gone
+        sys.stderr.flush()
+        os.write(2, leftover)
     event_ids = [k for k, s in streams.items() if s.get("type") == "events"]
     if not event_ids:
         raise DataFileError(f"{name}: no event stream in the file; streams: {streams}")
@@ -139,6 +188,9 @@ def read_aedat4(path: str | Path, *, load_frames: bool = True) -> Sequence:
                          accel=accel_g * STANDARD_GRAVITY)  # g -> m/s^2
         metadata["imu_units"] = "file: accelerometer in g, gyroscope in deg/s; converted: accel * 9.80665 -> m/s^2, gyro * pi/180 -> rad/s"
         metadata["imu_temperature_mean_C"] = round(float(np.mean(samples["temperature"])), 3)
+        if len(imu) >= 2 and np.all(np.diff(imu.t) > 0):  # (duplicate times: the Sequence below names them)
+            check_imu_units(imu.t, imu.gyro, imu.accel, source=f"{name} IMU (converted from g and deg/s)",
+                            columns="accelerometer in g and gyroscope in deg/s, as AEDAT4 (DV) stores them")
 
     if frame_list:
         order = np.argsort(frame_t, kind="stable")
