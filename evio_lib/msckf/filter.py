@@ -94,6 +94,7 @@ from evio_lib.msckf.state import (
 )
 from evio_lib.msckf.triangulation import triangulate_inverse_depth_batch
 from evio_lib.msckf.update import chi_square_threshold, kalman_update, measurement_compress
+from evio_lib.msckf.zero_velocity import ZeroVelocityConfig, zero_velocity_measurement
 
 __all__ = [
     "FilterOutput", "Msckf", "MsckfWarning", "OC_UPDATE_MODES", "StepRefusedError", "apply_correction",
@@ -530,6 +531,60 @@ class Msckf:
         Each frame is (t, ids, xy) or (t, ids, xy, xy_cov), the arguments of :meth:`process_image`."""
         self.feed_imu(imu_t, gyro, accel)
         return [self.process_image(*frame) for frame in frames]
+
+    def zero_velocity_update(self, t: float, zv: ZeroVelocityConfig, window: float | None = None
+                             ) -> FilterOutput | None:
+        """Return the estimate after a zero-velocity update at image time t, or None when its gate refuses it.
+
+        The platform was declared still at t (:class:`evio_lib.msckf.zero_velocity.StandstillDetector`): the
+        state is propagated to t and corrected by the 9-row measurement v = 0, mean(ω_m) = b_g,
+        mean(a_m) = -R_GtoI g + b_a over the IMU samples since the previous image (at least ``window`` s, default
+        ``zv.imu_window``), see :func:`evio_lib.msckf.zero_velocity.zero_velocity_measurement`. No camera pose is
+        cloned and no feature is used. A measurement that fails the chi-square gate (``zv.chi2_probability``) is
+        not applied (counted in ``rejections['zupt_gate']``); the state is then propagated to t and the caller
+        processes the image as usual.
+        """
+        if isinstance(t, bool) or not isinstance(t, (int, float, np.integer, np.floating)) or not math.isfinite(t):
+            raise ValueError(f"t must be a finite image time in seconds; got {t!r}")
+        t = float(t)
+        if t < self._state.timestamp:
+            raise ValueError(f"t must be >= the filter time {self._state.timestamp!r} (images in order); got {t!r}")
+        imu_t, imu_w, imu_a = self._imu_buffer()
+        span = zv.imu_window if window is None else float(window)
+        lo = int(np.searchsorted(imu_t, min(self._state.timestamp, t - span), side="right"))
+        hi = int(np.searchsorted(imu_t, t, side="right"))
+        t_win, w_win, a_win = imu_t[lo:hi].copy(), imu_w[lo:hi].copy(), imu_a[lo:hi].copy()
+        self._frame_counters = Counter()
+        self._propagate_to(t)
+        if t_win.shape[0] < 2:
+            self.rejections["zupt_no_imu"] += 1
+            return None
+        cfg = self.config
+        state = self._state
+        H, r = zero_velocity_measurement(state, t_win, w_win, a_win, cfg.gravity, cfg.gyro_noise_density,
+                                         cfg.accel_noise_density, zv)
+        S = H @ state.P @ H.T + np.eye(H.shape[0])
+        try:
+            chi2 = float(r @ np.linalg.solve(S, r))
+        except np.linalg.LinAlgError:
+            chi2 = math.inf
+        if not chi2 <= chi_square_threshold(H.shape[0], zv.chi2_probability):
+            self.rejections["zupt_gate"] += 1
+            return None
+        try:
+            with np.errstate(over="ignore", invalid="ignore"):
+                dx, P_new = kalman_update(state.P, H, r, 1.0)
+        except ValueError as exc:
+            self._refuse_update(f"the zero-velocity update failed ({exc})")
+            return None
+        new_state = apply_correction(state, dx, P_new) if np.all(np.isfinite(dx)) else None
+        problem = "its correction holds non-finite values" if new_state is None else state_problem(new_state)
+        if problem is not None:
+            self._refuse_update(problem)
+            return None
+        self._state = new_state
+        self._frame_counters["zupt"] += 1
+        return self._output(0)
 
     def _propagate_to(self, t: float) -> None:
         """Propagate the state to time t with the buffered IMU samples (OC hook when configured), count and warn
