@@ -13,10 +13,22 @@
 
 Initialisation (``PipelineConfig.init``): 'groundtruth' starts from the ground truth's pose at the first frame and
 its velocity (the recording's own, else a central difference of its positions over ±25 ms) as the thesis did;
-'static' estimates roll, pitch and the gyro bias from the first ``static_init_duration`` (1 s) of a still IMU
-(yaw 0, position 0: the filter's world then differs from the ground truth's by a rigid motion, so only the aligned
-ATE compares them); 'auto' takes the ground truth when there is one. Biases start at zero (``bias_init='zero'``), at
-the ground truth's (``'groundtruth'``, the thesis's hand-tuned "bias correction" row) or at given values.
+'static' estimates roll, pitch and the gyro bias from the first ``static_init_duration`` (1 s; shorter recordings use
+half their length, at least 0.1 s) of a still IMU, velocity 0, as OpenVINS and S-MSCKF do. Yaw and position are not
+observable from a still IMU: with a ground truth they are taken from it (so the errors need no alignment), without
+one they are 0. 'auto' (the default) uses 'static' whenever the IMU is still over that window (and the ground truth,
+where there is one, says it is not moving faster than 5 cm/s), else the ground truth. Biases start at zero
+(``bias_init='zero'``; after a static start the gyro bias is the still IMU's mean), at the ground truth's
+(``'groundtruth'``, the thesis's hand-tuned "bias correction" row) or at given values.
+
+Standstill (``PipelineConfig.zupt``, on by default): every frame is tested for standstill (the tracks moved less
+than half a pixel, the IMU is still, the filter's speed is below 0.1 m/s; :mod:`evio_lib.msckf.zero_velocity`) and a
+still frame gets a zero-velocity update instead of a visual one (OpenVINS's ZUPT): no camera clone piles up at one
+place and the IMU's drift is stopped.
+
+Scoring: a ground truth that ends before (or starts after) the run is scored over the overlap, and the notes say so.
+The % of distance (thesis) is reported only for paths of at least :data:`MIN_PERCENT_DISTANCE_M` (0.5 m): over a
+shorter path it divides by almost nothing (a still MAV: "2590 % of 0.0 m").
 
 Every per-frame figure is kept (:class:`PipelineResult`); nothing is written here (see :mod:`.output`).
 """
@@ -38,12 +50,18 @@ from evio_lib.msckf.config import MsckfConfig
 from evio_lib.msckf.experiment import observation_covariance
 from evio_lib.msckf.filter import Msckf, MsckfWarning
 from evio_lib.msckf.initialization import initial_state_from_static, initial_state_from_truth
+from evio_lib.msckf.zero_velocity import StandstillDetector, ZeroVelocityConfig
 from evio_lib.pipeline.dataset import LoadedDataset
 from evio_lib.pipeline.frames import FRAME_SOURCES, aps_frames, event_frames
 
-__all__ = ["INIT_MODES", "PipelineConfig", "PipelineResult", "run_pipeline", "set_threads"]
+__all__ = ["INIT_MODES", "MIN_PERCENT_DISTANCE_M", "PipelineConfig", "PipelineResult", "run_pipeline", "set_threads"]
 
 INIT_MODES = ("auto", "groundtruth", "static")
+#: Shortest ground-truth path for which the % of distance is reported, m. Over a shorter path the mean error divided
+#: by the length measures the noise of standing still, not drift per metre travelled.
+MIN_PERCENT_DISTANCE_M = 0.5
+#: 'auto' initialisation: fastest ground-truth speed (m/s) over the still window for which the start counts as still.
+_STILL_TRUTH_SPEED = 0.05
 
 
 @dataclass(frozen=True)
@@ -70,6 +88,7 @@ class PipelineConfig:
         pixel_noise_px: feature noise σ, pixels.
         max_duration: seconds of the recording processed from the start (None: all).
         seed: seed of the front-end's RANSAC.
+        zupt: detect standstill and apply zero-velocity updates there (module docstring).
     """
 
     frames: str = "aps"
@@ -88,6 +107,7 @@ class PipelineConfig:
     pixel_noise_px: float = 1.0
     max_duration: float | None = None
     seed: int = 0
+    zupt: bool = True
 
     def __post_init__(self) -> None:
         if self.frames not in FRAME_SOURCES:
@@ -107,6 +127,8 @@ class PipelineConfig:
             raise ValueError(f"max_duration must be None or a number of seconds > 0; got {self.max_duration!r}")
         if isinstance(self.detector_options, dict):
             object.__setattr__(self, "detector_options", tuple(sorted(self.detector_options.items())))
+        if not isinstance(self.zupt, bool):
+            raise ValueError(f"zupt must be True or False; got {self.zupt!r}")
         if not (math.isfinite(self.pixel_noise_px) and self.pixel_noise_px > 0):
             raise ValueError(f"pixel_noise_px must be > 0; got {self.pixel_noise_px!r}")
         FrontendConfig(method=self.tracker, max_features=self.max_features, ratio=self.match_ratio,
@@ -188,9 +210,13 @@ class PipelineResult:
             lines.append(f"  ATE after alignment: {m['ate_se3_m']:.3f} m (SE(3)), {m['ate_4dof_m']:.3f} m (position + "
                          f"yaw); ground-truth path {m['distance_m']:.2f} m")
         elif "rmse_m" in m:
-            lines.append(f"  RMSE {m['rmse_m']:.3f} m, final error {m['final_error_m']:.3f} m, "
-                         f"{m['percent_of_distance']:.2f} % of {m['distance_m']:.1f} m, ATE (SE(3)) {m['ate_se3_m']:.3f} m, "
-                         f"orientation RMSE {m['orientation_rmse_deg']:.2f} deg")
+            percent = (f"{m['percent_of_distance']:.2f} % of {m['distance_m']:.1f} m" if
+                       math.isfinite(m["percent_of_distance"]) else
+                       f"path {m['distance_m']:.3f} m (too short for a % of distance)")
+            lines.append(f"  RMSE {m['rmse_m']:.3f} m, final error {m['final_error_m']:.3f} m, {percent}, "
+                         f"ATE (SE(3)) {m['ate_se3_m']:.3f} m, orientation RMSE {m['orientation_rmse_deg']:.2f} deg")
+        if m.get("zupt_frames"):
+            lines.append(f"  standing still: {m['zupt_frames']} of {len(self.t)} frames got a zero-velocity update")
         if len(self.tracking.get("t", ())):
             lines.append(f"  tracking: {np.mean(self.tracking['total']):.1f} features/frame, "
                          f"{np.mean(self.tracking['tracked']):.1f} tracked, mean track length "
@@ -240,6 +266,65 @@ def _truth_imu(data: LoadedDataset, t: np.ndarray) -> dict[str, np.ndarray]:
     if g.bias_gyro is not None:
         out["b_g"], out["b_a"] = g.bias_gyro, g.bias_accel
     return out
+
+
+def _truth_at(data: LoadedDataset, t: float) -> dict[str, np.ndarray]:
+    """Return the IMU's ground truth at one time (arrays of one row), or {} when t lies outside its span."""
+    gt = _groundtruth(data)
+    if gt is None or not (gt.t[0] <= t <= gt.t[-1]):
+        return {}
+    return _truth_imu(data, np.array([t]))
+
+
+def _still_window(cfg: MsckfConfig, t_first: float, t_last: float) -> float:
+    """Return the length of the static-initialisation window: ``cfg.static_init_duration`` (1 s), or half the
+    run for a shorter recording, at least 0.1 s (a 0.17 s AEDAT4 clip still gets a static start)."""
+    return float(min(cfg.static_init_duration, max(0.1, 0.5 * (t_last - t_first))))
+
+
+def _still_start(data: LoadedDataset, cfg: MsckfConfig, t_first: float) -> tuple[bool, str]:
+    """Return (still, why): whether the recording starts still over the static-initialisation window.
+
+    Still means: the IMU passes :func:`~evio_lib.msckf.initialization.static_initialization`'s test and, where there
+    is a ground truth, its speed stays below 5 cm/s over the window (the IMU cannot tell rest from a constant
+    velocity; the ground truth can)."""
+    from evio_lib.msckf.initialization import static_initialization
+
+    imu = data.sequence.imu
+    window = cfg.static_init_duration
+    try:
+        static_initialization(imu.t, imu.gyro, imu.accel, window, float(np.linalg.norm(cfg.gravity)),
+                              t_start=t_first)
+    except ValueError as error:
+        return False, f"the IMU is not still over the first {window:g} s ({str(error).split(':', 1)[-1].strip()})"
+    gt = _groundtruth(data)
+    if gt is not None:
+        a, b = max(t_first, float(gt.t[0])), min(t_first + window, float(gt.t[-1]))
+        if b > a:
+            tt = np.linspace(a, b, 11)
+            p = _truth_imu(data, tt)["p_IinG"]
+            speed = float(np.max(np.linalg.norm(np.diff(p, axis=0), axis=1)) / (tt[1] - tt[0]))
+            if speed > _STILL_TRUTH_SPEED:
+                return False, (f"the IMU looks still over the first {window:g} s but the ground truth moves at up to "
+                               f"{speed:.2f} m/s (a constant velocity)")
+    return True, f"the IMU is still over the first {window:g} s"
+
+
+def _anchor_to_truth(state: Any, truth: dict[str, np.ndarray], cfg: MsckfConfig) -> Any:
+    """Return the static-start ``state`` turned to the ground truth's yaw and moved to its position.
+
+    The static start fixes roll and pitch (from gravity) with yaw ψ = 0; here R_ItoG <- Rz(ψ_true) R_ItoG with
+    ψ_true = atan2(R_true[1, 0], R_true[0, 0]) (ZYX yaw), and p_IinG <- p_true. Velocity (0), biases and P stay."""
+    from evio_lib.msckf.state import FilterState, ImuState
+
+    R_true = truth["R_ItoG"][0]
+    yaw = math.atan2(R_true[1, 0], R_true[0, 0])
+    c, s_ = math.cos(yaw), math.sin(yaw)
+    Rz = np.array([[c, -s_, 0.0], [s_, c, 0.0], [0.0, 0.0, 1.0]])
+    imu = state.imu
+    new = ImuState.from_pose(Rz @ imu.R_ItoG, truth["p_IinG"][0], imu.v_IinG, imu.timestamp, b_g=imu.b_g,
+                             b_a=imu.b_a)
+    return FilterState.initial(new, state.R_CtoI, state.p_CinI, state.P)
 
 
 def _truth_velocity(data: LoadedDataset, t0: float, truth0: dict[str, np.ndarray]) -> np.ndarray:
@@ -327,11 +412,18 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
     seq = data.sequence
     notes = list(data.notes)
     has_truth = _groundtruth(data) is not None
-    init = config.init if config.init != "auto" else ("groundtruth" if has_truth else "static")
-    if init == "groundtruth" and not has_truth:
+    if config.init == "groundtruth" and not has_truth:
         raise ValueError("init 'groundtruth' needs a ground truth (groundtruth.txt); use init 'static'")
     t_first, t_last = _span(data, config)
     msckf_cfg = msckf_config_for(config, data)
+    still_window = _still_window(msckf_cfg, t_first, t_last)
+    msckf_cfg = dataclasses.replace(msckf_cfg, static_init_duration=still_window)
+    init = config.init
+    unanchored = False  # a static start without ground truth at its end: another world frame, aligned errors only
+    if init == "auto":
+        still, why = _still_start(data, msckf_cfg, t_first)
+        init = "static" if still or not has_truth else "groundtruth"
+        notes.append(f"init auto: {why}; {'static' if init == 'static' else 'ground-truth'} initialisation")
 
     if init == "groundtruth":
         t_first = max(t_first, float(_groundtruth(data).t[0]) + 0.025)
@@ -351,20 +443,28 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
         except ValueError as error:
             raise ValueError(f"static initialisation failed: {error}. Start the run where the sensor is still, or "
                              f"give a ground truth (init 'groundtruth')") from None
-        wants_truth = has_truth and config.bias_init == "groundtruth"  # interpolate only when it is used
-        biases = _bias_estimates(config, _truth_imu(data, np.array([stats.t_end])) if wants_truth else {})
+        truth_end = _truth_at(data, stats.t_end) if has_truth else {}
+        biases = _bias_estimates(config, truth_end if config.bias_init == "groundtruth" else {})
         if biases is not None:
             state = dataclasses.replace(state, imu=dataclasses.replace(state.imu, b_g=np.asarray(biases[0]),
                                                                         b_a=np.asarray(biases[1])))
         t_first = stats.t_end
+        if truth_end:  # the unobservable yaw and position from the ground truth: the errors need no alignment
+            state = _anchor_to_truth(state, truth_end, msckf_cfg)
+        unanchored = not truth_end
         notes.append(f"initialisation: static, IMU still over [{stats.t_start:.3f}, {stats.t_end:.3f}] s (gravity "
-                     f"error {stats.gravity_error:+.3f} m/s^2); yaw 0 and position 0, so compare with the ground truth "
-                     f"after alignment (ATE)")
+                     f"error {stats.gravity_error:+.3f} m/s^2), velocity 0, gyro bias "
+                     f"{'from the still IMU' if biases is None else 'from ' + str(config.bias_init)}; "
+                     + ("yaw and position from the ground truth" if truth_end else
+                        "yaw 0 and position 0, so compare with a ground truth after alignment (ATE)"))
     if t_last <= t_first:
         raise ValueError(f"nothing left to process after the initialisation at t = {t_first:.3f} s")
 
     filt = Msckf(msckf_cfg, state)
     imu = seq.imu
+    zv = ZeroVelocityConfig(enabled=config.zupt and not config.imu_only)
+    standstill = StandstillDetector(zv)
+    zupt_frames = 0
     k0 = int(np.searchsorted(imu.t, t_first, side="right"))
     wall0 = time.perf_counter()
     filt.feed_imu(imu.t[k0:], imu.gyro[k0:], imu.accel[k0:])
@@ -377,7 +477,9 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=round(t_last - t_first, 1), unit="s", desc=config.label(), leave=False)
+        total = round(t_last - t_first, 1)
+        bar = tqdm(total=total, unit="s", desc=config.label(), leave=False, bar_format="{l_bar}{bar}| {n:.1f}/"
+                   "{total:.1f} s [{elapsed}<{remaining}]")
     t_prev = None
     if config.imu_only:
         times = seq.frame_times[(seq.frame_times > t_first) & (seq.frame_times <= t_last)]
@@ -405,15 +507,24 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
                 timings["ransac"] += frame.stats.time_ransac_s
                 tracked.append(frame)
                 start = time.perf_counter()
-                cov = observation_covariance(seq.camera, frame.pixels, sigma_px) if len(frame) else None
-                outputs.append(filt.process_image(t, frame.ids, frame.xy, cov))
+                out = None
+                if zv.enabled and standstill.test(t, frame.ids, frame.pixels, imu.t, imu.gyro, imu.accel,
+                                                  filt.state.imu, msckf_cfg.gravity).still:
+                    out = filt.zero_velocity_update(t, zv)  # None: its gate refused; a visual update then
+                    zupt_frames += out is not None
+                if out is None:
+                    cov = observation_covariance(seq.camera, frame.pixels, sigma_px) if len(frame) else None
+                    out = filt.process_image(t, frame.ids, frame.xy, cov)
+                outputs.append(out)
                 timings["filter"] += time.perf_counter() - start
             if not (np.all(np.isfinite(outputs[-1].p_IinG)) and np.all(np.isfinite(outputs[-1].P_imu))):
                 raise ValueError(f"the filter's state became non-finite at t = {t:.3f} s (faults: {dict(filt.faults)})")
-            if bar is not None:
-                bar.update(round(t - (t_prev if t_prev is not None else t_first), 3))
+            if bar is not None:  # whole tenths of a second, never past the total
+                bar.update(max(0.0, min(bar.total, round(t - t_first, 1)) - bar.n))
             t_prev = t
     if bar is not None:
+        bar.update(max(0.0, bar.total - bar.n))  # ends at its total
+        bar.refresh()
         bar.close()
     wall = time.perf_counter() - wall0
     if not outputs:
@@ -435,11 +546,46 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
         timings=timings, faults=dict(filt.faults), rejections=dict(filt.rejections),
     )
     result.metrics = {"frames": int(len(t)), "duration_s": duration, "t_start": t_first, "t_end": float(t[-1]),
-                      "init": init}
+                      "init": init, "zupt_frames": int(zupt_frames)}
     if has_truth:
-        result.truth = _truth_imu(data, t)
-        result.metrics.update(trajectory_metrics(result, aligned_only=init == "static"))
+        _score(result, data, aligned_only=unanchored)
     return result
+
+
+def _score(result: PipelineResult, data: LoadedDataset, aligned_only: bool) -> None:
+    """Fill ``result.truth`` and ``result.metrics`` against the ground truth, over the frames it covers.
+
+    A ground truth that ends before the run (common with motion capture) or starts after it is scored over the
+    overlap; the truth arrays hold NaN at the other frames and a note says which part was scored."""
+    gt = _groundtruth(data)
+    t = result.t
+    inside = (t >= gt.t[0]) & (t <= gt.t[-1])
+    n_in = int(np.count_nonzero(inside))
+    if n_in < 2:
+        result.notes.append(f"no metrics: the ground truth [{gt.t[0]:.3f}, {gt.t[-1]:.3f}] s covers {n_in} of the "
+                            f"{len(t)} frames [{t[0]:.3f}, {t[-1]:.3f}] s")
+        return
+    if n_in == len(t):
+        result.truth = _truth_imu(data, t)
+        result.metrics.update(trajectory_metrics(result, aligned_only=aligned_only))
+    else:
+        part = _truth_imu(data, t[inside])
+        result.truth = {}
+        for key, value in part.items():
+            full = np.full((len(t),) + value.shape[1:], np.nan)
+            full[inside] = value
+            result.truth[key] = full
+        sub = dataclasses.replace(result, t=t[inside], q_GtoI=result.q_GtoI[inside], p_IinG=result.p_IinG[inside],
+                                  truth=part, metrics={})
+        result.metrics.update(trajectory_metrics(sub, aligned_only=aligned_only))
+        result.metrics["scored_frames"] = n_in
+        result.notes.append(f"scored over the overlap with the ground truth: {n_in} of {len(t)} frames, "
+                            f"[{t[inside][0]:.3f}, {t[inside][-1]:.3f}] s (the ground truth spans "
+                            f"[{gt.t[0]:.3f}, {gt.t[-1]:.3f}] s)")
+    if result.metrics.get("distance_m", 0.0) < MIN_PERCENT_DISTANCE_M:
+        result.metrics["percent_of_distance"] = float("nan")
+        result.notes.append(f"no % of distance: the ground-truth path is {result.metrics.get('distance_m', 0.0):.3f} m, "
+                            f"shorter than {MIN_PERCENT_DISTANCE_M} m")
 
 
 def _track_lengths(frames: list) -> np.ndarray:

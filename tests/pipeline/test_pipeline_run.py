@@ -141,5 +141,6 @@ def test_euroc_runs_with_static_initialisation(real_data_dir):
     data = load_dataset(real_data_dir / "euroc_V1_01_easy_micro")
     result = run_pipeline(data, PipelineConfig(init="static", tracker="klt", features="fast"))
     assert result.metrics["init"] == "static"
-    assert np.isfinite(result.metrics["ate_se3_m"]) and np.isnan(result.metrics["rmse_m"])
+    # yaw and position come from the ground truth at the end of the still window, so the errors need no alignment
+    assert np.isfinite(result.metrics["ate_se3_m"]) and np.isfinite(result.metrics["rmse_m"])
     assert result.metrics["ate_se3_m"] < 0.5  # the MAV barely moves in these 4.7 s
