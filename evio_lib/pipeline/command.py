@@ -14,8 +14,8 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     """Add the options of ``run``."""
     p.add_argument("dataset", nargs="?", default="boxes_like", metavar="DATASET",
                    help="a preset (boxes_like [default], aerial_like; simulated on first use and cached), an ECD folder "
-                        "(events.txt, images.txt + images/, imu.txt, calib.txt, optional groundtruth.txt) or a EuRoC "
-                        "ASL folder (mav0/)")
+                        "(events.txt, images.txt + images/, imu.txt, calib.txt, optional groundtruth.txt), a EuRoC "
+                        "ASL folder (mav0/) or an AEDAT4 file (.aedat4, with --calib)")
     p.add_argument("--frames", choices=["aps", "events"], default="aps",
                    help="aps: the recorded frames (default); events: frames reconstructed from event windows")
     p.add_argument("--features", default="sift",
@@ -37,15 +37,23 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="seconds of the recording to process from its start (default: all)")
     p.add_argument("--seed", type=integer(minimum=0), default=0, help="presets: simulation seed; RANSAC seed (default 0)")
     p.add_argument("--init", choices=["auto", "groundtruth", "static"], default="auto",
-                   help="auto (default): from the ground truth when there is one, else static (the IMU must be still "
-                        "for the first second)")
+                   help="auto (default): static (attitude and gyro bias from the still IMU, velocity 0; yaw and "
+                        "position from the ground truth when there is one) whenever the IMU is still over the first "
+                        "second, else from the ground truth; groundtruth: the ground truth's pose and velocity at the "
+                        "first frame (the thesis's set-up); static: require a still start")
     p.add_argument("--bias-init", default="zero",
                    help="initial biases: zero (default), groundtruth, or six numbers 'bgx,bgy,bgz,bax,bay,baz' "
                         "(rad/s, m/s^2)")
     p.add_argument("--imu-only", action="store_true", help="propagate the IMU only (no visual updates)")
     p.add_argument("--no-oc", action="store_true", help="plain EKF instead of the observability-constrained one")
+    p.add_argument("--no-zupt", action="store_true",
+                   help="no zero-velocity updates where the platform stands still (default: detected from the "
+                        "feature tracks and the IMU, and applied as in OpenVINS)")
     p.add_argument("--extrinsics", type=Path, default=None,
                    help="a Kalibr YAML with T_cam_imu, overriding the recording's extrinsics")
+    p.add_argument("--calib", type=Path, default=None,
+                   help="camera calibration, one line 'fx fy cx cy k1 k2 p1 p2 [k3]' (the ECD calib.txt format): "
+                        "required for an AEDAT4 file, overrides a folder's calibration")
     p.add_argument("--out", type=output_folder(), default=None,
                    help="write trajectory.txt (TUM), states.csv, tracking.csv, metrics.json and figures/ here "
                         "(must be new or empty unless --force)")
@@ -67,7 +75,9 @@ def _bias(text: str):
     if len(values) != 6:
         raise ValueError(f"--bias-init must be zero, groundtruth or six comma-separated numbers "
                          f"'bgx,bgy,bgz,bax,bay,baz'; got {text!r}")
-    return values
+    from evio_lib.io.imu_checks import check_bias_values
+
+    return check_bias_values(values, "--bias-init")  # finite, |b_g| <= 0.5 rad/s, |b_a| <= 3 m/s^2 per axis
 
 
 def _check_detector(name: str, options: tuple) -> None:
@@ -106,11 +116,11 @@ def main_run(args: argparse.Namespace) -> int:
                             max_features=args.max_features, reconstructor=args.reconstructor,
                             window_fraction=args.window_fraction, adaptive_windows=args.adaptive, init=args.init,
                             bias_init=_bias(args.bias_init), imu_only=args.imu_only, oc=not args.no_oc,
-                            max_duration=args.max_duration, seed=args.seed)
+                            zupt=not args.no_zupt, max_duration=args.max_duration, seed=args.seed)
     start = time.perf_counter()
     data = load_dataset(args.dataset, duration=args.duration, seed=args.seed,
                         need_events=args.frames == "events" and not args.imu_only, need_frames=args.frames == "aps"
-                        or args.imu_only, extrinsics=args.extrinsics, progress=not args.quiet)
+                        or args.imu_only, extrinsics=args.extrinsics, progress=not args.quiet, calib=args.calib)
     print(f"loaded {data.sequence.name} ({data.kind}) in {time.perf_counter() - start:.1f} s")
     for note in data.notes:
         print(f"  {note}")

@@ -122,7 +122,9 @@ class PipelineConfig:
             if values.shape != (6,) or not np.all(np.isfinite(values)):
                 raise ValueError(f"bias_init must be 'zero', 'groundtruth' or six finite numbers (b_g, b_a); got "
                                  f"{self.bias_init!r}")
-            object.__setattr__(self, "bias_init", tuple(float(v) for v in values))
+            from evio_lib.io.imu_checks import check_bias_values  # |b_g| <= 0.5 rad/s, |b_a| <= 3 m/s^2 per axis
+
+            object.__setattr__(self, "bias_init", check_bias_values(values, "bias_init"))
         if self.max_duration is not None and not (math.isfinite(self.max_duration) and self.max_duration > 0):
             raise ValueError(f"max_duration must be None or a number of seconds > 0; got {self.max_duration!r}")
         if isinstance(self.detector_options, dict):
