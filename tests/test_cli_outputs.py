@@ -179,7 +179,7 @@ def _start(code: str, cwd: Path) -> subprocess.Popen:
                             stderr=subprocess.PIPE, text=True)
 
 
-def _wait_for(predicate, process: subprocess.Popen, seconds: float = 90.0) -> None:
+def _wait_for(predicate, process: subprocess.Popen, seconds: float = 240.0) -> None:  # generous: a busy 2-core CPU
     deadline = time.monotonic() + seconds
     while not predicate():
         if process.poll() is not None:

@@ -219,7 +219,7 @@ def test_check_protects_the_library(tmp_path, monkeypatch):
     with pytest.raises(ValueError, match="lies inside the evio_lib package"):
         check_output_dir(package / "weights", force=True)  # the shipped weights
     with pytest.raises(ValueError, match="contains the evio_lib package"):
-        check_output_dir(package.parent.parent, force=True)
+        check_output_dir(package.parent, force=True)  # the checkout (or site-packages) that holds it
     assert check_output_dir(package / "weights" / "not_yet_there") == package / "weights" / "not_yet_there"
 
 
