@@ -14,7 +14,8 @@
 Initialisation (``PipelineConfig.init``): 'groundtruth' starts from the ground truth's pose at the first frame and
 its velocity (the recording's own, else a central difference of its positions over ±25 ms) as the thesis did;
 'static' estimates roll, pitch and the gyro bias from the first ``static_init_duration`` (1 s; shorter recordings use
-half their length, at least 0.1 s) of a still IMU, velocity 0, as OpenVINS and S-MSCKF do. Yaw and position are not
+half their length, at least 0.1 s) of a still IMU, velocity 0, as OpenVINS and S-MSCKF do; the window being still,
+the filter starts at its first sample. Yaw and position are not
 observable from a still IMU: with a ground truth they are taken from it (so the errors need no alignment), without
 one they are 0. 'auto' (the default) uses 'static' whenever the IMU is still over that window (and the ground truth,
 where there is one, says it is not moving faster than 5 cm/s), else the ground truth. Biases start at zero
@@ -312,20 +313,22 @@ def _still_start(data: LoadedDataset, cfg: MsckfConfig, t_first: float) -> tuple
     return True, f"the IMU is still over the first {window:g} s"
 
 
-def _anchor_to_truth(state: Any, truth: dict[str, np.ndarray], cfg: MsckfConfig) -> Any:
-    """Return the static-start ``state`` turned to the ground truth's yaw and moved to its position.
+def _anchor_to_truth(state: Any, truth: dict[str, np.ndarray], t: float) -> Any:
+    """Return the static-start ``state`` at time ``t``, turned to the ground truth's yaw and moved to its position
+    when ``truth`` (the truth at t) is given.
 
     The static start fixes roll and pitch (from gravity) with yaw ψ = 0; here R_ItoG <- Rz(ψ_true) R_ItoG with
     ψ_true = atan2(R_true[1, 0], R_true[0, 0]) (ZYX yaw), and p_IinG <- p_true. Velocity (0), biases and P stay."""
     from evio_lib.msckf.state import FilterState, ImuState
 
-    R_true = truth["R_ItoG"][0]
-    yaw = math.atan2(R_true[1, 0], R_true[0, 0])
-    c, s_ = math.cos(yaw), math.sin(yaw)
-    Rz = np.array([[c, -s_, 0.0], [s_, c, 0.0], [0.0, 0.0, 1.0]])
     imu = state.imu
-    new = ImuState.from_pose(Rz @ imu.R_ItoG, truth["p_IinG"][0], imu.v_IinG, imu.timestamp, b_g=imu.b_g,
-                             b_a=imu.b_a)
+    R_ItoG, p_IinG = imu.R_ItoG, imu.p_IinG
+    if truth:
+        R_true = truth["R_ItoG"][0]
+        yaw = math.atan2(R_true[1, 0], R_true[0, 0])
+        c, s_ = math.cos(yaw), math.sin(yaw)
+        R_ItoG, p_IinG = np.array([[c, -s_, 0.0], [s_, c, 0.0], [0.0, 0.0, 1.0]]) @ R_ItoG, truth["p_IinG"][0]
+    new = ImuState.from_pose(R_ItoG, p_IinG, imu.v_IinG, t, b_g=imu.b_g, b_a=imu.b_a)
     return FilterState.initial(new, state.R_CtoI, state.p_CinI, state.P)
 
 
@@ -445,19 +448,21 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
         except ValueError as error:
             raise ValueError(f"static initialisation failed: {error}. Start the run where the sensor is still, or "
                              f"give a ground truth (init 'groundtruth')") from None
-        truth_end = _truth_at(data, stats.t_end) if has_truth else {}
-        biases = _bias_estimates(config, truth_end if config.bias_init == "groundtruth" else {})
+        # The window is still, so the attitude, the gyro bias and v = 0 hold over all of it: the filter starts at
+        # its first sample and the frames inside it are processed too (a 0.17 s clip keeps its frames).
+        t_first = stats.t_start
+        truth_start = _truth_at(data, t_first) if has_truth else {}
+        biases = _bias_estimates(config, truth_start if config.bias_init == "groundtruth" else {})
         if biases is not None:
             state = dataclasses.replace(state, imu=dataclasses.replace(state.imu, b_g=np.asarray(biases[0]),
                                                                         b_a=np.asarray(biases[1])))
-        t_first = stats.t_end
-        if truth_end:  # the unobservable yaw and position from the ground truth: the errors need no alignment
-            state = _anchor_to_truth(state, truth_end, msckf_cfg)
-        unanchored = not truth_end
+        # the unobservable yaw and position from the ground truth where there is one: the errors need no alignment
+        state = _anchor_to_truth(state, truth_start, t_first)
+        unanchored = not truth_start
         notes.append(f"initialisation: static, IMU still over [{stats.t_start:.3f}, {stats.t_end:.3f}] s (gravity "
                      f"error {stats.gravity_error:+.3f} m/s^2), velocity 0, gyro bias "
                      f"{'from the still IMU' if biases is None else 'from ' + str(config.bias_init)}; "
-                     + ("yaw and position from the ground truth" if truth_end else
+                     + ("yaw and position from the ground truth" if truth_start else
                         "yaw 0 and position 0, so compare with a ground truth after alignment (ATE)"))
     if t_last <= t_first:
         raise ValueError(f"nothing left to process after the initialisation at t = {t_first:.3f} s")
