@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from evio_lib.events.array import EVENT_DTYPE
-from evio_lib.events.representations import voxel_grid
+from evio_lib.events.representations import check_sensor_pixels, voxel_grid
 
 __all__ = ["Reconstructor", "LogIntegrator", "LearnedReconstructor", "available_reconstructors", "create_reconstructor",
            "shipped_checkpoint", "reconstruct_windows", "reconstruct_at_times"]
@@ -46,6 +46,7 @@ class Reconstructor(ABC):
         w, h = int(width), int(height)
         if w <= 0 or h <= 0 or w != width or h != height:
             raise ValueError(f"width and height must be positive integers (the sensor size); got {width}x{height}")
+        check_sensor_pixels(w, h, f"the sensor size {w}x{h}")  # before any H x W array: 1e10 px would be 40 GB each
         self.width, self.height = w, h
 
     @abstractmethod

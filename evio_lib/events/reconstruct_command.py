@@ -21,6 +21,45 @@ import numpy as np
 __all__ = ["add_reconstruct_arguments", "main_reconstruct", "read_times_file"]
 
 DEFAULT_FRACTION = 0.35
+#: Most memory the frames of one run may take, GiB: they are all reconstructed before the folder is written, as H x W
+#: float32 (173 KB each at 240 x 180: 8 GiB are about 49 000 frames, half an hour of fast motion at n = 0.35).
+MAX_FRAME_MEMORY_GIB = 8.0
+
+
+def _check_frame_count(args: argparse.Namespace, events: np.ndarray, width: int, height: int,
+                       times: np.ndarray | None) -> None:
+    """Refuse, with the numbers, windows that would give more frames than MAX_WINDOWS or MAX_FRAME_MEMORY_GIB allow.
+
+    The count is estimated from the inputs before any reconstruction: events / (n H W) for --window-fraction,
+    (last - first event time) / S for --window-time, the listed times for --times.
+    """
+    from evio_lib.events.representations import MAX_WINDOWS, window_size_from_fraction
+
+    frame_bytes = 4.0 * width * height
+    most = int(min(MAX_WINDOWS, MAX_FRAME_MEMORY_GIB * 2**30 // frame_bytes))
+    limit = (f"the most is {most:,} (MAX_WINDOWS {MAX_WINDOWS:,}; frames of {width}x{height} within "
+             f"MAX_FRAME_MEMORY_GIB = {MAX_FRAME_MEMORY_GIB:g} GiB)")
+    if times is not None:
+        if times.size > most:
+            raise ValueError(f"--times {args.times} lists {times.size:,} times, about "
+                             f"{times.size * frame_bytes / 2**30:.3g} GiB of frames; {limit}")
+        return
+    if args.adaptive:  # windows of at least 0.02 H W events: bounded like --window-fraction 0.02
+        return
+    if args.window_time is not None:
+        span = float(events["t"][-1] - events["t"][0]) if events.size else 0.0
+        count = span / args.window_time
+        if count > most:
+            raise ValueError(f"--window-time {args.window_time:g} gives about {count:.3g} windows over the {span:.3g} s "
+                             f"of events; {limit} (use --window-time >= {span / most:.3g})")
+        return
+    fraction = DEFAULT_FRACTION if args.window_fraction is None else args.window_fraction
+    per_window = window_size_from_fraction(fraction, width, height)
+    count = events.size / per_window
+    if count > most:
+        raise ValueError(f"--window-fraction {fraction:g} gives about {count:.3g} windows of {per_window:,} event(s) "
+                         f"(n H W = {fraction * width * height:.3g}) for {events.size:,} events; {limit} (use "
+                         f"--window-fraction >= {events.size / (most * width * height):.3g})")
 
 
 def read_times_file(path: str | Path) -> np.ndarray:
@@ -163,6 +202,10 @@ def main_reconstruct(args: argparse.Namespace | Sequence[str] | None = None) -> 
         raise ValueError(f"--window-time must be > 0 seconds; got {args.window_time}")
     if args.times is not None and (args.window_time is not None or args.adaptive):
         raise ValueError("--times takes its frame times from FILE; combine it only with --window-fraction")
+    if args.sensor_size is not None and min(args.sensor_size) > 0:  # before any array of that size is made
+        from evio_lib.events.representations import check_sensor_pixels
+
+        check_sensor_pixels(*args.sensor_size, f"--sensor-size {args.sensor_size[0]} {args.sensor_size[1]}")
     method_file = None if args.method in available_reconstructors() else args.method
     check_output_dir(args.out, args.force, name="--out", inputs=[  # a preset name is no path: only a folder counts
         ("the input recording", args.sequence if Path(args.sequence).exists() else None),
@@ -171,6 +214,7 @@ def main_reconstruct(args: argparse.Namespace | Sequence[str] | None = None) -> 
     events, width, height = _load_events(args)
     if events is None or events.size == 0:
         raise ValueError(f"{args.sequence} holds no events to reconstruct from")
+    _check_frame_count(args, events, width, height, times)  # a window per event would never end
     reconstructor = _make_reconstructor(args.method, width, height)
     fraction = DEFAULT_FRACTION if args.window_fraction is None else args.window_fraction
     if times is not None:

@@ -28,6 +28,9 @@ import numpy as np
 from evio_lib.events.array import EVENT_DTYPE
 
 __all__ = [
+    "MAX_SENSOR_PIXELS",
+    "MAX_WINDOWS",
+    "check_sensor_pixels",
     "window_size_from_fraction",
     "count_windows",
     "time_windows",
@@ -37,6 +40,22 @@ __all__ = [
     "voxel_grid",
     "normalize_voxel_grid",
 ]
+
+
+#: Largest sensor accepted, in pixels (4096 x 4096 = 16.8 Mpx). The largest event cameras have about 1 Mpx (1280 x 720,
+#: 1280 x 960); every representation and reconstructor holds a few float arrays of H x W (64 MiB each at this size), so
+#: a mistyped size such as 100000 x 100000 (1e10 px: 40 GB per float32 frame) is refused before any allocation.
+MAX_SENSOR_PIXELS = 4096 * 4096
+
+#: Most windows one cut of the stream may give. Each window is one reconstruction step (1-10 ms with the shipped
+#: FireNet at 240 x 180, so 10^6 windows is hours) and one frame of H x W floats kept or written (173 KB at 240 x 180:
+#: 10^6 frames are 173 GB); a window per event (--window-fraction 1e-9, --window-time 1e-9) would never end.
+MAX_WINDOWS = 1_000_000
+
+
+def _too_many_windows(windows: float, what: str, advice: str) -> ValueError:
+    """Return the ValueError for a cut into ``windows`` windows (> MAX_WINDOWS), ``what`` saying how it came about."""
+    return ValueError(f"{what} gives about {windows:.3g} windows; the most is {MAX_WINDOWS:,} (MAX_WINDOWS){advice}")
 
 
 def _check_events(events: np.ndarray) -> None:
@@ -51,7 +70,22 @@ def _check_size(width: int, height: int) -> tuple[int, int]:
     w, h = int(width), int(height)
     if w <= 0 or h <= 0 or w != width or h != height:
         raise ValueError(f"width and height must be positive integers; got width={width}, height={height}")
+    check_sensor_pixels(w, h)
     return w, h
+
+
+def check_sensor_pixels(width: int, height: int, what: str = "the sensor") -> None:
+    """Raise ValueError when width x height exceeds :data:`MAX_SENSOR_PIXELS` (``what`` names it in the message).
+
+    >>> check_sensor_pixels(100000, 100000, "--sensor-size 100000 100000")
+    Traceback (most recent call last):
+    ...
+    ValueError: --sensor-size 100000 100000 is 1e+10 pixels; the most is 16,777,216 (4096 x 4096, MAX_SENSOR_PIXELS; event cameras have about 1 Mpx)
+    """
+    pixels = int(width) * int(height)
+    if pixels > MAX_SENSOR_PIXELS:
+        raise ValueError(f"{what} is {pixels:.3g} pixels; the most is {MAX_SENSOR_PIXELS:,} (4096 x 4096, "
+                         f"MAX_SENSOR_PIXELS; event cameras have about 1 Mpx)")
 
 
 def _pixel_index(events: np.ndarray, width: int, height: int) -> np.ndarray:
@@ -93,6 +127,9 @@ def count_windows(events: np.ndarray, n_events: int) -> np.ndarray:
     _check_events(events)
     if int(n_events) != n_events or n_events < 1:
         raise ValueError(f"n_events must be a positive integer; got {n_events!r}")
+    if events.size // int(n_events) > MAX_WINDOWS:
+        raise _too_many_windows(events.size // int(n_events), f"n_events={int(n_events)} for {events.size} events",
+                                f" (use n_events >= {-(-events.size // MAX_WINDOWS)})")
     starts = np.arange(0, events.size - int(n_events) + 1, int(n_events), dtype=np.int64)
     return np.stack([starts, starts + int(n_events)], axis=1) if starts.size else np.zeros((0, 2), np.int64)
 
@@ -122,7 +159,11 @@ def time_windows(events: np.ndarray, duration: float, t_start: float | None = No
         return np.zeros((0, 2), np.int64), np.zeros(0)
     t0 = float(events["t"][0]) if t_start is None else float(t_start)
     t1 = float(events["t"][-1]) if t_end is None else float(t_end)
-    n = int(np.floor((t1 - t0) / duration + 1e-9))
+    windows = (t1 - t0) / duration
+    if windows > MAX_WINDOWS:  # before np.arange(n + 1): 1e-9 s over a minute would be 6e10 edges
+        raise _too_many_windows(windows, f"a window duration of {duration:g} s over {t1 - t0:g} s",
+                                f" (use a duration >= {(t1 - t0) / MAX_WINDOWS:.3g} s)")
+    n = int(np.floor(windows + 1e-9))
     if n <= 0:
         return np.zeros((0, 2), np.int64), np.zeros(0)
     edges = t0 + duration * np.arange(n + 1)

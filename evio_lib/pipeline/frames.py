@@ -17,9 +17,13 @@ import numpy as np
 
 from evio_lib.sequence import Sequence
 
-__all__ = ["FRAME_SOURCES", "THESIS_WINDOW_FRACTION", "aps_frames", "event_frames", "default_window_fraction"]
+__all__ = ["FRAME_SOURCES", "MAX_EVENT_FRAME_RATE_HZ", "THESIS_WINDOW_FRACTION", "aps_frames", "event_frames", "default_window_fraction"]
 
 FRAME_SOURCES = ("aps", "events")
+#: Most event frames per second of recording. Each frame goes through the reconstructor and the front-end (10-50 ms on
+#: a 2-core CPU), so 1000 frames per recorded second already run 10-50 times slower than real time; the thesis's
+#: windows give 10-40 per second. A window per event (--window-fraction 1e-9) is refused instead of running for days.
+MAX_EVENT_FRAME_RATE_HZ = 1000.0
 #: The thesis's n (§4.1, Figs. 16/18): 0.7 for boxes_like, 0.2 for aerial_like.
 THESIS_WINDOW_FRACTION = {"boxes_like": 0.7, "aerial_like": 0.2}
 
@@ -66,6 +70,18 @@ def event_frames(sequence: Sequence, reconstructor: str = "firenet", window_frac
     n = default_window_fraction(sequence.name) if window_fraction is None else float(window_fraction)
     if not np.isfinite(n) or n <= 0:
         raise ValueError(f"window_fraction must be a number > 0 (thesis: 0.2-0.7); got {window_fraction!r}")
+    if not adaptive:  # estimated before the reconstructor loads: a window per event would never end
+        from evio_lib.events.representations import MAX_WINDOWS
+
+        per_window = window_size_from_fraction(n, width, height)
+        span = float(events["t"][-1] - events["t"][0]) if events.size > 1 else 0.0
+        most = min(MAX_WINDOWS, max(1.0, MAX_EVENT_FRAME_RATE_HZ * span))
+        if events.size / per_window > most:
+            raise ValueError(f"window_fraction (--window-fraction) {n:g} gives about {events.size / per_window:.3g} "
+                             f"windows of {per_window:,} event(s) (n H W = {n * width * height:.3g}) for "
+                             f"{events.size:,} events over {span:.3g} s; the most is {most:,.0f} (MAX_WINDOWS "
+                             f"{MAX_WINDOWS:,}, MAX_EVENT_FRAME_RATE_HZ {MAX_EVENT_FRAME_RATE_HZ:g} per second; use n >= "
+                             f"{events.size / (most * width * height):.3g})")
     options = dict(reconstructor_options)
     if reconstructor not in ("direct", "high_pass") and threads is not None:
         options.setdefault("threads", threads)

@@ -32,7 +32,13 @@ from evio_lib.sim.trajectory import trajectory_from_preset
 
 PRESETS = ("boxes_like", "aerial_like")
 
-__all__ = ["PRESETS", "CameraPoseTable", "SimulationConfig", "simulate_sequence"]
+__all__ = ["PRESETS", "MAX_RECORDING_DURATION_S", "CameraPoseTable", "SimulationConfig", "simulate_sequence"]
+
+#: Longest recording with events or frames that one simulation makes, seconds (ten minutes). The presets make about
+#: 0.35 M events/s on average and up to 1 M/s in fast motion (13 B each) plus 24 frames/s of 43 KB, all held in memory:
+#: ten minutes are about 3-9 GB, and about 15 min of simulation on a 2-core CPU (1.5 min per minute recorded). An
+#: IMU-only simulation may run for MAX_TRAJECTORY_DURATION_S (an hour).
+MAX_RECORDING_DURATION_S = 600.0
 
 
 @dataclass(frozen=True)
@@ -65,6 +71,14 @@ class SimulationConfig:
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive finite number; got {value!r}")
+        from evio_lib.sim.trajectory import MAX_TRAJECTORY_DURATION_S
+
+        longest = MAX_RECORDING_DURATION_S if self.with_events or self.with_frames else MAX_TRAJECTORY_DURATION_S
+        if self.duration > longest:  # before any array is made: --duration 1e9 would ask for terabytes
+            gib = self.duration * (0.35e6 * 13 + 24 * self.camera.width * self.camera.height) / 2**30
+            raise ValueError(f"duration {self.duration:g} s is longer than the longest simulation, {longest:g} s "
+                             f"({'MAX_RECORDING_DURATION_S' if longest == MAX_RECORDING_DURATION_S else 'MAX_TRAJECTORY_DURATION_S'}"
+                             f"; {self.duration:g} s of events and frames would take about {gib:.3g} GiB of memory)")
         if not (np.isfinite(self.start_time) and self.start_time >= 0):
             raise ValueError(f"start_time must be a finite number >= 0; got {self.start_time!r}")
         if self.trajectory_duration is not None and self.start_time + self.duration > self.trajectory_duration + 1e-9:

@@ -504,6 +504,9 @@ def aerial_like(duration: float = 40.0, seed: int = 0, turbulence: float = 1.0) 
 
 
 PRESETS = ("boxes_like", "aerial_like")
+#: Longest preset trajectory, seconds (one hour). A trajectory is sampled at the IMU rate (1 kHz): one hour is 3.6 M
+#: samples, about 1 GB of poses, velocities and IMU readings; a mistyped --duration 1e9 would ask for 7 TiB.
+MAX_TRAJECTORY_DURATION_S = 3600.0
 
 
 def trajectory_from_preset(name: str, duration: float | None = None, seed: int = 0) -> Trajectory:
@@ -519,5 +522,8 @@ def trajectory_from_preset(name: str, duration: float | None = None, seed: int =
     """
     if name not in PRESETS:
         raise ValueError(f"name must be one of {PRESETS}; got {name!r}")
+    if duration is not None and not (duration <= MAX_TRAJECTORY_DURATION_S):  # NaN too
+        raise ValueError(f"duration {duration:g} s is longer than the longest trajectory, {MAX_TRAJECTORY_DURATION_S:g} "
+                         f"s (MAX_TRAJECTORY_DURATION_S: sampled at 1 kHz, an hour is about 1 GB)")
     factory = boxes_like if name == "boxes_like" else aerial_like
     return factory(seed=seed) if duration is None else factory(duration=duration, seed=seed)
