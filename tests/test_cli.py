@@ -66,9 +66,9 @@ BAD_INPUTS = [
     ("vio-sim boxes_like --out {d}/full", "output folder {d}/full already exists and is not empty; use --force"),
     # features-benchmark
     ("features-benchmark --detectors superpoint --weights {d}/garbage.pt --fast",
-     "--weights {d}/garbage.pt: not a readable SuperPoint checkpoint (torch.load: UnpicklingError"),
+     "--weights {d}/garbage.pt: not a readable SuperPoint checkpoint: not a torch checkpoint file"),
     ("features-benchmark --detectors superpoint --weights {d}/empty.pt --fast",
-     "--weights {d}/empty.pt: not a readable SuperPoint checkpoint (torch.load: EOFError)"),
+     "--weights {d}/empty.pt: the file is empty; expected a SuperPoint checkpoint"),
     ("features-benchmark --detectors superpoint --weights {d}/missing.pt --fast", "--weights {d}/missing.pt: "),
     ("features-benchmark --detectors superpoint --weights no_such_network --fast",
      "--weights no_such_network: SuperPoint weights 'no_such_network' not found"),

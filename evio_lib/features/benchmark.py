@@ -941,7 +941,9 @@ def main_benchmark(args: argparse.Namespace | Sequence[str] | None = None) -> in
             try:
                 load_checkpoint(resolve_weights(weights))
             except (ValueError, FileNotFoundError) as error:
-                raise ValueError(f"--weights {weights}: {error}") from error
+                text = str(error)  # the checkpoint reader names the file first: do not name it twice
+                text = text[len(f"{weights}: "):] if text.startswith(f"{weights}: ") else text
+                raise ValueError(f"--weights {weights}: {text}") from error
             except Exception as error:  # torch.load on a file that is no checkpoint: pickle, zip or EOF errors
                 detail = (str(error).strip().splitlines() or [""])[0].split(". ")[0][:120]  # torch's first sentence
                 raise ValueError(f"--weights {weights}: not a readable SuperPoint checkpoint (torch.load: "

@@ -90,7 +90,10 @@ def _check_detector(name: str, options: tuple) -> None:
         create_detector(name, **dict(options))
     except (ValueError, OSError, RuntimeError, EOFError, pickle.UnpicklingError) as error:  # torch.load's too
         detail = (str(error).strip().splitlines() or [type(error).__name__])[0]
-        given = f" with --weights {dict(options)['weights']}" if options else ""
+        weights = dict(options).get("weights")
+        if weights is not None and detail.startswith(f"{weights}: "):  # the checkpoint reader names the file first
+            detail = detail[len(f"{weights}: "):]
+        given = f" with --weights {weights}" if weights is not None else ""
         raise ValueError(f"--features {name}{given}: {detail}") from None
 
 
