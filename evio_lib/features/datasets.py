@@ -303,10 +303,13 @@ def _skimage_data_dir() -> Path:
 
 @lru_cache(maxsize=32)
 def _load_photo_cached(file: str) -> np.ndarray:
+    from evio_lib.sim.textures import read_gray8
+
     path = _skimage_data_dir() / file
-    gray = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
-    if gray is None:
-        raise ValueError(f"photo file {file!r} could not be read from {path} (is scikit-image installed?)")
+    try:  # read_gray8: cv2.imread's pixels without page.png's iCCP chunk, on which libpng prints a warning
+        gray = read_gray8(path)
+    except ValueError:
+        raise ValueError(f"photo file {file!r} could not be read from {path} (is scikit-image installed?)") from None
     image = gray.astype(np.float32) / np.float32(255.0)
     image.setflags(write=False)
     return image
