@@ -109,8 +109,10 @@ def plot_state_errors(t: ArrayLike, errors: ArrayLike, sigma: ArrayLike, *, quan
             error δθ to degrees). NaN samples are not drawn.
         sigma: (N, 3) the filter's standard deviations of those errors, sqrt(diag P), in ``unit``; NaN where unknown
             (not drawn there).
-        quantity, unit: y labels read "<axis> <quantity> error [<unit>]", e.g. "x position error [m]".
-        axis_labels: names of the three axes (e.g. ("North", "East", "Down")).
+        quantity, unit: y labels read "<axis> <quantity> error [<unit>]", e.g. "x position error [m]" ("" leaves the
+            quantity out, for axis names that already say it, e.g. "about y_I (yaw)").
+        axis_labels: names of the three axes (e.g. ("North", "East", "Down"); for an orientation error in the body
+            frame, name the axis that is closest to the vertical as the yaw axis).
         n_sigma: width of the band (3: a consistent filter keeps ~99.7 % of the errors inside).
         title: figure title.
 
@@ -128,19 +130,20 @@ def plot_state_errors(t: ArrayLike, errors: ArrayLike, sigma: ArrayLike, *, quan
     s = _xyz(sigma, "sigma", t.shape[0], sigma=True)
     names = _axis_labels(axis_labels)
     k_sigma = _n_sigma(n_sigma)
-    fig, axes = plt.subplots(3, 1, figsize=(8, 6.5), sharex=True)
+    fig, axes = plt.subplots(3, 1, figsize=(8, 7.5), sharex=True)
     for j, (ax, name) in enumerate(zip(axes, names)):
         ax.plot(t, e[:, j], "C0-", lw=1.2, label="error (truth - estimate)")
         ax.plot(t, k_sigma * s[:, j], "r--", lw=1.0, label=f"±{k_sigma:g}σ")  # +nσ; NaN breaks the line
         ax.plot(t, -k_sigma * s[:, j], "r--", lw=1.0)  # -nσ
         ax.axhline(0.0, color="k", lw=0.5, alpha=0.5)
-        ax.set_ylabel(f"{name} {quantity} error [{unit}]")
+        ax.set_ylabel(" ".join(part for part in (name, quantity, "error") if part) + f" [{unit}]", fontsize=9)
         ax.grid(True, alpha=0.3)
     axes[0].legend(fontsize=8, loc="lower right", bbox_to_anchor=(1.0, 1.0), ncol=3, frameon=False)  # above the data
     axes[-1].set_xlabel("time [s]")
     if title:
         fig.suptitle(title)
     fig.tight_layout()
+    fig.align_ylabels(axes)
     return fig
 
 
@@ -177,19 +180,20 @@ def plot_bias_estimates(t: ArrayLike, estimate: ArrayLike, sigma: ArrayLike, tru
     b_true = None if truth is None else _xyz(truth, "truth", t.shape[0])
     names = _axis_labels(axis_labels)
     k_sigma = _n_sigma(n_sigma)
-    fig, axes = plt.subplots(3, 1, figsize=(8, 6.5), sharex=True)
+    fig, axes = plt.subplots(3, 1, figsize=(8, 7.5), sharex=True)  # tall enough for "x accelerometer bias [m/s^2]"
     for j, (ax, axis) in enumerate(zip(axes, names)):
         ax.plot(t, b[:, j], "C0-", lw=1.2, label="estimate")
         ax.plot(t, b[:, j] + k_sigma * s[:, j], "r--", lw=1.0, label=f"estimate ±{k_sigma:g}σ")  # b + nσ
         ax.plot(t, b[:, j] - k_sigma * s[:, j], "r--", lw=1.0)  # b - nσ
         if b_true is not None:
             ax.plot(t, b_true[:, j], "k--", lw=1.2, label="truth")
-        ax.set_ylabel(f"{axis} {name} [{unit}]")
+        ax.set_ylabel(f"{axis} {name} [{unit}]", fontsize=9)
         ax.grid(True, alpha=0.3)
     axes[0].legend(fontsize=8, loc="lower right", bbox_to_anchor=(1.0, 1.0), ncol=3, frameon=False)  # above the data
     axes[-1].set_xlabel("time [s]")
     fig.suptitle(title or f"estimated {name}" + ("" if b_true is not None else " (no truth available)"))
     fig.tight_layout()
+    fig.align_ylabels(axes)
     return fig
 
 
@@ -327,15 +331,18 @@ def plot_tracking_statistics(stats: Mapping[str, ArrayLike], *, track_lengths: A
 
 def plot_error_comparison(t_by_name: Mapping[str, ArrayLike], error_norm_by_name: Mapping[str, ArrayLike], *,
                           split_time: float | None = None, log: bool = False, ylabel: str = "position error [m]",
-                          title: str = "") -> "Figure":
+                          styles: Mapping[str, str] | None = None, title: str = "") -> "Figure":
     """Return a figure of error norms against time, one line per configuration, on one axis.
 
     Args:
         t_by_name: label -> (N_k,) times [s] of that configuration (each may have its own N_k).
         error_norm_by_name: the same labels -> (N_k,) error norms |p_true - p_est| >= 0 (NaN not drawn).
         split_time: draws a vertical line there (e.g. the start of a recording's fast second half); None: no line.
-        log: logarithmic y axis (then only errors > 0 are drawn).
+        log: logarithmic y axis (then only errors > 0 are drawn); use it when the errors span decades, or the
+            small ones lie on the axis.
         ylabel: y-axis label; title: figure title.
+        styles: optional label -> matplotlib line style ("-", "--", ":", "-."), e.g. dashed for event frames; each
+            line keeps its own colour and its legend entry shows the style. Default: solid.
 
     Reference: the configurations of thesis Table 6 (IMU only, grayscale/APS frames, event frames).
 
@@ -370,10 +377,15 @@ def plot_error_comparison(t_by_name: Mapping[str, ArrayLike], error_norm_by_name
             raise ValueError(f"split_time must be a finite time [s] or None; got {split_time!r}") from exc
         if not np.isfinite(split):
             raise ValueError(f"split_time must be a finite time [s] or None; got {split_time!r}")
+    styles = {} if styles is None else styles
+    if not isinstance(styles, Mapping) or set(styles) - set(curves) or \
+            any(style not in ("-", "--", ":", "-.") for style in styles.values()):
+        raise ValueError(f"styles must map some of the labels {sorted(map(str, curves))} to one of '-', '--', ':', "
+                         f"'-.'; got {styles!r}")
     fig, ax = plt.subplots(figsize=(8, 4))
     for k, (label, (t, e)) in enumerate(curves.items()):
         keep = e > 0 if log else np.ones_like(e, dtype=bool)  # log axes cannot show 0
-        ax.plot(t[keep], e[keep], f"C{k}-", lw=1.4, label=str(label))
+        ax.plot(t[keep], e[keep], color=f"C{k}", ls=styles.get(label, "-"), lw=1.4, label=str(label))
     if split is not None:
         ax.axvline(split, color="k", ls="--", lw=1.0, label=f"split at t = {split:g} s")
     if log:

@@ -308,6 +308,24 @@ def test_plot_error_comparison_log_axis_drops_zeros():
     _render(fig)
 
 
+def test_plot_error_comparison_line_styles_reach_the_legend():
+    t = np.linspace(0.0, 1.0, 5)
+    fig = plot_error_comparison({"APS": t, "events": t}, {"APS": t, "events": 2 * t}, styles={"events": "--"})
+    ax = fig.axes[0]
+    assert [line.get_linestyle() for line in ax.lines] == ["-", "--"]
+    assert [handle.get_linestyle() for handle in ax.get_legend().legend_handles] == ["-", "--"]
+    with pytest.raises(ValueError, match=r"styles must map some of the labels \['APS', 'events'\]"):
+        plot_error_comparison({"APS": t, "events": t}, {"APS": t, "events": t}, styles={"IMU": "--"})
+    _render(fig)
+
+
+def test_plot_state_errors_without_a_quantity_names_the_axis_only():
+    fig = plot_state_errors([0.0, 1.0], np.zeros((2, 3)), np.ones((2, 3)), quantity="", unit="deg",
+                            axis_labels=("about x_I", "about y_I (yaw)", "about z_I"))
+    assert [ax.get_ylabel() for ax in fig.axes] == ["about x_I error [deg]", "about y_I (yaw) error [deg]",
+                                                    "about z_I error [deg]"]
+
+
 @pytest.mark.parametrize(
     "times, errors, kwargs, match",
     [
