@@ -109,7 +109,12 @@ def plot_epipolar_lines(
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     _draw_view(axes[0], uv1, u2h @ F, width, height, "view 1: points and lines F^T u2")  # l1 = F^T u2h
     _draw_view(axes[1], uv2, u1h @ F.T, width, height, "view 2: points and lines F u1")  # l2 = F u1h
-    fig.tight_layout()
+    from matplotlib.lines import Line2D
+
+    handles = [Line2D([], [], ls="", marker="o", mfc="0.6", mec="k", label="point (one colour per correspondence)"),
+               Line2D([], [], color="0.6", lw=1.0, label="epipolar line of the same-colour point of the other view")]
+    fig.legend(handles=handles, loc="lower center", ncol=2, fontsize=9)
+    fig.tight_layout(rect=(0, 0.07, 1, 1))
     return fig
 
 

@@ -96,11 +96,12 @@ def plot_error_growth(t: ArrayLike, errors: Mapping[str, ArrayLike], ylabel: str
         keep = (t > 0) & (e > 0) if loglog else np.ones_like(t, dtype=bool)
         ax.plot(t[keep], e[keep], lw=1.5, label=label)
     t_end = t[-1]
-    for power, value, label in guides:
+    for k, (power, value, label) in enumerate(guides):
         if not (np.isfinite(power) and np.isfinite(value) and value > 0 and t_end > 0):
             raise ValueError(f"guides must be (power, value > 0 at t[-1] > 0, label); got {(power, value, label)!r}")
         tg = t[t > 0]
-        ax.plot(tg, value * (tg / t_end) ** power, "k--", lw=0.8, alpha=0.7, label=label)  # y = v (t / t_end)^k
+        style = ("k--", "k:", "k-.")[k % 3]  # each guide its own style, so the legend tells them apart
+        ax.plot(tg, value * (tg / t_end) ** power, style, lw=1.0, alpha=0.8, label=label)  # y = v (t / t_end)^k
     if loglog:
         ax.set_xscale("log")
         ax.set_yscale("log")
@@ -170,6 +171,12 @@ def plot_monte_carlo_bounds(t: ArrayLike, errors: ArrayLike, sigma: ArrayLike, l
         ax.grid(True, alpha=0.3)
     for ax in axes[-1]:
         ax.set_xlabel("time [s]")
+    from matplotlib.lines import Line2D
+
+    handles = [Line2D([], [], color="0.6", lw=0.8, label=f"Monte-Carlo runs ({min(e.shape[0], max_runs)} drawn)"),
+               Line2D([], [], color="r", lw=1.6, label=f"filter ±{n_sigma:g}σ"),
+               Line2D([], [], color="b", ls="--", lw=1.0, label=f"sample ±{n_sigma:g} std over {e.shape[0]} runs")]
+    axes[0, 0].legend(handles=handles, fontsize=7, loc="upper left")
     fig.suptitle(title or f"{e.shape[0]} Monte-Carlo runs (grey), filter ±{n_sigma:g}σ (red), "
                           f"sample ±{n_sigma:g} std (blue dashed)", fontsize=10)
     fig.tight_layout()
@@ -310,7 +317,7 @@ def plot_nees(t: ArrayLike, nees: ArrayLike, band: tuple[float, float], dof: int
     ax.axhline(dof, color="k", lw=0.8, label=f"expected value ({dof})")
     ax.fill_between(t, lo, hi, color="g", alpha=0.2, label="95 % χ² interval")
     ax.set_xlabel("time [s]")
-    ax.set_ylabel("NEES")
+    ax.set_ylabel("NEES (dimensionless)")
     ax.legend(fontsize=8)
     if title:
         ax.set_title(title)
@@ -363,7 +370,7 @@ def plot_consistency(t: ArrayLike, curves: Mapping[str, Mapping[str, ArrayLike]]
         axes[2].plot(t, sigma, style, label=label)
     for ax, (lo, hi), name in zip(axes[:2], bands, ("average pose NEES (6 DoF)", "average yaw NEES (1 DoF)")):
         ax.axhspan(lo, hi, color="0.8", label=f"95 % band, {n_runs} runs")
-        ax.set(xlabel="t [s]", title=name)
+        ax.set(xlabel="t [s]", ylabel="average NEES (dimensionless, log scale)", title=name)
     axes[2].set(xlabel="t [s]", ylabel="σ_yaw [deg]", title="yaw standard deviation")
     axes[2].set_ylim(bottom=0.0)
     for ax in axes:
@@ -420,6 +427,7 @@ def plot_trajectory_errors(t: ArrayLike, p_gt: ArrayLike, estimates: Mapping[str
             axes[0, j].plot(t, p[:, j], styles[k % len(styles)], label=label)
         axes[0, j].set_ylim(gt[:, j].min() - margin, gt[:, j].max() + margin)
         axes[0, j].set_title(f"position {name} [m]")
+        axes[0, j].set_ylabel(f"{name} [m]")
         axes[1, j].plot(t, 100 * (est[first][:, j] - gt[:, j]), "C0-", label=f"{first} error")
         axes[1, j].fill_between(t, -100 * n_sigma * s[:, j], 100 * n_sigma * s[:, j], color="C0", alpha=0.2,
                                 label=f"±{n_sigma:g}σ")

@@ -223,3 +223,30 @@ def test_plot_triangulation_error_rejects_bad_input():
         plot_triangulation_error([0, 3], np.ones((1, 2)), [1.0])
     with pytest.raises(ValueError, match=r"noise_levels_px must be a non-empty \(L,\) array"):
         plot_triangulation_error([2, 3], np.ones((0, 2)), [])
+
+
+def test_every_axis_is_labelled_and_every_line_style_is_in_a_legend(rng):
+    """Issue 27: axes with units (or 'dimensionless'), a legend entry for each line style, whatever the title."""
+    t = np.linspace(0.0, 1.0, 6)
+    mc = plot_monte_carlo_bounds(t, rng.normal(size=(4, 6, 3)), np.ones((6, 3)), ["x [m]", "y [m]", "z [m]"],
+                                 title="a custom title")  # the suptitle no longer explains the styles
+    labels = [text.get_text() for text in mc.axes[0].get_legend().get_texts()]
+    assert labels == ["Monte-Carlo runs (4 drawn)", "filter ±3σ", "sample ±3 std over 4 runs"]
+    nees = plot_nees(t, np.full(6, 6.0), (4.6, 7.6), dof=6, n_runs=20)
+    assert nees.axes[0].get_ylabel() == "NEES (dimensionless)"
+    c = {"OC on": {"pose": np.full(6, 6.0), "yaw": np.ones(6), "yaw_sigma_deg": np.ones(6)}}
+    consistency = plot_consistency(t, c, (4.6, 7.6), (0.5, 1.7), n_runs=20)
+    assert all(ax.get_ylabel() and ax.get_xlabel() == "t [s]" for ax in consistency.axes)
+    assert [ax.get_yscale() for ax in consistency.axes] == ["log", "log", "linear"]
+    trajectory = plot_trajectory_errors(t, np.zeros((6, 3)), {"MSCKF": np.zeros((6, 3))}, np.ones((6, 3)))
+    assert [ax.get_ylabel() for ax in trajectory.axes] == ["x [m]", "y [m]", "z [m]",
+                                                         "error x [cm]", "error y [cm]", "error z [cm]"]
+    for fig in (mc, nees, consistency, trajectory):
+        _render(fig)
+
+
+def test_power_law_guides_have_distinct_line_styles():
+    fig = plot_error_growth([0.0, 1.0, 2.0], {"a": [0.0, 0.1, 0.4]}, loglog=True,
+                            guides=[(2, 0.4, "t^2"), (3, 0.4, "t^3")])
+    styles = [line.get_linestyle() for line in fig.axes[0].lines[1:]]
+    assert styles == ["--", ":"] and [t.get_text() for t in fig.axes[0].get_legend().get_texts()] == ["a", "t^2", "t^3"]
