@@ -96,11 +96,15 @@ print(f"{len(X_C1)} points seen by both cameras; |p_C1inC2| = {np.linalg.norm(p_
 #
 # after dividing by the two (positive, unknown) depths, with $\mathbf{x} = [x, y, 1]^\top$ in normalised coordinates
 # and the skew matrix of thesis Eq. 3,
-# $[\mathbf{t}\times] = \begin{bmatrix} 0 & -t_z & t_y \\ t_z & 0 & -t_x \\ -t_y & t_x & 0 \end{bmatrix}$.
+# $[\mathbf{t}\times] = \begin{bmatrix} 0 & -t_z & t_y \\ t_z & 0 & -t_x \\ -t_y & t_x & 0 \end{bmatrix}$
+# (the thesis prints $t_z$ where the last row needs $t_x$; the cell below checks this form against the cross product).
 # The **essential matrix** $E = [\mathbf{t}\times]R$ (thesis Eq. 2) holds the whole relative motion, and the
 # constraint involves only pixels — no depths. That is what makes it usable for estimating the motion.
 
 # %%
+tx, ty, tz = p_C1inC2
+assert np.allclose(skew(p_C1inC2), [[0, -tz, ty], [tz, 0, -tx], [-ty, tx, 0]])  # the form written above
+assert np.allclose(skew(p_C1inC2) @ X_C1[0], np.cross(p_C1inC2, X_C1[0]))  # [t x] v = t x v
 E_by_hand = skew(p_C1inC2) @ R_C1toC2  # E = [t x] R
 x1h = np.column_stack([xy1, np.ones(len(xy1))])
 x2h = np.column_stack([xy2, np.ones(len(xy2))])

@@ -289,11 +289,11 @@ assert positive_part > 0.9 * loss_hand and abs(np.mean(lambda_d * np.maximum(0, 
 # ## 3. A short detector + descriptor training run
 #
 # `train` with a `detdesc` config runs the whole stage: it builds the real-image pool, **exports labels** by
-# homographic adaptation with the model named in `labels_from` (here our tiny MagicPoint; we lower the label
-# threshold because its probabilities are small), builds warped pairs, and minimises Eq. 8,
-# $L = L_p(X, Y) + L_p(X', Y') + \lambda L_d(D, D', S)$, with Adam. `init_from` starts from the MagicPoint
-# weights — the thesis's "pre-trained" variant — and, as the thesis does for it, with the small learning rate
-# $10^{-4}$, so that the detector keeps what MagicPoint learned while the descriptor head starts from scratch
+# homographic adaptation with the model named in `labels_from` (here our tiny MagicPoint; we lower the label threshold
+# because its probabilities are small), builds warped pairs, and minimises Eq. 8, $L = L_p(X, Y) + L_p(X', Y') +
+# \lambda L_d(D, D', S)$, with Adam. `init_from` starts from the MagicPoint weights — the thesis's "pre-trained"
+# variant — with the small learning rate $10^{-4}$ that the thesis uses for every training of the full network
+# (§3.2.5.4), so that the detector keeps what MagicPoint learned while the descriptor head starts from scratch
 # (Exercise 4 tries $10^{-3}$). With only a handful of validation pairs, this short run keeps the checkpoint with the
 # lowest validation loss (`select_on="loss"`). Narrow network, small images, one thread.
 
@@ -416,9 +416,9 @@ assert totals["trained (this run)"][1] < 0.6 * totals["trained (this run)"][2]  
 #
 # ## 4. The full chain
 #
-# The thesis (§3.2.5, Fig. 13) compared several training processes; each is a config file. The one it found best,
-# **pre-trained DetDesc (Round 2)**, needs MagicPoint, its labels, DetDesc (Round 1), that model's labels, and
-# finally DetDesc (Round 2) initialised from Round 1:
+# The thesis (§3.2.5, Fig. 13) compared several training processes; each is a config file. The model it took into the
+# filter on the strength of Tables 2-5 (§4.5), **pre-trained DetDesc (Round 2)**, needs MagicPoint, its labels,
+# DetDesc (Round 1), that model's labels, and finally DetDesc (Round 2) initialised from Round 1:
 
 # %%
 chain = training.variant_dependencies("pretrained_detdesc_round2")
@@ -470,19 +470,19 @@ for name in chain:
 # %%
 for name in chain[1:]:
     cfg = training.load_config(name)
-    print(f"{name:28s} label threshold {cfg.label_threshold:g} (thesis 0.015), best {cfg.label_max_keypoints} "
+    print(f"{name:28s} label threshold {cfg.label_threshold:g} (SuperPoint 0.015), best {cfg.label_max_keypoints} "
           f"per image, render zoom {cfg.render_zoom:g}")
     minimum = training.MIN_LABEL_DENSITY * cfg.image_size[0] * cfg.image_size[1] / 1000
     assert cfg.label_max_keypoints > minimum  # the cap never pushes labels below the warning level
 
 # %% [markdown]
-# The thesis trained on MS-COCO (82 783 images at 240 x 320) on a GPU for 15-50 epochs per stage. Here nothing can be
-# downloaded and the machine is a 2-core CPU, so the configs train on the project's own image pool (scikit-image
-# photos, simulator renders, aerial views, textures) at 120 x 160 (MagicPoint at 96 x 128), for the thousands of
-# steps per stage printed above, with 50 instead of 100 adaptation warps. The descriptor loss keeps its form; its
-# positive weight $\lambda_d$ is scaled to the number of cells (§2), and the total weight $\lambda$ differs because
-# our loss is a mean over valid cell pairs (`losses.py`). With a GPU, `--device cuda --steps ... --image-size 240x320
-# --set n_homographies=100` moves towards the thesis's schedule.
+# The thesis trained Synthetic Shapes for 50 epochs at 120 x 160 and its MS-COCO stages (82 783 images at 240 x 320)
+# for 15-20 epochs each (§3.2.5). Here nothing can be downloaded and the machine is a 2-core CPU, so the configs train
+# on the project's own image pool (scikit-image photos, simulator renders, aerial views, textures) at 120 x 160
+# (MagicPoint at 96 x 128), for the thousands of steps per stage printed above, with 50 instead of 100 adaptation
+# warps. The descriptor loss keeps its form; its positive weight $\lambda_d$ is scaled to the number of cells (§2),
+# and the total weight $\lambda$ differs because our loss is a mean over valid cell pairs (`losses.py`). With a GPU,
+# `--device cuda --steps ... --image-size 240x320 --set n_homographies=100` moves towards the thesis's schedule.
 #
 # The project ships two networks trained this way, `pretrained_detdesc_round2_cpu` (the chain above on this CPU) and
 # `pretrained_detdesc_round1_gpu` (a GPU run); their training history and benchmark results are in
