@@ -5,6 +5,7 @@ refuses a non-empty one unless given --force, and never leaves a half-written on
 from __future__ import annotations
 
 import argparse
+import importlib
 import pickle
 import re
 import signal
@@ -13,7 +14,7 @@ import sys
 import threading
 import time
 from contextlib import contextmanager
-from typing import Iterator
+from typing import Container, Iterator, Sequence
 
 from evio_lib.cli_args import add_force_argument, integer, output_folder, real
 
@@ -94,8 +95,47 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """Return the argument parser of the evio command line (one ``add_parser`` block per command)."""
+#: Commands whose options and main function live in their own modules: name -> (module, add-options function, main
+#: function). Their modules import torch, SciPy or OpenCV (seconds), so :func:`main` imports only the one that runs.
+_COMMAND_MODULES = {
+    "features-benchmark": ("evio_lib.features.benchmark", "add_benchmark_arguments", "main_benchmark"),
+    "features-train": ("evio_lib.features.train", "add_train_arguments", "main_train"),
+    "vio-sim": ("evio_lib.msckf.experiment", "add_vio_sim_arguments", "main_vio_sim"),
+    "reconstruct": ("evio_lib.events.reconstruct_command", "add_reconstruct_arguments", "main_reconstruct"),
+    "reconstruct-train": ("evio_lib.events.reconstruction_train", "add_reconstruct_train_arguments",
+                          "main_reconstruct_train"),
+    "run": ("evio_lib.pipeline.command", "add_run_arguments", "main_run"),
+    "table": ("evio_lib.pipeline.command", "add_table_arguments", "main_table"),
+}
+
+
+def _add_options(p: argparse.ArgumentParser, name: str, full: Container[str] | None) -> None:
+    """Give the sub-parser of command ``name`` its options and main function, importing the command's module, when
+    ``full`` is None (every command) or holds ``name``; otherwise leave it a stub with its help text only."""
+    if full is not None and name not in full:
+        return
+    module, add, main_function = _COMMAND_MODULES[name]
+    loaded = importlib.import_module(module)
+    getattr(loaded, add)(p)
+    p.set_defaults(func=getattr(loaded, main_function))
+
+
+def _requested_command(argv: Sequence[str]) -> str | None:
+    """Return the command named in ``argv`` (its first positional word), or None (``--help`` alone, a typo)."""
+    for word in argv:
+        if not word.startswith("-"):
+            return word
+    return None
+
+
+def build_parser(full: Container[str] | None = None) -> argparse.ArgumentParser:
+    """Return the argument parser of the evio command line (one ``add_parser`` block per command).
+
+    Args:
+        full: the commands that get their options (importing their modules); None: all of them. The others keep
+            their name and help text, which is all ``python -m evio_lib --help`` shows, so it starts in well under a
+            second instead of importing torch and SciPy for every command.
+    """
     parser = _Parser(prog="python -m evio_lib", description=__doc__)
     parser.add_argument("--debug", action="store_true",
                         help="show the full Python traceback of an error instead of the one-line message")
@@ -131,8 +171,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress bars and no print-out of the configuration")
     p.set_defaults(func=_cmd_simulate)
 
-    from evio_lib.features.benchmark import add_benchmark_arguments, main_benchmark
-
     p = sub.add_parser("features-benchmark",
                        help="detector/descriptor benchmark (repeatability, homography; thesis Tables 2-5)",
                        description="Benchmark feature detectors and descriptors on image pairs with known homographies "
@@ -140,45 +178,30 @@ def build_parser() -> argparse.ArgumentParser:
                                    "takes one to two hours on a 2-core CPU (extrapolated from a 40-pair run: about 4 s "
                                    "of CPU per pair for SIFT and one network together); --fast (4 pairs) takes under a "
                                    "minute; --detectors and --n-images choose a smaller run.")
-    add_benchmark_arguments(p)
-    p.set_defaults(func=main_benchmark)
-
-    from evio_lib.features.train import add_train_arguments, main_train
+    _add_options(p, "features-benchmark", full)
 
     p = sub.add_parser("features-train", help="train a SuperPoint-style variant (or a chain of them) from its config",
                        description="Train a SuperPoint-style network variant from its config (thesis Table 1); "
                                    "checkpoints go to OUT/VARIANT/.")
-    add_train_arguments(p)
-    p.set_defaults(func=main_train)
-
-    from evio_lib.msckf.experiment import add_vio_sim_arguments, main_vio_sim
+    _add_options(p, "features-train", full)
 
     p = sub.add_parser("vio-sim",
                        help="MSCKF on simulated perfect-data-association tracks; TUM files and error metrics",
                        description="Run the MSCKF on simulated tracks with perfect data association and print its "
                                    "error metrics (and those of IMU-only baselines).")
-    add_vio_sim_arguments(p)
-    p.set_defaults(func=main_vio_sim)
-
-    from evio_lib.events.reconstruct_command import add_reconstruct_arguments, main_reconstruct
+    _add_options(p, "vio-sim", full)
 
     p = sub.add_parser("reconstruct", help="events of a recording -> image frames (images.txt + PNGs, ECD layout)",
                        description="Reconstruct image frames from the events of an ECD folder or a simulated preset "
                                    "with the shipped network (default), direct integration or the high-pass filter; "
                                    "writes images.txt and images/frame_XXXXXXXX.png.")
-    add_reconstruct_arguments(p)
-    p.set_defaults(func=main_reconstruct)
-
-    from evio_lib.events.reconstruction_train import add_reconstruct_train_arguments, main_reconstruct_train
+    _add_options(p, "reconstruct", full)
 
     p = sub.add_parser("reconstruct-train", help="train a recurrent event-to-image network on simulated sequences",
                        description="Train FireNet (default) or the E2VID-style UNet on the project's simulated planar "
                                    "sequences; the default schedule (3000 steps) takes about an hour on a 2-core CPU. "
                                    "Writes last.pt, best.pt and history.json; --resume continues a run.")
-    add_reconstruct_train_arguments(p)
-    p.set_defaults(func=main_reconstruct_train)
-
-    from evio_lib.pipeline.command import add_run_arguments, add_table_arguments, main_run, main_table
+    _add_options(p, "reconstruct-train", full)
 
     p = sub.add_parser("run", help="the whole EVIO pipeline on a recording: frames -> features -> MSCKF -> trajectory",
                        description="Run frames (APS or reconstructed from events) -> feature tracking -> MSCKF on a "
@@ -186,15 +209,13 @@ def build_parser() -> argparse.ArgumentParser:
                                    "ground truth and write a TUM trajectory, metrics and figures with --out. With no "
                                    "argument: SIFT on the APS frames of the 60 s boxes_like preset (simulated on first "
                                    "use, about 1 min, then cached).")
-    add_run_arguments(p)
-    p.set_defaults(func=main_run)
+    _add_options(p, "run", full)
 
     p = sub.add_parser("table", help="the thesis's Table 6 on both presets: every configuration over several seeds",
                        description="Run IMU-only, SIFT and CNN on APS and on event frames (and the KLT baseline) on "
                                    "both presets over several seeds through joblib, and print RMSE, final error, "
                                    "%% of distance and the real-time factor (mean +- std). --fast is the CI size.")
-    add_table_arguments(p)
-    p.set_defaults(func=main_table)
+    _add_options(p, "table", full)
 
     for command in sub.choices.values():  # --debug is also accepted after the command name
         command.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
@@ -261,7 +282,9 @@ def main(argv: list[str] | None = None) -> int:
     """
     with _sigterm_as_interrupt():
         try:
-            parser = build_parser()  # imports the commands' modules: Ctrl-C here is still one line
+            argv = sys.argv[1:] if argv is None else list(argv)
+            # imports the module of the command that runs, and no other: Ctrl-C here is still one line
+            parser = build_parser(full={_requested_command(argv)})
             try:
                 args = parser.parse_args(argv)
             except SystemExit as stop:  # --help (0) or a usage error (2, already printed)

@@ -337,3 +337,20 @@ def test_train_force_replaces_a_run_only_when_training_returns(inputs, monkeypat
     assert code == (2 if fails else 0)
     assert (inputs / "runs" / "magicpoint" / "last.pt").read_bytes() == expected
     assert sorted(p.name for p in (inputs / "runs").iterdir()) == ["magicpoint"]  # nothing set aside is left
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["run", "--help"], ["table", "--help"], ["simulate", "--help"],
+                                  ["course", "--help"], ["run", "--seed", "-1"]])
+def test_help_and_usage_errors_import_no_heavy_library(argv):
+    """`--help` and a usage error build only the parser of the command named (issue 26: start-up under a second):
+    torch, SciPy and OpenCV (seconds to import) stay unloaded. Counts modules, not seconds."""
+    code = ("import contextlib, io, sys\n"
+            "from evio_lib.cli import main\n"
+            "with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):\n"
+            f"    status = main({argv!r})\n"
+            "heavy = sorted(m for m in ('torch', 'scipy', 'cv2', 'matplotlib', 'skimage') if m in sys.modules)\n"
+            "print(status, ','.join(heavy) or '-', len(sys.modules))\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=PROJECT_ROOT)
+    status, heavy, count = done.stdout.split()
+    assert int(status) in (0, 2) and heavy == "-", done.stdout + done.stderr
+    assert int(count) < 200  # the standard library's argparse, pathlib, ... and evio_lib's command-line modules

@@ -230,10 +230,10 @@ SLOW_PARSER = """
     import runpy, sys, time
     import evio_lib.cli
 
-    def slow_parser(build=evio_lib.cli.build_parser):
+    def slow_parser(*args, build=evio_lib.cli.build_parser, **kwargs):
         open("starting", "w").close()
         time.sleep(120)
-        return build()
+        return build(*args, **kwargs)
 
     evio_lib.cli.build_parser = slow_parser
     """

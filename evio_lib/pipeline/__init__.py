@@ -9,8 +9,29 @@ Modules: ``dataset`` (what DATASET means, extrinsics, IMU noise), ``frames`` (th
 and its metrics), ``output`` (the run's folder), ``table`` (thesis Table 6 over configurations and seeds), ``command``
 (``python -m evio_lib run`` and ``table``). Reference: thesis §4.5.
 """
-from evio_lib.pipeline.dataset import PRESETS, LoadedDataset, load_dataset, read_kalibr_extrinsics, simulate_preset
-from evio_lib.pipeline.run import INIT_MODES, PipelineConfig, PipelineResult, run_pipeline
+from __future__ import annotations
 
-__all__ = ["PRESETS", "LoadedDataset", "load_dataset", "read_kalibr_extrinsics", "simulate_preset", "INIT_MODES",
-           "PipelineConfig", "PipelineResult", "run_pipeline"]
+import importlib
+from typing import Any
+
+#: name -> module of the names this package offers; imported on first use (PEP 562), so that ``python -m evio_lib run
+#: --help`` and the command's argument checks do not import OpenCV, torch and SciPy first.
+_EXPORTS = {
+    "PRESETS": "dataset", "LoadedDataset": "dataset", "load_dataset": "dataset",
+    "read_kalibr_extrinsics": "dataset", "simulate_preset": "dataset",
+    "INIT_MODES": "run", "PipelineConfig": "run", "PipelineResult": "run", "run_pipeline": "run",
+}
+
+__all__ = list(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _EXPORTS:
+        raise AttributeError(f"module 'evio_lib.pipeline' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"evio_lib.pipeline.{_EXPORTS[name]}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(list(globals()) + __all__)
