@@ -129,10 +129,11 @@ def nullspace_mismatch(oc):
 
 
 mismatch_plain, mismatch_oc = nullspace_mismatch(False), nullspace_mismatch(True)
-print(f"max |Φ N_k - N_k+1|: standard EKF {mismatch_plain.max():.2e} (first interval {mismatch_plain[0]:.2e}), "
+print(f"max |Φ N_k - N_k+1|: standard EKF {mismatch_plain.max():.2e} (first interval {mismatch_plain[0]:.2e}, "
+      f"later ones {mismatch_plain[1:].max():.1e}), "
       f"OC-EKF {mismatch_oc.max():.1e}")
 assert mismatch_oc.max() < 1e-9
-assert mismatch_plain[0] > 1e-3
+assert mismatch_plain[0] > 1e-3 and mismatch_plain[1:].max() < 1e-2 * mismatch_plain[0]  # the first carries it
 
 # %% [markdown]
 # The first interval, right after the correction, carries almost all of the standard EKF's mismatch; within an
@@ -224,18 +225,55 @@ for oc in (True, False):  # both variants: time-averaged pose and yaw NEES insid
 assert abs(summary[True]["pose"].mean() / summary[False]["pose"].mean() - 1) < 0.05  # and within 5 % of each other
 assert summary[True]["rmse"] < 0.1  # centimetres
 
+
+def excursions(mask):
+    """'k stretches, t0-t1 s' for the images where mask is True (a stretch: consecutive images)."""
+    if not mask.any():
+        return "none"
+    n_stretches = int(np.sum(np.diff(np.r_[0, mask.astype(int)]) == 1))
+    return f"{n_stretches} stretch{'es' if n_stretches > 1 else ''} within {t[mask].min():.2f}-{t[mask].max():.2f} s"
+
+
+below, above, outside = {}, {}, {}
+for oc in (True, False):  # image by image: what the time average hides
+    pose = summary[oc]["pose"]
+    below[oc], above[oc] = pose < lo6, pose > hi6
+    outside[oc] = below[oc] | above[oc]
+    print(f"OC {'on ' if oc else 'off'}: pose NEES inside the band on {100 * np.mean(~outside[oc]):.0f} % of the "
+          f"images; below on {100 * np.mean(below[oc]):.0f} % ({excursions(below[oc])}), "
+          f"above on {100 * np.mean(above[oc]):.0f} % ({excursions(above[oc])})")
+both_out = np.mean(outside[True] & outside[False]) / np.mean(outside[True] | outside[False])
+print(f"images outside for OC on or off: {100 * both_out:.0f} % of them are outside for both")
+for oc in (True, False):  # about two thirds of the images inside, not the 95 % a consistent filter would give
+    assert 0.55 < np.mean(~outside[oc]) < 0.8
+assert both_out > 0.7  # the excursions are shared by OC on and off
+if FAST:  # 3 runs of 3 s: excursions both ways, mostly below the band
+    assert all(below[oc].mean() > above[oc].mean() > 0 for oc in (True, False))
+else:  # 8 runs of 10 s: every excursion above the band, all within the first 6 s
+    assert all(not below[oc].any() and above[oc].mean() > 0.25 and t[above[oc]].max() < 6.0 for oc in (True, False))
+
 # %% [markdown]
-# Both variants sit inside the band printed above, and they differ by a few per cent. Is the OC-EKF pointless, then?
-# No: the spurious yaw information of the plain EKF is real (section 3 shows it exactly) but it grows with the
-# distance between the current estimate and the first estimate, and with a 1 mrad initial attitude error the
-# estimates barely move. An MSCKF also uses each observation only once, so the same feature is not re-linearised at
-# ever-changing estimates as in EKF-SLAM.
+# Averaged over time, both variants sit inside the band printed above, and they differ by a few per cent. Image by
+# image they do not: a consistent filter would keep each image's average pose NEES inside its 95 % band on about 95 %
+# of the images, and here only about two thirds are (the printed shares, 63-71 %). In the 10 s runs of full mode every
+# excursion lies *above* the band (overconfident) in stretches within the first 6 s, and the pose NEES stays inside
+# after that; in the 3 runs of 3 s of fast mode they go both ways, mostly *below* the band (pessimistic). The time
+# mean hides these stretches. Both variants leave the band on largely the same images (the printed share), so the
+# excursions are not what the observability constraint is about; what causes them is not measured here (section 6
+# lists what else the filter's consistency depends on), and the consecutive images of a run are correlated, which is
+# why the excursions come in stretches rather than as scattered images.
+#
+# Is the OC-EKF pointless, then? No: the spurious yaw information of the plain EKF is real (section 3 shows it
+# exactly) but it grows with the distance between the current estimate and the first estimate, and with a 1 mrad
+# initial attitude error the estimates barely move. An MSCKF also uses each observation only once, so the same
+# feature is not re-linearised at ever-changing estimates as in EKF-SLAM.
 #
 # ## 5. A 3° attitude error: the plain EKF learns a yaw it cannot see
 #
 # Start the same experiment with an initial attitude standard deviation of 0.05 rad (about 3°) per axis. Roll and
-# pitch become observable through gravity and shrink quickly. Yaw cannot: its standard deviation should stay near
-# 2.9° (plus a little gyroscope noise). Watch `sigma_yaw`, the filter's own yaw standard deviation.
+# pitch become observable through gravity and their standard deviation shrinks quickly (the printed roll/pitch σ).
+# Yaw cannot: a filter that respects the unobservable directions keeps its yaw standard deviation near 2.9° (the
+# gyroscope noise would even add a little). Watch `sigma_yaw`, the filter's own yaw standard deviation.
 
 # %%
 n_runs_att, duration_att = (3, 3.0) if FAST else (8, 10.0)
@@ -252,31 +290,58 @@ for oc, runs in results_att.items():
                            yaw=np.mean([r.nees_yaw for r in runs], axis=0),
                            yaw_sigma_deg=np.degrees(np.mean([r.sigma_yaw for r in runs], axis=0)))
     yaw_kept[oc] = np.mean([r.sigma_yaw[-1] / r.sigma_yaw[0] for r in runs])  # σ_yaw at the end / at the start
+    # roll/pitch: the attitude variance that is not yaw (the trace is rotation-invariant), per axis, in degrees
+    tilt_deg = np.degrees(np.mean([np.sqrt(np.maximum((r.sigma[:, :3] ** 2).sum(axis=1) - r.sigma_yaw**2, 0.0) / 2)
+                                   for r in runs], axis=0))
+    summary_att[oc]["tilt_sigma_deg"] = tilt_deg
     sig = summary_att[oc]["yaw_sigma_deg"]
+    tilt = summary_att[oc]["tilt_sigma_deg"]
+    one_s = np.searchsorted(results_att[oc][0].t, results_att[oc][0].t[0] + 1.0)  # the image 1 s after the first
+    summary_att[oc]["tilt_1s"] = tilt[one_s]
+    print(f"OC {'on ' if oc else 'off'}: roll/pitch σ {tilt[0]:.2f}° -> {tilt[one_s]:.2f}° after 1 s -> "
+          f"{tilt[-1]:.2f}° at the end")
     print(f"OC {'on ' if oc else 'off'}: yaw σ {sig[0]:.2f}° -> {sig[-1]:.2f}° (kept {100 * yaw_kept[oc]:.0f} %); "
           f"mean yaw NEES {summary_att[oc]['yaw'].mean():.2f} (band [{lo1a:.2f}, {hi1a:.2f}]); "
           f"mean pose NEES {summary_att[oc]['pose'].mean():.2f} (band [{lo6a:.2f}, {hi6a:.2f}])")
 plot_consistency(results_att[True][0].t, {f"OC {'on' if oc else 'off'}": c for oc, c in summary_att.items()},
                  (lo6a, hi6a), (lo1a, hi1a), n_runs_att, title="3° initial attitude error")
 plt.show()
-assert yaw_kept[True] > 0.8  # the OC-EKF keeps (almost) all of its yaw uncertainty
+lo3a, hi3a = chi2_bounds(3, n_runs_att)
+att_nees, pos_nees = {}, {}
+for oc, runs in results_att.items():  # which part of the pose NEES: attitude (roll, pitch, yaw) or position?
+    att_nees[oc] = np.mean([r.nees_attitude for r in runs])
+    pos_nees[oc] = np.mean([r.nees_position for r in runs])
+    print(f"OC {'on ' if oc else 'off'}: mean attitude NEES {att_nees[oc]:.2f}, mean position NEES {pos_nees[oc]:.2f} "
+          f"(band of each [{lo3a:.2f}, {hi3a:.2f}])")
+for oc in (True, False):
+    tilt = summary_att[oc]["tilt_sigma_deg"]
+    assert summary_att[oc]["tilt_1s"] < 0.4 * tilt[0] and tilt[-1] < 0.25 * tilt[0]  # roll/pitch: observable
+assert 0.85 < yaw_kept[True] < 0.92  # the OC-EKF keeps most of its yaw uncertainty ("close to 90 %")
 assert yaw_kept[False] < yaw_kept[True] - 0.1  # the plain EKF loses a good part of it
 yaw_nees = {oc: c["yaw"].mean() for oc, c in summary_att.items()}
 pose_nees = {oc: c["pose"].mean() for oc, c in summary_att.items()}
 assert pose_nees[True] > pose_nees[False]  # the price of the first estimates
 assert FAST or (yaw_nees[False] > 2 * hi1a and lo1a < yaw_nees[True] < hi1a and pose_nees[False] > hi6a)
+assert not FAST or all(lo1a < yaw_nees[oc] < hi1a for oc in (True, False))  # 3 s: neither has left the yaw band
+if FAST:  # 3 s: the OC-EKF's attitude and position NEES still inside their bands
+    assert lo3a < att_nees[True] < hi3a and lo3a < pos_nees[True] < hi3a
+else:  # 10 s: OC on: attitude far above (yaw inside: roll/pitch), position just above
+    assert att_nees[True] > 2 * hi3a and hi3a < pos_nees[True] < 1.2 * hi3a and lo1a < yaw_nees[True] < hi1a
 
 # %% [markdown]
 # Now the difference is plain to see in the right-hand panel. The plain EKF's yaw standard deviation *falls* within
 # seconds, although nothing in the measurements can observe yaw: that is the spurious information of sections 2
 # and 3, and a filter that believes it knows its heading better than it does. The OC-EKF keeps most of its yaw
-# uncertainty (close to 90 % in these runs; the printed "kept" share). Over the 10 s runs of full mode
-# the plain EKF's yaw error then outgrows its shrunken σ: its average yaw NEES lies well above the band, while the
-# OC-EKF's stays inside it (in the 3 s runs of fast mode neither has had the time).
+# uncertainty (close to 90 % in these runs, the printed "kept" share; why not all of it is not measured here). Over
+# the 10 s runs of full mode the plain EKF's yaw error then outgrows its shrunken σ: its average yaw NEES lies well
+# above the band (more than twice its upper end), while the OC-EKF's stays inside it (in the 3 s runs of fast mode
+# both are still inside).
 #
-# The OC-EKF pays for its first estimates, though: linearised as far from the truth as a 3° error puts them, its
-# roll/pitch and position become overconfident instead. Its pose NEES is higher than the plain EKF's, and in full mode
-# both are above the band, the OC-EKF's most. First-estimate methods want small initial errors.
+# The OC-EKF does worse elsewhere, though, with first estimates as far from the truth as a 3° error puts them: its
+# pose NEES is higher than the plain EKF's, and in full mode both are above the band, the OC-EKF's most. The split
+# printed last shows where: in full mode the OC-EKF's attitude NEES is more than twice the upper end of its band
+# while its yaw NEES is inside, so roll and pitch are overconfident, and its position NEES is just above its band; in
+# the 3 s runs of fast mode both parts are still inside. First-estimate methods want small initial errors.
 # [docs/msckf_consistency.md](../docs/msckf_consistency.md) has the same experiment with 20 runs of 20 s.
 #
 # %% [markdown]
@@ -295,7 +360,8 @@ assert FAST or (yaw_nees[False] > 2 * hi1a and lo1a < yaw_nees[True] < hi1a and 
 #
 # **Which update-side constraint the library uses.** Eq. 86 changes every camera block by the smallest Frobenius-norm
 # amount that gives $H_C u = 0$, mixing radian and metre columns. Far from the scene (`aerial_like`, 250 m) the
-# position columns are only about $1/Z$, and the change alters them by a few per cent, enough to make runs diverge.
+# position columns are only about $1/Z$, and the change alters them by 0.5-3.5 %, enough to make 4 of 10 `aerial_like`
+# seeds diverge (measured in [docs/msckf_consistency.md](../docs/msckf_consistency.md), not in this notebook).
 # `Msckf` therefore constrains the feature's Jacobian *after* the nullspace projection instead,
 # $H_o^* = H_o\,(I - N (N^\top N)^{-1} N^\top)$ with the observing cameras' first-estimate nullspace $N$ — the same
 # property $H N = 0$ with one condition per direction and feature rather than two per camera
@@ -309,9 +375,10 @@ assert FAST or (yaw_nees[False] > 2 * hi1a and lo1a < yaw_nees[True] < hi1a and 
 # * The **OC-EKF** keeps first estimates and minimally modifies $\Phi$ (Eqs. 81-84) and every camera block of
 #   $H$ (Eqs. 85-86), restoring both properties exactly.
 # * **NEES** over Monte-Carlo runs against $\chi^2$ bands is the test of consistency; yaw alone is the sharpest.
-# * With small initial errors, OC on and off are both consistent here (section 4, inside this notebook's band). With
-#   a 3° attitude error the plain EKF's yaw standard deviation falls although yaw is unobservable; the OC-EKF keeps it
-#   (section 5).
+# * With small initial errors, OC on and off behave alike: their time-averaged NEES lies inside this notebook's band,
+#   but only about two thirds of the images do, the rest in stretches outside it on largely the same images
+#   (section 4). With a 3° attitude error the plain EKF's yaw standard deviation falls although yaw is unobservable;
+#   the OC-EKF keeps most of it, and over 10 s pays with overconfident roll and pitch (section 5).
 # * Consistency needed more than OC: an unbiased use of the gate, the oldest third pruned from a window of 40,
 #   and a start the linearisation can survive.
 #
@@ -333,7 +400,8 @@ assert FAST or (yaw_nees[False] > 2 * hi1a and lo1a < yaw_nees[True] < hi1a and 
 # independent truth at every step:
 #
 # * **geometry** (01-02): projection, distortion, the epipolar constraint and the essential matrix;
-# * **events** (03): an event camera simulator, and event-count images made from its output;
+# * **events** (03-04): an event camera simulator, and frames made from its events: representations, classical
+#   integration and a recurrent network that reconstructs intensity images;
 # * **features** (05-08): classical detectors, a SuperPoint-style network trained from scratch on synthetic shapes
 #   and homographic adaptation, and the benchmark that compares them (repeatability, homography correctness);
 # * **the filter** (09-12): IMU kinematics and dead reckoning, the MSCKF's error state and covariance propagation,
@@ -341,17 +409,20 @@ assert FAST or (yaw_nees[False] > 2 * hi1a and lo1a < yaw_nees[True] < hi1a and 
 #   filter honest about what it cannot see.
 #
 # On simulated tracks with perfect data association the filter you built stays within centimetres of the truth (the
-# RMSE printed in section 4) where the IMU alone drifts by metres within seconds (notebook 09).
+# RMSE printed in section 4) where the IMU alone drifts by metres within seconds (notebook 11, section 9).
 #
-# **What the thesis found** (Chapter IV, Table 6). On the *Boxes* recording (69.8 m of hand-held motion) the IMU alone
-# drifted by kilometres without bias corrections (RMSE 5383 m) and 29 m with them; the MSCKF brought this to about
-# 1 m RMSE on grayscale frames, with SIFT (1.11 m) and with the trained network (1.05 m) alike, and to under half a
-# metre on event frames (0.44 m with SIFT, 0.46 m with the network, about 0.45 % of the distance): the event frames
-# do not blur during the fast motion at the end of the recording. On the *Camp Atterbury* flight (1077 m, sparse
-# terrain seen from a fixed-wing UAV) it was the other way round: grayscale frames gave 9-20 m RMSE, event frames
-# 23-34 m, because the slow, sparse scene produced few events and noisy event frames. The thesis concludes that the
-# trained network offered no significant advantage over SIFT inside the filter, although it won the illumination
-# benchmarks (the thesis's Tables 2-5, notebook 08): good benchmark numbers are not the same as good tracks.
+# **What the thesis found** (§4.4-4.5, Table 6). On the *Boxes* recording (69.8 m travelled) the IMU alone drifted by
+# kilometres without bias corrections (RMSE 5383 m) and 29 m with them; the MSCKF brought this to about 1 m RMSE on
+# grayscale frames, with SIFT (1.11 m) and with the trained network (1.05 m) alike, and to under half a metre on event
+# frames (0.437 m with SIFT, 0.457 m with the network; Table 6's "% error", the mean error over the distance, 0.447 %
+# and 0.44 %): the event frames do not blur during the rapid motion of the recording's latter half (§4.5.1). On the
+# *Camp Atterbury* flight (1076.82 m, sparse terrain seen from a fixed-wing UAV) it was the other way round:
+# grayscale frames gave 8.96-20.01 m RMSE, event frames 22.77-34.12 m, because the sparse scene
+# without rapid motion produced a low event rate and noisy event frames (§4.5.2, Chapter V). The thesis concludes
+# (Chapter V) that the trained networks offered no significant advantage over SIFT inside the filter, although they
+# repeated detections and estimated homographies best under illumination changes (HPatches illumination, Tables 2
+# and 4; notebook 08): good benchmark numbers are not the same as good tracks.
 #
-# **Next: notebook 13** (being written) joins the two halves into the full pipeline: events to frames, frames to
-# feature tracks with the front end, tracks into this MSCKF, on a recording, with the metrics of the thesis's Table 6.
+# **Next: notebook 13** joins the two halves into the full pipeline: APS frames or frames reconstructed from events,
+# feature tracks from the front end, tracks into this MSCKF, on a recording, with the metrics of the thesis's
+# Table 6.
