@@ -1,5 +1,5 @@
 """Figures of lesson 04 (events to frames): representations side by side, reconstructions against the truth, SSIM
-against the window fraction n. Plotting only; every number shown is computed by the caller."""
+against the window fraction n, one adaptive window. Plotting only; every number shown is computed by the caller."""
 from __future__ import annotations
 
 from typing import Mapping, Sequence
@@ -7,32 +7,43 @@ from typing import Mapping, Sequence
 import matplotlib.pyplot as plt
 import numpy as np
 
-__all__ = ["plot_representations", "plot_image_grid", "plot_ssim_vs_fraction", "plot_training_history"]
+__all__ = ["plot_representations", "plot_image_grid", "plot_ssim_vs_fraction", "plot_adaptive_window",
+           "plot_training_history"]
 
 
 def plot_representations(polarity: np.ndarray, surface: np.ndarray, voxels: np.ndarray, title: str = "") -> plt.Figure:
-    """Return a figure: the polarity frame, the two time-surface channels, and every voxel-grid bin.
+    """Return a figure: the polarity frame, the two time-surface channels and every voxel-grid bin, with colour bars.
 
     Args:
-        polarity: (H, W) sum of polarities per pixel.
-        surface: (2, H, W) time surface [ON, OFF].
-        voxels: (B, H, W) voxel grid.
+        polarity: (H, W) sum of polarities per pixel [events, ON minus OFF].
+        surface: (2, H, W) time surface [ON, OFF], exp(-(t_ref - t_last) / tau) in [0, 1].
+        voxels: (B, H, W) voxel grid (normalised: zero mean, unit variance over the non-zero voxels).
         title: figure title.
     """
+    from matplotlib.patches import Patch
+
     n_bins = voxels.shape[0]
-    fig, axes = plt.subplots(2, max(3, n_bins), figsize=(2.6 * max(3, n_bins), 4.6))
-    limit = max(1.0, float(np.percentile(np.abs(polarity), 99)))
-    axes[0, 0].imshow(polarity, cmap="bwr", vmin=-limit, vmax=limit)
-    axes[0, 0].set_title("polarity frame")
-    for c, name in enumerate(("time surface ON", "time surface OFF")):
-        axes[0, 1 + c].imshow(surface[c], cmap="magma", vmin=0, vmax=1)
-        axes[0, 1 + c].set_title(name)
-    v_lim = max(1e-6, float(np.percentile(np.abs(voxels), 99)))
-    for b in range(n_bins):
-        axes[1, b].imshow(voxels[b], cmap="bwr", vmin=-v_lim, vmax=v_lim)
-        axes[1, b].set_title(f"voxel bin {b}")
+    columns = max(3, n_bins)
+    fig, axes = plt.subplots(2, columns, figsize=(2.9 * columns, 5.2))
     for ax in axes.ravel():
         ax.set_axis_off()
+    limit = max(1.0, float(np.percentile(np.abs(polarity), 99)))
+    shown = axes[0, 0].imshow(polarity, cmap="bwr", vmin=-limit, vmax=limit)
+    axes[0, 0].set_title("polarity frame")
+    fig.colorbar(shown, ax=axes[0, 0], fraction=0.046, pad=0.03).set_label("ON - OFF events per pixel")
+    axes[0, 0].legend(handles=[Patch(color="red", label="ON (p = +1): brighter"),
+                               Patch(color="blue", label="OFF (p = -1): darker")],
+                      loc="upper center", bbox_to_anchor=(0.5, 0.0), fontsize=7, ncol=1, frameon=False)
+    for c, name in enumerate(("time surface ON", "time surface OFF")):
+        shown = axes[0, 1 + c].imshow(surface[c], cmap="magma", vmin=0, vmax=1)
+        axes[0, 1 + c].set_title(name)
+        fig.colorbar(shown, ax=axes[0, 1 + c], fraction=0.046, pad=0.03).set_label("exp(-(t_ref - t_last) / tau)")
+    v_lim = max(1e-6, float(np.percentile(np.abs(voxels), 99)))
+    for b in range(n_bins):
+        shown = axes[1, b].imshow(voxels[b], cmap="bwr", vmin=-v_lim, vmax=v_lim)
+        axes[1, b].set_title(f"voxel bin {b}")
+    fig.colorbar(shown, ax=axes[1, n_bins - 1], fraction=0.046, pad=0.03).set_label(
+        "normalised voxel value (red: ON)")
     fig.suptitle(title)
     fig.tight_layout()
     return fig
@@ -56,16 +67,45 @@ def plot_image_grid(images: Mapping[str, np.ndarray], columns: int = 4, size: fl
 
 def plot_ssim_vs_fraction(fractions: Sequence[float], ssim: Mapping[str, Sequence[float]],
                           marks: Mapping[str, float] | None = None) -> plt.Figure:
-    """Return SSIM against the window fraction n, one line per sequence; ``marks`` draws the thesis's n per sequence."""
-    fig, ax = plt.subplots(figsize=(6, 3.6))
+    """Return SSIM against the window fraction n (log axis), one line per sequence.
+
+    ``marks`` draws the thesis's n per sequence as a dotted vertical line of the sequence's colour, named in the legend.
+    """
+    fig, ax = plt.subplots(figsize=(6.4, 3.8))
     for name, values in ssim.items():
-        line, = ax.plot(fractions, values, "o-", label=name)
+        line, = ax.plot(fractions, values, "o-", label=f"{name}: measured")
         if marks and name in marks:
-            ax.axvline(marks[name], color=line.get_color(), ls=":", lw=1)
+            ax.axvline(marks[name], color=line.get_color(), ls=":", lw=1.5,
+                       label=f"{name}: thesis's n = {marks[name]:g}")
     ax.set_xscale("log")
-    ax.set_xlabel("window fraction n  (N_e = n H W events)")
-    ax.set_ylabel("SSIM against the sharp truth")
-    ax.legend()
+    ax.set_xticks(list(fractions), [f"{n:g}" for n in fractions])    # plain numbers at the measured n
+    ax.minorticks_off()
+    ax.set_xlabel("window fraction n  (N_e = n H W events; log scale)")
+    ax.set_ylabel("SSIM against the sharp truth (1 = identical)")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3, which="both")
+    fig.tight_layout()
+    return fig
+
+
+def plot_adaptive_window(count: np.ndarray, active: np.ndarray, ratio: float, n_min: int, stop: int) -> plt.Figure:
+    """Return the events of one adaptive window against the pixels they lit, with the line that closes it.
+
+    Args:
+        count: (K,) events in the window so far, 1..K.
+        active: (K,) distinct pixels that fired among those events.
+        ratio: events per active pixel that close the window.
+        n_min: smallest window [events].
+        stop: the window's size as the rule chose it [events].
+    """
+    fig, ax = plt.subplots(figsize=(6.4, 3.8))
+    ax.plot(count, active, label="pixels that fired (active)")
+    ax.plot(count, count / ratio, "--", label=f"events / {ratio:g}: the window closes once active is below")
+    ax.axvline(n_min, color="gray", ls=":", label=f"smallest window: {n_min} events")
+    ax.axvline(stop, color="k", lw=1, label=f"window closes at {stop} events")
+    ax.set_xlabel("events in the window")
+    ax.set_ylabel("pixels [px]")
+    ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()
     return fig
@@ -85,10 +125,10 @@ def plot_training_history(history: Sequence[Mapping[str, float]]) -> plt.Figure:
         label = f"stage {stage}" if len(stages) > 1 else None
         a.plot(steps, [h["val_ssim"] for h in part], "o-", color=f"C{stage - 1}", label=label)
         b.plot(steps, [h["val_loss"] for h in part], "o-", color=f"C{stage - 1}", label=label)
-    a.set_xlabel("step")
-    a.set_ylabel("validation SSIM")
-    b.set_xlabel("step")
-    b.set_ylabel("validation loss")
+    a.set_xlabel("training step (batches)")
+    a.set_ylabel("validation SSIM (1 = identical)")
+    b.set_xlabel("training step (batches)")
+    b.set_ylabel("validation loss (L1 + (1 - SSIM) + temporal)")
     for ax in (a, b):
         ax.grid(alpha=0.3)
         if len(stages) > 1:

@@ -8,21 +8,32 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from evio_lib.evaluation.plots_events import (plot_image_grid, plot_representations,  # noqa: E402
-                                              plot_ssim_vs_fraction, plot_training_history)
+from evio_lib.evaluation.plots_events import (plot_adaptive_window, plot_image_grid,  # noqa: E402
+                                              plot_representations, plot_ssim_vs_fraction, plot_training_history)
 
 
 def test_figures_have_their_panels():
     rng = np.random.default_rng(0)
     fig = plot_representations(rng.normal(size=(6, 8)), rng.uniform(size=(2, 6, 8)), rng.normal(size=(5, 6, 8)))
-    assert len(fig.axes) == 10
+    assert len(fig.axes) == 10 + 4          # 3 + 5 panels, 1 empty, and 4 colour bars (polarity, ON, OFF, voxels)
+    colour_bars = [ax.get_ylabel() for ax in fig.axes[10:]]
+    assert colour_bars[0] == "ON - OFF events per pixel" and all(colour_bars)
+    assert [t.get_text() for t in fig.axes[0].get_legend().get_texts()] == ["ON (p = +1): brighter",
+                                                                            "OFF (p = -1): darker"]
     fig2 = plot_image_grid({"a": rng.uniform(size=(6, 8)), "b": np.zeros((6, 8), np.uint8)}, columns=2)
     assert [ax.get_title() for ax in fig2.axes] == ["a", "b"]
     fig3 = plot_ssim_vs_fraction([0.1, 0.2], {"x": [0.3, 0.4]}, marks={"x": 0.2})
     assert fig3.axes[0].get_xscale() == "log"
+    assert [t.get_text() for t in fig3.axes[0].get_legend().get_texts()] == ["x: measured", "x: thesis's n = 0.2"]
+    assert fig3.axes[0].get_xlabel() and fig3.axes[0].get_ylabel()
+    count = np.arange(1, 101)
+    fig6 = plot_adaptive_window(count, np.minimum(count, 40), ratio=2.0, n_min=10, stop=80)
+    assert fig6.axes[0].get_xlabel() == "events in the window" and fig6.axes[0].get_ylabel() == "pixels [px]"
+    assert len(fig6.axes[0].get_legend().get_texts()) == 4
     fig4 = plot_training_history([{"step": 1, "val_ssim": 0.5, "val_loss": 0.9}, {"step": 2, "val_ssim": 0.6,
                                                                                   "val_loss": 0.8}])
     assert len(fig4.axes) == 2
+    assert [ax.get_xlabel() for ax in fig4.axes] == ["training step (batches)"] * 2
     staged = [{"step": 1, "val_ssim": 0.5, "val_loss": 0.9, "stage": 1}, {"step": 2, "val_ssim": 0.6, "val_loss": 0.8,
                                                                          "stage": 2}]
     fig5 = plot_training_history(staged)
