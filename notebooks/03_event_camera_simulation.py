@@ -29,6 +29,19 @@
 # The code lives in `evio_lib.events.simulate` (event generation), `evio_lib.sim` (scenes, trajectories, IMU, APS
 # frames, whole recordings) and `evio_lib.io.ecd` (files).
 
+# %% [markdown]
+# First the idea as a picture. Left: the pixel's three stages (thesis Fig. 3) and the reset that makes each event's
+# level the new reference. Right: one log-intensity curve with the levels $r_0 + kC$: an ON event each time $L$
+# climbs one level above the last event's, an OFF event each time it falls one below — the rule section 1 computes.
+
+# %%
+import matplotlib.pyplot as plt
+
+from evio_lib.evaluation.plots_schematics import plot_event_pixel_schematic
+
+fig = plot_event_pixel_schematic(contrast=0.2)
+plt.show()
+
 # %%
 import os
 import tempfile

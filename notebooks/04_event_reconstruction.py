@@ -29,6 +29,19 @@
 # `create_reconstructor(name)`, for every method), `evio_lib.events.reconstruction_train` and
 # `evio_lib.events.reconstruction_eval`.
 
+# %% [markdown]
+# The learned half of the lesson in one picture, unrolled over two windows: each window of events becomes a voxel
+# grid of B = 5 time bins, and the network's ConvGRU cells hand their state (green, dashed) from one window to the
+# next — the memory that lets a sensor which only sees changes build up a whole image (sections 2 and 5).
+
+# %%
+import matplotlib.pyplot as plt
+
+from evio_lib.evaluation.plots_schematics import plot_reconstruction_schematic
+
+fig = plot_reconstruction_schematic(num_bins=5, channels=16)
+plt.show()
+
 # %%
 import os
 

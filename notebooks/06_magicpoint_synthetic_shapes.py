@@ -26,6 +26,19 @@
 # 4. trains MagicPoint for a short while with `evio_lib.features.train` and plots the loss curve;
 # 5. measures precision and recall (Eqs. 13-14) of its detections on held-out synthetic images.
 
+# %% [markdown]
+# The network of this lesson and the next, before any code: one shared encoder shrinks the image to an
+# H/8 x W/8 grid of cells; the detector head gives each cell 65 scores (64 pixel positions and a "no point"
+# dustbin), the descriptor head one 256-D descriptor. Section 2 builds exactly this.
+
+# %%
+import matplotlib.pyplot as plt
+
+from evio_lib.evaluation.plots_schematics import plot_superpoint_schematic
+
+fig = plot_superpoint_schematic()
+plt.show()
+
 # %%
 import os
 import tempfile

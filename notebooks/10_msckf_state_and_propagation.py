@@ -38,6 +38,20 @@ N_RUNS = 20 if FAST else 100  # Monte-Carlo runs
 print(f"FAST = {FAST}: {DURATION:g} s, {N_RUNS} Monte-Carlo runs")
 
 # %% [markdown]
+# The filter of lessons 10-12 in one picture (drawn after the set-up cell, which must limit the BLAS threads before
+# anything imports numpy). Top: the state this lesson builds, an IMU state of 15 error states followed by a window of
+# camera clones, 6 each. Bottom: what lesson 11 does with a feature track, step by step — note that the feature's
+# position is never part of the state.
+
+# %%
+import matplotlib.pyplot as plt
+
+from evio_lib.evaluation.plots_schematics import plot_msckf_schematic
+
+fig = plot_msckf_schematic(num_clones=5)
+plt.show()
+
+# %% [markdown]
 # ## 1. The error state
 #
 # The nominal IMU state $X_{IMU} = [\bar q_{GtoI}, \mathbf b_g, \mathbf v_{IinG}, \mathbf b_a, \mathbf p_{IinG}]$ has 16 numbers,

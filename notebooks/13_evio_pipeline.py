@@ -74,6 +74,19 @@ HAVE_EUROC = (EUROC / "mav0").is_dir()  # real data is optional: its cells skip 
 print(f"fast mode: {FAST}; APS runs over {D_APS:g} s, event runs over {D_EVENTS:g} s; EuRoC slice found: {HAVE_EUROC}")
 
 # %% [markdown]
+# The pipeline as a data flow (drawn after the set-up cell, which must limit the threads before numpy loads). Follow
+# the arrows: events become frames only through windows and a reconstruction (lesson 04), APS frames are used as
+# they are; the IMU feeds the filter and, dashed, gives the tracker its rotation prior; the ground truth scores the
+# trajectory (it also gives a moving start its initial state, section 2, not drawn). The number in brackets is the
+# lesson that teaches each box.
+
+# %%
+from evio_lib.evaluation.plots_schematics import plot_pipeline_schematic
+
+fig = plot_pipeline_schematic()
+plt.show()
+
+# %% [markdown]
 # ## 1. The front-end
 #
 # The tracker, `evio_lib.frontend`. The thesis's front-end (§3.3.5, "Image Processing Front-End") is one paragraph:
