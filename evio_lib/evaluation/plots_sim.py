@@ -95,21 +95,21 @@ def plot_pixel_events(t: ArrayLike, log_intensity: ArrayLike, events: np.ndarray
     r0 = float(log_i[0]) if reference0 is None else float(reference0)
     fig, (ax, ax_ev) = plt.subplots(2, 1, figsize=(9, 5), sharex=True, height_ratios=(3, 1))
     k = np.arange(np.floor((log_i.min() - r0) / contrast), np.ceil((log_i.max() - r0) / contrast) + 1)
-    for level in r0 + k * contrast:
-        ax.axhline(level, color="0.85", lw=0.8, zorder=0)
+    for j, level in enumerate(r0 + k * contrast):
+        ax.axhline(level, color="0.85", lw=0.8, zorder=0, label="levels r0 + k C" if j == 0 else None)
     ax.plot(t, log_i, color="k", lw=1.5, label="log intensity L(t)")
     level_at_event = np.interp(events["t"], t, log_i)
     for p, colour, marker, label in ((1, _ON_COLOUR, "^", "ON event"), (-1, _OFF_COLOUR, "v", "OFF event")):
         sel = events["p"] == p
         ax.scatter(events["t"][sel], level_at_event[sel], color=colour, marker=marker, s=40, zorder=3, label=label)
         ax_ev.vlines(events["t"][sel], 0, p, color=colour, lw=1.5)
-    ax.set_ylabel("L = log(I + eps)")
+    ax.set_ylabel("L = log(I + eps) [log units]")
     ax.set_title(f"one pixel: an event each time L moves by C = {contrast:g} from its last event level")
     ax.legend(loc="upper right", fontsize=8)
     ax_ev.axhline(0, color="k", lw=0.5)
     ax_ev.set_ylim(-1.3, 1.3)
     ax_ev.set_yticks([-1, 1])
-    ax_ev.set_ylabel("polarity")
+    ax_ev.set_ylabel("polarity p")
     ax_ev.set_xlabel("time [s]")
     fig.tight_layout()
     return fig
@@ -194,8 +194,10 @@ def plot_sample_intervals(sample_times: ArrayLike, speed_t: ArrayLike | None = N
         if speed_t is None:
             raise ValueError("speed_t must be given with speed")
         ax2 = ax.twinx()
-        ax2.plot(np.asarray(speed_t), np.asarray(speed), color="tab:orange", lw=1.5)
+        ax2.plot(np.asarray(speed_t), np.asarray(speed), color="tab:orange", lw=1.5, label="image speed (right axis)")
         ax2.set_ylabel(speed_label, color="tab:orange")
+        handles = ax.get_legend_handles_labels()[0] + ax2.get_legend_handles_labels()[0]
+        ax.legend(handles=handles, loc="upper right", fontsize=8)
     ax.set_title(f"adaptive sampling: {ts.size} renders")
     fig.tight_layout()
     return fig
@@ -297,14 +299,18 @@ def plot_event_rates(rates: Mapping[str, tuple[ArrayLike, ArrayLike]],
         raise ValueError("rates must hold at least one (name -> (times, rate)) entry; got none")
     fig, axes = plt.subplots(len(rates), 1, figsize=(9, 2.8 * len(rates)), squeeze=False)
     for ax, (name, (t, rate)) in zip(axes[:, 0], rates.items()):
-        ax.plot(np.asarray(t), np.asarray(rate) / 1e6, color="k", lw=1.2)
+        ax.plot(np.asarray(t), np.asarray(rate) / 1e6, color="k", lw=1.2, label="event rate (left axis)")
         ax.set_ylabel("events [Mev/s]")
         ax.set_title(name, fontsize=10)
         ax.set_xlabel("time [s]")
+        handles = ax.get_legend_handles_labels()[0]
         if motion is not None and name in motion:
             tm, value = motion[name]
             ax2 = ax.twinx()
-            ax2.plot(np.asarray(tm), np.asarray(value), color="tab:orange", lw=1.0)
+            ax2.plot(np.asarray(tm), np.asarray(value), color="tab:orange", lw=1.0,
+                     label=f"{motion_label.split(' [')[0]} (right axis)")
             ax2.set_ylabel(motion_label, color="tab:orange")
+            handles += ax2.get_legend_handles_labels()[0]
+        ax.legend(handles=handles, loc="upper left", fontsize=8)
     fig.tight_layout()
     return fig

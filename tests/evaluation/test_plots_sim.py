@@ -110,3 +110,16 @@ def test_imu_rates_and_sampling_figures(rng: np.random.Generator, events: np.nda
     assert len(fig.axes) == 2
     with pytest.raises(ValueError, match="strictly increasing"):
         plot_sample_intervals([0.0, 0.0, 1.0])
+
+
+def test_every_line_style_is_in_a_legend_and_axes_carry_units() -> None:
+    pixel = plot_pixel_events([0.0, 0.5, 1.0], [0.0, 0.5, 0.0], make_events([0.4], [0], [0], [1]), 0.2)
+    labels = [t.get_text() for t in pixel.axes[0].get_legend().get_texts()]
+    assert labels == ["levels r0 + k C", "log intensity L(t)", "ON event", "OFF event"]
+    assert pixel.axes[0].get_ylabel().endswith("[log units]")
+    rates = plot_event_rates({"a": ([0.0, 1.0], [10.0, 20.0])}, {"a": ([0.0, 1.0], [0.1, 0.2])})
+    assert [t.get_text() for t in rates.axes[0].get_legend().get_texts()] == [
+        "event rate (left axis)", "angular speed |w| (right axis)"]
+    intervals = plot_sample_intervals([0.0, 0.1, 0.15, 0.17], [0.0, 0.17], [1.0, 2.0])
+    assert [t.get_text() for t in intervals.axes[0].get_legend().get_texts()] == [
+        "render interval", "image speed (right axis)"]
