@@ -29,8 +29,10 @@
 # **Data.** HPatches and the thesis's aerial recordings cannot be downloaded here. The library builds an
 # HPatches-style benchmark instead (`heldout_pairs`): images of the held-out TEST split of the project's image pool
 # (never seen in training), each paired with copies warped by random homographies (the *viewpoint* split) or
-# changed only photometrically (the *illumination* split, $H = I$). The event-frame split uses event-count
-# images of the simulator's aerial preset and warped copies, like the thesis's UAV set (§3.2.3). Anyone with the
+# changed only photometrically (the *illumination* split, $H = I$). The event-frame split pairs event frames of
+# the simulator's aerial preset with warped copies, as the thesis built its UAV set (§3.2.3); but our frames are
+# plain event-count images, where the thesis's were "reconstructed event images" made by a recurrent network (§3.2.3,
+# §4.1), like the reconstructions of lesson 04 (section 6 says what that changes). Anyone with the
 # real HPatches folder gets the official benchmark from the same code (`--dataset hpatches --hpatches-root DIR`).
 
 # %%
@@ -284,11 +286,15 @@ assert all(qualitative[("illumination", n)][1] < view[n][1] for n in view)  # fe
 #
 # ## 6. The event-frame split
 #
-# The thesis's second data set was made of event frames from a UAV flight, each paired with a copy warped by a
-# small rotation and translation (§3.2.3). We build the same from the simulator's aerial preset: accumulate the
-# events of short windows into **event-count images** (lesson 03), scale them to [0, 1] and let `event_frame_pairs`
-# warp them. The thesis evaluated these at 240 x 320 with the best 100 points (repeatability) and 1000 points
-# (homography), NMS 4 throughout: `BenchmarkSettings.thesis_event_frames()`.
+# The thesis's second data set was made of 786 "reconstructed event images" from its UAV flight, each paired with a
+# copy warped by a random homography "limited to small changes in rotation and translation" (§3.2.3); the images came
+# from the recurrent reconstruction network of §4.1 (the kind of network lesson 04 trains). We build the pairs the
+# same way but from a simpler image: the simulator's aerial preset, whose events of short windows we only **count**
+# per pixel (**event-count images**, lesson 03), scaled to [0, 1], then warped by `event_frame_pairs`. A count image
+# is a sparse edge map: most of its pixels saw no event (printed below), where a reconstruction fills in intensity
+# everywhere, so do not expect this split to reproduce the thesis's Tables 3 and 5 (lesson 04's
+# `create_reconstructor` would give the closer analogue). The thesis evaluated these at 240 x 320 with the best 100
+# points (repeatability) and 1000 points (homography), NMS 4 throughout: `BenchmarkSettings.thesis_event_frames()`.
 
 # %%
 n_frames = 2 if FAST else 8
@@ -305,6 +311,9 @@ for k in range(n_frames):
 event_pairs = event_frame_pairs(frames, SEED, pairs_per_frame=1)
 print(f"{len(sequence.events)} events simulated in {time.perf_counter() - start:.1f} s -> {len(frames)} frames "
       f"of {height} x {width}, {len(event_pairs)} pairs")
+empty_fraction = float(np.mean([f == 0 for f in frames]))
+print(f"pixels without any event: {empty_fraction:.0%} (a count image is a sparse edge map)")
+assert empty_fraction > 0.5
 
 fig = plot_heatmap_row([event_pairs[0].image1, event_pairs[0].image2, frames[-1]],
                        ["event frame", "warped copy (image 2)", "another frame"], cmaps="gray", panel_in=4.3)
@@ -441,15 +450,19 @@ display(Markdown(format_table(rows, "speed")))
 #
 # * **different images**: HPatches has real photographs of real planar scenes taken with real cameras; our pairs
 #   are synthetic warps of held-out images, so there is no parallax, no motion blur and no change of camera
-#   between the two images of a pair. The viewpoint homographies were tuned so that SIFT lands near its thesis
-#   row on homography estimation, which makes that row a calibration rather than a result;
+#   between the two images of a pair. The strength of the viewpoint homographies (`VIEWPOINT_HOMOGRAPHY`) was set
+#   so that SIFT's homography scores came out near its thesis row (0.464 / 0.769 / 0.831) on a different, small
+#   image set. On these held-out images that calibration does not carry over: in the full run SIFT lands below
+#   the thesis row at every $\varepsilon$ (checked below; the fast run's two viewpoint pairs can only score 0, 0.5
+#   or 1). Our viewpoint split is harder than HPatches for SIFT, and no row of it is on the thesis's scale;
 # * **illumination**: HPatches' illumination scenes contain real light changes; ours are a model of them (tone
 #   curve, shading, exposure, noise; `illumination_change`). Harsher or milder settings move every row;
 # * **few pairs**: this notebook runs a small subset, the full 580-pair benchmark comes from the command line.
 #
-# What to look for is the *ranking*, not the third decimal. In the thesis, Harris and FAST are the most repeatable
-# at $\varepsilon = 3, 5$ (they fire precisely on corners), SIFT's blob centres are less repeatable but its
-# descriptor makes it the best classical method for homography estimation, and ORB is the weakest at it. The
+# What to look for is the *ranking*, not the third decimal. In the thesis's Table 2 Harris is the most repeatable
+# detector on the viewpoint scenes at $\varepsilon = 3, 5$ (0.758 / 0.868, §4.3) and SIFT's blob centres the least
+# repeatable of the classical rows (0.486 / 0.685), yet in Table 4 SIFT's descriptor makes it the best classical
+# method for viewpoint homographies (0.464 / 0.769 / 0.831), and ORB is the weakest (0.061 / 0.386 / 0.536). The
 # cell below prints the thesis's classical rows next to ours and checks the one ranking that our data should
 # reproduce robustly: on the viewpoint split, SIFT estimates homographies at least as well as ORB. The thesis's
 # trained networks mainly win on the **illumination** split, where a detector and descriptor learned under
@@ -483,6 +496,14 @@ for metric, split in (("repeatability", "viewpoint"), ("repeatability", "illumin
                       ("homography", "viewpoint"), ("homography", "illumination")):
     best = max(rows, key=lambda r: r[metric][split][3.0])
     print(f"best {metric:13s} on {split:12s} at eps = 3: {best['detector']} ({best[metric][split][3.0]:.3f})")
+assert all(thesis[("repeatability", "harris")][0][k] > thesis[("repeatability", n)][0][k]  # the quoted ranking
+           for n in ("fast", "sift") for k in (1, 2))
+assert all(thesis[("homography", "sift")][0][k] > thesis[("homography", n)][0][k] > thesis[("homography", "orb")][0][k]
+           for n in ("fast_freak",) for k in range(3))
+sift_view = [by_name["sift"]["homography"]["viewpoint"][e] for e in settings.eps]
+print("SIFT viewpoint homography, this run:", np.round(sift_view, 3), " thesis:", thesis[("homography", "sift")][0])
+if not FAST:  # 16 viewpoint pairs: SIFT scores below its thesis row at every eps (the calibration did not carry over)
+    assert all(ours < ref for ours, ref in zip(sift_view, thesis[("homography", "sift")][0]))
 if "sift" in by_name and "orb" in by_name:
     assert by_name["sift"]["homography"]["viewpoint"][3.0] >= by_name["orb"]["homography"]["viewpoint"][3.0]
 if cnn:
@@ -512,9 +533,10 @@ if cnn:
 # repeatable at $\varepsilon = 3$, but the trained networks came within a few hundredths of it. Here they fall far
 # behind: the network trained on this CPU (`..._round2_cpu`) repeats less than half as many points as Harris, and the
 # GPU-trained one, about as repeatable as SIFT and FAST here, still trails Harris clearly (the values are printed
-# below). Neither network saw an event frame
-# in training (the thesis's event-tailored networks gained nothing from it either), and our simulated event frames are
-# thin, noisy edge maps, far from the photographs both were trained on. Why the gap is this large is not settled here.
+# above). Neither network saw an event frame in training (the thesis's event-tailored networks gained nothing from it
+# either, §4.3), and our event frames are thin count images, mostly empty (section 6), far from the photographs both
+# were trained on, while the thesis's were reconstructed intensity images. Why the gap is this large is not settled
+# here.
 # %% [markdown]
 # ## 10. Why does the CNN lose the viewpoint split? Matching or localisation
 #
