@@ -370,11 +370,28 @@ assert error.mean() < 0.05 and (error > 0.25).mean() < 0.1
 #
 # 1. Change the sign of $k_1$ (build a `PinholeRadtan` by hand) and redraw the grid figure. Which way do the
 #    lines bend now, and does the field of view grow or shrink?
+#
+#    *Hint:* `dataclasses.replace(cam, k1=-cam.k1)` gives the lens; cast the rays of the edge pixels with `pixel_rays`
+#    as in §1.
 # 2. Derive $\partial(u, v)/\partial(X, Y, Z)$ for the ideal pinhole by hand and compare it with
 #    `ideal_cam.projection_jacobian`. Then check the distorted version against central finite differences.
+#
+#    *Hint:* write $u = f_x X/Z + c_x$ and differentiate; for the distorted model perturb each coordinate by $\pm h$
+#    and divide by $2h$.
 # 3. Find the smallest number of OpenCV-style fixed-point iterations that undistorts every DAVIS240C pixel to
 #    $10^{-8}$ in normalised coordinates. How many Newton steps does the library need?
+#
+#    *Hint:* copy the fixed-point loop of §3 and stop when `np.abs(xy - cam.unproject(pixels)).max() < 1e-8`;
+#    `undistort_normalized(..., iterations=n, tol=0.0)` runs n Newton steps.
 # 4. `cam.scaled(2)` describes the same lens with a sensor of twice the resolution. Why is
 #    $c_x' = 2(c_x + 0.5) - 0.5$ and not simply $2c_x$? (Hint: where are the pixel centres?)
+#
+#    *Hint:* a pixel $u$ covers $[u - 0.5, u + 0.5]$: where is the sensor's left edge, and what does doubling the
+#    resolution do to it?
 # 5. Project a 3-D point that lies far outside the field of view (for instance at 80° from the axis). What does the
 #    polynomial model predict, and why should a tracker never trust projections outside the image?
+#
+#    *Hint:* compute $x = \tan 80°$ and the radial factor $1 + k_1 x^2 + k_2 x^4$ the calibration was never fitted at.
+#
+# Solutions, with the code to run (checked by `tests/test_solutions.py`):
+# [docs/solutions/01_pinhole_camera.md](../docs/solutions/01_pinhole_camera.md).

@@ -546,13 +546,31 @@ assert n_null == 3 and plane_error > 0.01
 # 1. Remove the Hartley normalisation (use the three-line `E_linear` on pixel coordinates converted back with $K$)
 #    and repeat the 0.5 px noise experiment. How much worse is the rotation error? Why does conditioning matter more
 #    in pixels than in normalised coordinates?
+#
+#    *Hint:* build $A$ from `np.c_[uv, ones]` instead of normalised points, take $F$ from its null vector and $E = K^T
+#    F K$; compare the singular values of both $A$ matrices.
 # 2. Move camera 2 straight **forward** instead of sideways. Where is the epipole now, and how do the epipolar
 #    lines look? Which points are hard to triangulate?
+#
+#    *Hint:* the epipole is the null vector of $F$ (`np.linalg.svd(F)[2][-1]`); what does a pure $z$ translation
+#    project to?
 # 3. Repeat the depth experiment as a function of the point depth $Z$ (fixed noise and baseline). Do you find the
 #    predicted $Z^2$ law?
+#
+#    *Hint:* fix the baseline and noise, put all points at one depth $Z$ per trial, and fit the slope of $\log$ error
+#    against $\log Z$.
 # 4. Shrink the baseline towards zero with the estimated pose. At which baseline does `recover_pose` start picking
 #    the wrong candidate, and what does `estimate_essential_ransac` return when $\mathbf{t} = 0$ exactly?
+#
+#    *Hint:* sweep the baseline down from 0.4 m and count the trials where `t_est @ t_true > 0.9`; for $t = 0$ ask
+#    which $E = [t\times]R$ satisfy $x_2 \propto R x_1$.
 # 5. Section 8 showed that coplanar points leave $A$ with three zero singular values. Why three? (Hint: a homography
 #    has 8 degrees of freedom; count the independent equations it leaves for the 9 entries of $E$.) Estimate the
 #    homography with `cv2.findHomography` instead and decompose it with `cv2.decomposeHomographyMat`: how many
 #    candidate motions do you get, and which one is right?
+#
+#    *Hint:* $x_2^\top E x_1 = x_1^\top H^\top E x_1$: which part of $H^\top E$ does a quadratic form see?
+#    `cv2.filterHomographyDecompByVisibleRefpoints` takes normalised points.
+#
+# Solutions, with the code to run (checked by `tests/test_solutions.py`):
+# [docs/solutions/02_epipolar_geometry.md](../docs/solutions/02_epipolar_geometry.md).

@@ -607,11 +607,29 @@ print(f"whole notebook so far: {time.perf_counter() - notebook_start:.0f} s")
 # 1. Raise the refractory period of section 2(d) from 0 to 100 ms in steps and plot the number of events. When do
 #    the fastest pixels start to lose events? Relate it to the time between two threshold crossings,
 #    $C / |\dot L|$.
+#
+#    *Hint:* reuse `run_tiny` with `EventCameraParams(refractory_s=...)` and read `dropped_refractory`; estimate
+#    $|\dot L|$ from consecutive log renders.
 # 2. Lower the contrast thresholds to 0.1 and 0.05. How do the event count and the residual of 2(c) scale?
 #    What would this cost a real sensor (bandwidth, noise)?
+#
+#    *Hint:* set `contrast_pos = contrast_neg = C` (and scale `contrast_sigma` with it); the residual of 2(c) is
+#    bounded by one threshold.
 # 3. Build the event frame of the fast moment from 1, 3, 10 and 30 ms of events and compute its sharpness $S$.
 #    Which window length gives the sharpest frame, and why does a too-long window blur like an APS frame?
+#
+#    *Hint:* select the events with $|t - t_{fast}| <$ half the window and reuse `sharpness`; beware that a very
+#    sparse frame scores a high $S$ too.
 # 4. Simulate `aerial_like` with `background_rate_hz = 0.1` and compare signal and noise events per second. At what
 #    noise rate is every second event noise? (Thesis §4.1 found the aerial event frames noisy.)
+#
+#    *Hint:* `dataclasses.replace(cfg.events, background_rate_hz=0.1)`; noise adds rate x pixels x seconds events, so
+#    compare it with the signal's events per pixel and second.
 # 5. Write a longer clip with `write_ecd` and read only its IMU and ground truth (`read_ecd(..., load_events=False)`).
 #    Integrate the gyro (minus the true bias) and compare the orientation with the ground truth after 1 s.
+#
+#    *Hint:* `with_events=False, with_frames=False` simulates only the IMU and ground truth; integrate with `so3_exp`
+#    of the mid-point rate and compare with `groundtruth_imu`.
+#
+# Solutions, with the code to run (checked by `tests/test_solutions.py`):
+# [docs/solutions/03_event_camera_simulation.md](../docs/solutions/03_event_camera_simulation.md).

@@ -602,9 +602,27 @@ assert summary["last"]["val_loss"] < untrained["loss"]
 # ## Exercises
 #
 # 1. Plot the time surface of one window for tau = 1 ms, 10 ms and 100 ms. Which tau shows the direction of motion best?
+#
+#    *Hint:* compare tau with the window's duration (`window['t'][-1] - window['t'][0]`): which tau leaves most lit
+#    pixels between 0 and 1?
 # 2. Run the high-pass filter with `cutoff_hz` = 0.06, 1 and 10 on the gentle boxes stretch and score each. Why does a
 #    larger cutoff help direct integration's drift but hurt in flat regions?
+#
+#    *Hint:* `create_reconstructor('high_pass', W, H, cutoff_hz=...)` and `score_windows`; a pixel's memory halves
+#    every $\ln 2/(2\pi f_c)$ seconds.
 # 3. Cut the aerial stretch with `adaptive_windows` and compare the mean window size with the thesis's n = 0.2.
+#
+#    *Hint:* `adaptive_windows(stretches['aerial_like'].events, W, H)` returns the bounds; the mean of their sizes
+#    divided by $HW$ is $n$.
 # 4. Feed the network windows in reverse time order. What happens to the image, and why?
+#
+#    *Hint:* `reconstruct_windows(reconstructor, events, bounds[::-1])`; score each output against the truth and
+#    against its negative.
 # 5. Train the default 3000 steps with `--set lambda_tc=0` and compare the flicker of consecutive frames (the mean
 #    absolute difference between consecutive outputs on a still stretch) with the shipped model.
+#
+#    *Hint:* `python -m evio_lib reconstruct-train --out DIR --set lambda_tc=0` (about an hour), then load
+#    `DIR/best.pt` with `create_reconstructor('learned', checkpoint=...)`.
+#
+# Solutions, with the code to run (checked by `tests/test_solutions.py`):
+# [docs/solutions/04_event_reconstruction.md](../docs/solutions/04_event_reconstruction.md).

@@ -358,12 +358,29 @@ if not FAST:  # the full lesson's run, on its own kind of images, is the more pr
 #
 # 1. Train with `model="full"` for the same number of steps. How do time per step and the validation loss compare
 #    with the narrow network?
+#
+#    *Hint:* keep every other override of the short run, change only `model`; `result.seconds / result.steps` is the
+#    time per step.
 # 2. The short run switched the augmentation off (`augment=False`; the shipped config has `augment=True`). Train
 #    with `augment=True` for the same number of steps and again for four times as many. Does the validation loss
 #    (un-augmented images) get better or worse, and how do precision and recall on `augmented_test` change?
+#
+#    *Hint:* train with `augment=True`, then score both runs on `test_shapes` and on `augmented_test` with `evaluate`.
 # 3. Change the NMS radius and the 1/65 threshold of the detector and plot precision against recall. Which
 #    setting would you pick for a VIO front end that needs ~100 well-spread points?
+#
+#    *Hint:* compute each heatmap once (`detector.heatmap`) and sweep
+#    `extract_keypoints(heat, threshold=..., nms_radius=...)`.
 # 4. Remove the ellipses and noise from the schedule (`counts=` of `SyntheticShapes`) and train again. Does the
 #    detector start firing on blobs? (Look at the `ellipses` test images.)
+#
+#    *Hint:* pass `counts=` without `ellipses` and `gaussian_noise` to `SyntheticShapes`; the trainer builds its data
+#    sets inside `train`, so wrap the class it imports.
 # 5. Interrupt a training run (`max_steps=20`), resume it with `training.train(config, resume=True)` to 40 steps
 #    and check that the weights equal those of an uninterrupted 40-step run.
+#
+#    *Hint:* train 20 steps into one folder, then `training.train(config_40, resume=True)` there and compare
+#    `last.pt`'s `state_dict` with an uninterrupted 40-step run (`torch.equal`).
+#
+# Solutions, with the code to run (checked by `tests/test_solutions.py`):
+# [docs/solutions/06_magicpoint_synthetic_shapes.md](../docs/solutions/06_magicpoint_synthetic_shapes.md).

@@ -543,14 +543,35 @@ for name in names:  # loop over shipped networks
 #
 # 1. Plot the relative difference of Section 1 against the number of warps $N$ (1, 5, 20, 100). How fast does it
 #    fall, and where is the point of diminishing returns for the label export?
+#
+#    *Hint:* wrap section 1's equivariance comparison in a function of $N$; a fixed base detector (Harris or the
+#    shipped network) keeps the curve reproducible.
 # 2. Replace `aggregation="mean"` by `"max"` in `homographic_adaptation`. Are the labels more or less repeatable?
+#
+#    *Hint:* `homographic_adaptation(..., aggregation='max')`; take labels as in section 1 from the image and its warp
+#    and compute their `repeatability`.
 # 3. Compute $S$ for a homography that scales by 2. How many positives does a cell of image 1 get, and what does
 #    that mean for $\lambda_d$?
+#
+#    *Hint:* `cell_correspondences(np.diag([2.0, 2.0, 1.0]), grid)`: count the positives per row (cells of image 1)
+#    and per column.
 # 4. Train the descriptor run with `lambda_d=250` and with `lambda_d=6`. Follow the two cosines and the retrieval
 #    in `dd_result.validation`: which setting collapses the descriptors, and which one stops pulling corresponding
 #    cells together? Then train it with `lr=1e-3`: what happens to the share of keypoints on corners in Section 3?
+#
+#    *Hint:* pass `lambda_d=` or `lr=` to the `detdesc_round1` config of section 3 and print `desc_positive_dot`,
+#    `desc_negative_dot` and `desc_nn_accuracy` of each validation.
 # 5. Run the matching of Section 3 with the strong training warp (`HOMOGRAPHIC_PAIR`, rotations up to 90 degrees).
 #    Which network suffers more, the trained or the untrained one?
+#
+#    *Hint:* replace `mild` by `HOMOGRAPHIC_PAIR` in `homographic_augment` and compare the correct matches of both
+#    networks with the mild ones.
 # 6. Run `python bench/detector_localisation.py --weights pretrained_detdesc_round1_gpu pretrained_detdesc_round2_cpu
 #    --detectors harris`. Which warps separate the two networks most, and why would a 1.5x zoom hurt every
 #    single-scale detector?
+#
+#    *Hint:* read the rows of sub-cell shifts (0.5, 1, 2.5 px) against the 8 px shift, and the zoom rows against
+#    Harris.
+#
+# Solutions, with the code to run (checked by `tests/test_solutions.py`):
+# [docs/solutions/07_homographic_adaptation_and_superpoint_training.md](../docs/solutions/07_homographic_adaptation_and_superpoint_training.md).

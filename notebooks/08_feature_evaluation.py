@@ -659,13 +659,30 @@ assert filter_config.min_track_length == 3 and filter_config.pixel_noise_sigma =
 # 1. Compute repeatability with the second term of Eq. 16 measured in image 1's frame ($H^{-1}\mathbf x_j$ against
 #    $\mathbf x_i$), as the thesis writes it. On which pairs does it differ from the library's value, and why does
 #    a zoom make the difference?
+#
+#    *Hint:* compute $H^{-1}x_j$ and measure its distance to the $x_i$ in image 1; compare the two versions on an
+#    illumination pair ($H = I$) and on a zoomed viewpoint pair.
 # 2. Replace mutual nearest-neighbour matching by Lowe's ratio test (keep a match when the best distance is below
 #    0.8 times the second best) and rerun the homography table for SIFT and ORB. Which metric changes most?
+#
+#    *Hint:* sort each row of the descriptor distance matrix and keep a match when best < 0.8 x second best; feed the
+#    matches to `estimate_homography`.
 # 3. Run `illumination_pairs` with `strength=0.5` and `strength=1.5`. How quickly do the classical detectors
 #    degrade, and which one degrades least?
+#
+#    *Hint:* `illumination_pairs(images, seed, strength=...)`; repeatability with $H = I$ needs no warping.
 # 4. Time `measure_speed` for SIFT at 480 x 640 and compare with 240 x 320. Is the cost proportional to the
 #    number of pixels?
+#
+#    *Hint:* `measure_speed('sift', images, (480, 640))['ms']` against `(240, 320)`; 4x the pixels.
 # 5. On the full benchmark from the command line, do the shipped networks reach SIFT's homography correctness at
 #    $\varepsilon = 3$ on the viewpoint split? Do they beat every classical method on the illumination split?
+#
+#    *Hint:* `python -m evio_lib features-benchmark --out DIR`, or read the measured tables in `docs/results.md`.
 # 6. Run `bench/homography_diagnosis.py --splits illumination`. Is the networks' gap to Harris at $\varepsilon = 5$
 #    a matching or a localisation failure? Look at the pairs where a network finds fewer than 50 keypoints.
+#
+#    *Hint:* compare the columns 'correct' and 'localisation error' and the oracle's correctness with RANSAC's.
+#
+# Solutions, with the code to run (checked by `tests/test_solutions.py`):
+# [docs/solutions/08_feature_evaluation.md](../docs/solutions/08_feature_evaluation.md).

@@ -512,11 +512,28 @@ else:
 #
 # 1. Replace the linear mid-point in `rk4_step` by the 4-point cubic interpolation and show that the dead-reckoning
 #    error at 200 Hz drops by orders of magnitude (compare with `integrate_imu_rk4(..., midpoint="cubic")`).
+#
+#    *Hint:* the cubic through $u_{k-1}, u_k, u_{k+1}, u_{k+2}$ at the mid-point is $(-u_{k-1} + 9u_k + 9u_{k+1} -
+#    u_{k+2})/16$; one-sided at the two ends.
 # 2. Use a simple Euler step $\bar q_{k+1} = \bar q_k + h\,\tfrac12\Omega\bar q_k$, $\mathbf v_{k+1} = \mathbf v_k + h\,\mathbf f_k$
 #    and measure its error on the same trajectory. Which order do you find?
+#
+#    *Hint:* run the Euler loop at 200 Hz and 1 kHz; the order is $\log(e_{200}/e_{1000})/\log 5$.
 # 3. Derive the $\tfrac16 g\,b_g t^3$ law for a level, non-rotating IMU, and check it numerically with a constant
 #    gyroscope bias about the $x$ axis.
+#
+#    *Hint:* a tilt of $b_g t$ misreads gravity as a horizontal acceleration $g\, b_g t$; integrate twice.
+#    Numerically: a level IMU at rest reads `accel = -G`, `gyro = [b, 0, 0]`.
 # 4. How long must the IMU rest so that the static gyroscope bias is better than 1e-4 rad/s with the default noise
 #    density? Check your answer with `static_initialization`.
+#
+#    *Hint:* the mean of $fT$ samples of std $\sigma_g\sqrt f$ has std $\sigma_g/\sqrt T$ per axis; solve $\sqrt
+#    3\,\sigma_g/\sqrt T < 10^{-4}$.
 # 5. On the EuRoC data, move the static window to after take-off (`t_start = imu.t[0] + 8`) and read the error message.
 #    Which test rejects the window?
+#
+#    *Hint:* catch the `ValueError` and read which of the three tests (gyro spread, accelerometer spread, $|a|$
+#    against $g$) exceeded its limit.
+#
+# Solutions, with the code to run (checked by `tests/test_solutions.py`):
+# [docs/solutions/09_imu_kinematics.md](../docs/solutions/09_imu_kinematics.md).

@@ -437,11 +437,29 @@ assert 0.15 < strongest["b_g-θ"] < 0.4 and 0.3 < strongest["b_a-v"] < 0.6  # bi
 #
 # 1. Replace `discrete_noise_covariance` by $GQG^T\Delta t$ in a hand-written propagation loop and repeat the
 #    Monte-Carlo test. Does the NEES notice the difference at 500 Hz? At 50 Hz?
+#
+#    *Hint:* propagate $P$ sample by sample with `transition_matrix` and either `discrete_noise_covariance` or
+#    `G @ diag(q) @ G.T * dt`; read it out at times that are IMU samples at both rates.
 # 2. Double the accelerometer noise density in the *simulator* only (keep the filter's config). What happens to the
 #    NEES curve, and why is an overconfident filter dangerous for the chi-square gating of notebook 11?
+#
+#    *Hint:* `dataclasses.replace(noise, accel_noise_density=2 * noise.accel_noise_density)` in `synthesize_imu` only;
+#    also compare how much of the position variance the accelerometer's white noise makes.
 # 3. Derive the block $\Phi_{p\theta}$ for $\boldsymbol\omega = 0$ from $\exp(F\Delta t)$ by hand (the series stops after a few terms)
 #    and compare with `transition_matrix`.
+#
+#    *Hint:* with $\omega = 0$, $F$ maps $\delta\theta \to \delta v \to \delta p$; $F^3$ and higher powers vanish on
+#    that chain.
 # 4. Show that $J$ of a camera with $\mathbf p_{CinI} = 0$ makes the camera block of P exactly equal to the IMU pose block.
 #    What changes for a lever arm of 10 cm?
+#
+#    *Hint:* build the state with `p_CinI = np.zeros(3)` and compare `P[15:21, 15:21]` with the IMU pose block; mind
+#    the rotation $R_{ItoC}$ of the attitude part.
 # 5. Which entries of the correlation image change if the initial velocity uncertainty (`init_sigma_velocity`) is
 #    raised to 0.5 m/s? Predict first, then check.
+#
+#    *Hint:* compute section 6's `strongest` correlations with both configs; which blocks does the initial velocity
+#    variance feed?
+#
+# Solutions, with the code to run (checked by `tests/test_solutions.py`):
+# [docs/solutions/10_msckf_state_and_propagation.md](../docs/solutions/10_msckf_state_and_propagation.md).

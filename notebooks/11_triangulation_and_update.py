@@ -528,9 +528,24 @@ else:  # 10 s: about 0.18 m -> 0.03 m
 # ## Exercises
 #
 # 1. Repeat the triangulation Monte-Carlo with the feature at 10 m. How does the error scale with depth?
+#
+#    *Hint:* move the point along its ray, `p_CinG[0] + R_CtoG[0] @ (d * [0.3, -0.2, 2.5] / 2.5)`, and keep an eye on
+#    `result.reason`.
 # 2. Initialise Gauss-Newton far from the truth (`initial_p_FinG`); when does it fail, and with which reason?
+#
+#    *Hint:* pass `initial_p_FinG=` far along the ray, to the side, behind the anchor and in the anchor's plane $Z_A =
+#    0$; print `reason` and `iterations`.
 # 3. Set `chi2_probability=0.05` in `MsckfConfig` (msckf_vio's table) and rerun section 9: how many features are
 #    left, and what happens to the error?
+#
+#    *Hint:* `dataclasses.replace(config, chi2_probability=0.05)`; `chi2_probability` is the share of correct features
+#    the gate keeps.
 # 4. Rerun section 9 with other seeds and with S-MSCKF's window, `max_camera_states=20` and `marginalize_third=False`
 #    (two states pruned at a time). Which settings are robust, and why might the window's keyframe rule matter when
 #    tracks live long?
+#
+#    *Hint:* loop over `np.random.default_rng(seed)` for the simulation and compare the RMSE and `n_features_used` of
+#    both windows on each seed.
+#
+# Solutions, with the code to run (checked by `tests/test_solutions.py`):
+# [docs/solutions/11_triangulation_and_update.md](../docs/solutions/11_triangulation_and_update.md).

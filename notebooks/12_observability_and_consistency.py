@@ -386,13 +386,27 @@ else:  # 10 s: OC on: attitude far above (yaw inside: roll/pitch), position just
 #
 # 1. Run section 5 for 10 s and 8 runs (it takes several minutes): does the plain EKF's yaw NEES leave its band?
 #    Try `preset="aerial_like"` too.
+#
+#    *Hint:* `run_vio_sim(preset, duration=10.0, seed=100 + k, oc=oc, baselines=False, msckf_overrides=...)` for k in
+#    range(8); compare the mean yaw NEES with `chi2_bounds(1, 8)`.
 # 2. In section 2, scale the correction up and down: how does the first-interval mismatch of the standard EKF
 #    scale?
+#
+#    *Hint:* inject `scale * correction` for a few scales and divide the first-interval mismatch by the scale.
 # 3. Show that the OC modification of $H$ does not touch the translation directions (why does it suffice to
 #    constrain only $u$, the yaw column?).
+#
+#    *Hint:* the measurement depends on positions only through $p_F - p_{C_i}$; evaluate
+#    `H_x @ N_first[:, :3] + H_f @ N_f[:, :3]` with the plain Jacobians.
 # 4. Rerun section 4 with S-MSCKF's settings, `msckf_overrides={"init_sigma_velocity": 0.03,
 #    "marginalize_third": False, "max_camera_states": 20}` and `gate_probability=0.95`: which part of the pose NEES
 #    grows — position or attitude (`nees_position`, `nees_attitude`)? Compare with `gating_mean_shrink(1, 0.95)`.
+#
+#    *Hint:* pass `msckf_overrides=` and `gate_probability=0.95` to `run_vio_sim` and average `nees_position` and
+#    `nees_attitude` over the runs.
+#
+# Solutions, with the code to run (checked by `tests/test_solutions.py`):
+# [docs/solutions/12_observability_and_consistency.md](../docs/solutions/12_observability_and_consistency.md).
 #
 # ## What you have built so far, and what the thesis found
 #

@@ -882,12 +882,30 @@ assert all(table[key]["rmse_second_half_m"] > table[key]["rmse_first_half_m"] fo
 #
 # 1. Run section 2 with `PipelineConfig(match_ratio=0.8)`, the front-end's stand-alone default. What happens to the
 #    track length and the error, and why does a ratio test hurt in a repetitive room?
+#
+#    *Hint:* compare `np.mean(result.track_lengths)` and `rmse_m` of both runs; in a room of repeated textures, how
+#    close is the second-best match?
 # 2. Raise `pixel_noise_px` to 3 and lower it to 0.3. How do the 3σ bands and the share of errors inside them change?
+#
+#    *Hint:* `pixel_noise_px` is the noise the filter assumes, not the noise of the tracks; compare
+#    `result.sigma[:, 12:15]` and the share of errors inside ±3σ.
 # 3. Run the event-frame comparison with `window_fraction=0.35` and with `adaptive_windows=True`. Which gives more
 #    frames per second, and which the lower error?
+#
+#    *Hint:* `PipelineConfig(frames='events', window_fraction=0.35)` or `adaptive_windows=True`; frames per second is
+#    `len(result.t)` over the duration.
 # 4. Call `evio_lib.msckf.zero_velocity.imu_still_test` on the first 0.25 s of the EuRoC IMU (`euroc_data.sequence.imu`,
 #    with the static start's attitude and gyro bias from `held`), then on the same samples plus a constant 1 m/s^2
-#    along x. Which of its figures changes, and why would testing |a| against g alone have missed it? (Hint:
+#    along $y_I$ (horizontal here: this MAV's IMU has its $x$ axis up, so along $x$ the push would add to |a|).
+#    Which of its figures changes, and why would testing |a| against g alone have missed it? (Hint:
 #    sqrt(9.81² + 1²) ≈ 9.86.)
+#
+#    *Hint:* `static_initialization` on the first second gives the attitude and gyro bias; the test's fourth figure
+#    compares the mean accelerometer with $-R_{GtoI}g + b_a$ as a vector.
 # 5. With `python -m evio_lib run boxes_like --duration 30 --frames events --out runs/ev` (the event simulation takes
 #    a long while), compare `rmse_second_half_m` in `metrics.json` with the APS run over the same 30 s.
+#
+#    *Hint:* read `metrics.json` of both `--out` folders; the APS run is the same command without `--frames events`.
+#
+# Solutions, with the code to run (checked by `tests/test_solutions.py`):
+# [docs/solutions/13_evio_pipeline.md](../docs/solutions/13_evio_pipeline.md).
