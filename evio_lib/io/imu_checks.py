@@ -45,7 +45,8 @@ from evio_lib.io.errors import DataFileError
 
 __all__ = ["ImuUnitsError", "check_imu_units", "check_bias_values", "check_noise_values", "STANDARD_GRAVITY",
            "DEG_PER_RAD", "GYRO_FULL_SCALE_BOUND", "STILL_GYRO_BOUND", "SUSTAINED_FRACTION", "GRAVITY_ANGLE_TOL_DEG",
-           "GYRO_BIAS_BOUND", "ACCEL_BIAS_BOUND", "MIN_GRAVITY_SPAN_S"]
+           "GYRO_BIAS_BOUND", "ACCEL_BIAS_BOUND", "MIN_GRAVITY_SPAN_S", "ACCEL_AXES_FLOOR", "GYRO_AXES_FLOOR",
+           "AXES_RATIO"]
 
 #: Standard gravity [m/s^2]: one g.
 STANDARD_GRAVITY = 9.80665
@@ -59,8 +60,15 @@ STILL_GYRO_BOUND = 0.5
 SUSTAINED_FRACTION = 0.05
 #: Largest angle between the measured and the predicted mean specific force in the world [deg].
 GRAVITY_ANGLE_TOL_DEG = 30.0
-#: Shortest overlap of IMU and ground truth over which gravity is checked [s].
-MIN_GRAVITY_SPAN_S = 2.0
+#: Shortest overlap of IMU and ground truth over which gravity and the axes are checked [s].
+MIN_GRAVITY_SPAN_S = 0.5
+#: m/s^2: median residual of the per-window specific force above which wrong accelerometer axes are refused
+#: (when another signed order of the axes explains the truth at least AXES_RATIO times better).
+ACCEL_AXES_FLOOR = 0.4
+#: rad/s: the same for the gyro's per-step angular rate (a MEMS gyro bias is below 0.1 rad/s).
+GYRO_AXES_FLOOR = 0.15
+#: How many times better another signed order of the axes must explain the truth before the file's is refused.
+AXES_RATIO = 3.0
 #: rad/s per axis: the largest plausible gyro bias. Consumer MEMS data sheets give a zero-rate offset of ±5 deg/s
 #: (0.09 rad/s) at most, tactical parts far less; 0.5 rad/s (29 deg/s) is five times that, so a larger value is a
 #: unit mistake (deg/s) or a typo.
@@ -215,6 +223,114 @@ def _gravity_problem(t: np.ndarray, accel: np.ndarray, truth: Any, R_CtoI: Any, 
             f"check the ground truth's frame and the camera-IMU extrinsics")
 
 
+def _signed_permutations() -> np.ndarray:
+    """Return the (48, 3, 3) signed permutation matrices, the identity first."""
+    import itertools
+
+    out = [np.eye(3)]
+    for order in itertools.permutations(range(3)):
+        for signs in itertools.product((1.0, -1.0), repeat=3):
+            P = np.zeros((3, 3))
+            P[range(3), order] = signs
+            if not np.array_equal(P, np.eye(3)):
+                out.append(P)
+    return np.asarray(out)
+
+
+def _axes_text(P: np.ndarray, name: str) -> str:
+    """Return 'x <- +z, y <- -y, ...': which column of the file each of the truth's axes reads."""
+    return ", ".join(f"{'xyz'[i]} = {'-' if P[i].sum() < 0 else ''}{name}{'xyz'[int(np.argmax(np.abs(P[i])))]}"
+                     for i in range(3))
+
+
+def _best_order(residuals: np.ndarray) -> tuple[float, int, float]:
+    """Return (residual of the file's order, index of the best signed order, its residual)."""
+    best = int(np.argmin(residuals))
+    return float(residuals[0]), best, float(residuals[best])
+
+
+def _axes_problem(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, truth: Any, R_CtoI: Any,
+                  gravity_G: Any) -> str | None:
+    """Return which sensor's axes the truth contradicts (columns swapped or a sign flipped), or None.
+
+    The whole-span gravity test cannot see a swap of the two axes gravity does not lie on (EuRoC's y and z while
+    the drone keeps x up): their mirror image explains gravity as well. The motion can. Over windows k of the
+    overlap the truth predicts, for every signed order P of the file's columns (48 of them, 24 proper rotations
+    and 24 mirror images)::
+
+        accelerometer:  mean_k R_ItoG P a_m  =  (v(t_k+1) - v(t_k)) / (t_k+1 - t_k) - g_G
+        gyro:           mean_k P w_m         =  Log(R_ItoG(t_k)^T R_ItoG(t_k+1)) / (t_k+1 - t_k)   (+ b_g)
+
+    The file's order (P = I) is refused when its median residual exceeds a floor (ACCEL_AXES_FLOOR,
+    GYRO_AXES_FLOOR: noise, bias and vibration stay below) and another order explains the truth AXES_RATIO times
+    better; the message names that order. Without motion every order explains the truth equally and nothing is
+    refused.
+    """
+    from scipy.spatial.transform import Rotation
+
+    if truth.body == "camera":
+        if R_CtoI is None:
+            return None
+        R_CtoI = np.asarray(R_CtoI, dtype=np.float64)
+    t0, t1 = max(t[0], truth.t[0]), min(t[-1], truth.t[-1])
+    span = t1 - t0
+    if span < MIN_GRAVITY_SPAN_S:
+        return None
+    length = float(np.clip(span / 10.0, 0.05, 0.2))
+    edges = t0 + length * np.arange(int(span // length) + 1)
+    i_edges = np.searchsorted(t, edges)
+    ok = np.diff(i_edges) >= 3
+    if ok.sum() < 3:
+        return None
+    at = truth.interpolate(edges)
+    R_ItoG = at.R_BtoG if truth.body == "imu" else np.einsum("nij,kj->nik", at.R_BtoG, R_CtoI)
+    orders = _signed_permutations()
+    cumulative_gyro = np.concatenate([np.zeros((1, 3)), np.cumsum(gyro, axis=0)])
+    counts = np.diff(i_edges)[ok]
+    mean_gyro = (cumulative_gyro[i_edges[1:]] - cumulative_gyro[i_edges[:-1]])[ok] / counts[:, None]
+    dR = np.einsum("nji,njk->nik", R_ItoG[:-1], R_ItoG[1:])[ok]  # R_k^T R_k+1 in the IMU frame
+    truth_rate = Rotation.from_matrix(dR).as_rotvec() / length
+    moving = np.linalg.norm(truth_rate, axis=1) > _TRUTH_MOVING_RATE
+    problems = []
+    if moving.sum() >= 3:
+        residual = np.median(np.linalg.norm(np.einsum("pij,nj->pni", orders, mean_gyro[moving])
+                                            - truth_rate[moving][None], axis=2), axis=1)
+        own, best, other = _best_order(residual)
+        if own > GYRO_AXES_FLOOR and own > AXES_RATIO * other:
+            problems.append(f"the gyro's axes: the truth's rotation needs {_axes_text(orders[best], 'w')} of the file "
+                            f"(median error {other:.2f} rad/s against {own:.2f} rad/s as written)")
+    # accelerometer: the world specific force per window from the truth's change of velocity
+    g = np.array([0.0, 0.0, -9.81]) if gravity_G is None else np.asarray(gravity_G, dtype=np.float64).reshape(3)
+    if truth.body == "imu" and at.v_BinG is not None:
+        v = at.v_BinG
+    else:
+        h = min(0.05, length / 2)
+        lo = np.clip(edges - h, truth.t[0], truth.t[-1])
+        hi = np.clip(edges + h, truth.t[0], truth.t[-1])
+        v = (truth.interpolate(hi).p_BinG - truth.interpolate(lo).p_BinG) / (hi - lo)[:, None]
+    expected_G = (np.diff(v, axis=0) / length - g)[ok]
+    rows = np.repeat(np.arange(len(i_edges) - 1), np.diff(i_edges))
+    inside = slice(i_edges[0], i_edges[-1])
+    R_samples = truth.interpolate(t[inside]).R_BtoG
+    if truth.body == "camera":
+        R_samples = np.einsum("nij,kj->nik", R_samples, R_CtoI)
+    # M[k, :, i, j] = mean over window k of R_ItoG[:, i] a_m[j]: then mean_k R_ItoG P a_m = sum_ij P_ij M[k, :, i, j]
+    outer = np.einsum("nai,nj->naij", R_samples, accel[inside])
+    M = np.zeros((len(i_edges) - 1, 3, 3, 3))
+    np.add.at(M, rows, outer)
+    M = M[ok] / counts[:, None, None, None]
+    measured = np.einsum("pij,kaij->pka", orders, M)
+    residual = np.median(np.linalg.norm(measured - expected_G[None], axis=2), axis=1)
+    own, best, other = _best_order(residual)
+    if own > ACCEL_AXES_FLOOR and own > AXES_RATIO * other:
+        problems.append(f"the accelerometer's axes: the truth's accelerations need {_axes_text(orders[best], 'a')} "
+                        f"of the file (median error {other:.2f} m/s^2 against {own:.2f} m/s^2 as written)")
+    if not problems:
+        return None
+    return ("the ground truth contradicts " + "; and ".join(problems) + ": reorder or flip those columns to the IMU "
+            "axes of the truth, or check the ground truth's frame and the camera-IMU extrinsics")
+
+
 def check_imu_units(t: Any, gyro: Any, accel: Any, truth: Any = None, *, source: str = "the IMU",
                     columns: str = "gyro (rad/s) then accelerometer (m/s^2)", R_CtoI: Any = None,
                     gravity_G: Any = None) -> str:
@@ -290,9 +406,17 @@ def check_imu_units(t: Any, gyro: Any, accel: Any, truth: Any = None, *, source:
         done.append(f"still gyro {still.min():.3g} rad/s" if still.size else "no still stretch for the gyro check")
     if truth is not None and len(truth) >= 2:
         problem = _gravity_problem(t, accel, truth, R_CtoI, gravity_G)
+        if problem is None:
+            problem = _axes_problem(t, gyro, accel, truth, R_CtoI, gravity_G)
         if problem is not None:
             raise ImuUnitsError(f"{source}: {problem}")
-        done.append("gravity axis checked against the ground truth")
+        overlap = min(t[-1], truth.t[-1]) - max(t[0], truth.t[0])
+        if overlap >= MIN_GRAVITY_SPAN_S and (truth.body == "imu" or R_CtoI is not None):
+            done.append("gravity and axes checked against the ground truth")
+        else:
+            done.append(f"axes not checked (the ground truth shares {max(overlap, 0.0):.2f} s with the IMU; "
+                        f"{MIN_GRAVITY_SPAN_S:g} s needed" + ("" if truth.body == "imu" or R_CtoI is not None
+                                                             else ", and camera-IMU extrinsics") + ")")
     return "IMU units: " + ", ".join(done)
 
 

@@ -177,6 +177,34 @@ def _noise_from_metadata(metadata: dict, source: str) -> tuple[ImuNoiseParams | 
     return ImuNoiseParams.from_dict(values), missing
 
 
+#: How the messages name a recording's two ground truths (camera poses, IMU states), by kind.
+_TRUTH_FILES = {"preset": ("the simulated camera ground truth", "the simulated IMU ground truth"),
+                "ecd": ("groundtruth.txt", "groundtruth_imu.txt"),
+                "euroc": ("the ground truth", "the ground truth (state_groundtruth_estimate0/data.csv)"),
+                "aedat4": ("the ground truth", "the ground truth")}
+
+
+def _check_truth_times(gt: Any, imu_t: np.ndarray, name: str) -> None:
+    """Refuse a ground truth that cannot score or initialise a run: under 2 poses, or no time shared with the IMU.
+
+    Raises ValueError naming the file, what it holds and what is expected (its times against the IMU's, which
+    catches a truth on another clock or in other units: ns against s).
+    """
+    if gt is None:
+        return
+    n = len(gt.t)
+    if n < 2:
+        raise ValueError(f"{name} holds {n} pose{'' if n == 1 else 's'}; a ground truth needs at least 2 (lines "
+                         f"t px py pz qx qy qz qw over the recording): complete it, or remove it to run without "
+                         f"ground truth (static start, no error metrics)")
+    t0, t1 = float(gt.t[0]), float(gt.t[-1])
+    i0, i1 = float(imu_t[0]), float(imu_t[-1])
+    if t1 < i0 or t0 > i1:
+        raise ValueError(f"{name} covers [{t0:.6g}, {t1:.6g}] s and the IMU [{i0:.6g}, {i1:.6g}] s: they share no "
+                         f"time, so the ground truth is on another clock or in other units (both must be seconds on "
+                         f"the sensor's clock)")
+
+
 def _is_euroc(folder: Path) -> bool:
     return (folder / "mav0").is_dir() or (folder.name == "mav0" and (folder / "imu0").is_dir())
 
@@ -257,6 +285,8 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
         notes.append(f"camera: from --calib {calib}" + ("" if kind == "aedat4" else " (replaces the recording's)"))
     if seq.imu is None or len(seq.imu.t) < 2:
         raise ValueError(f"{source} has no IMU samples (imu.txt / mav0/imu0/data.csv): the MSCKF needs the IMU")
+    for gt, name in ((seq.groundtruth, _TRUTH_FILES[kind][0]), (seq.groundtruth_imu, _TRUTH_FILES[kind][1])):
+        _check_truth_times(gt, seq.imu.t, f"{source}: {name}")
     if seq.camera is None:
         raise ValueError(f"{source} has no camera calibration (calib.txt / mav0/cam0/sensor.yaml): the front-end needs "
                          f"it to undistort the features")

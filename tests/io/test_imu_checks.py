@@ -64,11 +64,11 @@ def _refused(imu_t, gyro, accel, truth=None, **kw) -> str:
 def test_real_euroc_and_simulated_presets_pass(euroc, boxes):
     imu = euroc.imu
     summary = check_imu_units(imu.t, imu.gyro, imu.accel, euroc.groundtruth_imu)
-    assert "gyro / truth angular rate 1.0" in summary and "gravity axis checked" in summary
+    assert "gyro / truth angular rate 1.0" in summary and "gravity and axes checked" in summary
     assert "still gyro" in check_imu_units(imu.t, imu.gyro, imu.accel)  # without the truth: the still stretch
     summary = check_imu_units(boxes.imu.t, boxes.imu.gyro, boxes.imu.accel, boxes.groundtruth_imu,
                               gravity_G=boxes.metadata["gravity_G"])
-    assert "gravity axis checked" in summary
+    assert "gravity and axes checked" in summary
     # the camera ground truth with the recording's extrinsics gives the same verdict
     check_imu_units(boxes.imu.t, boxes.imu.gyro, boxes.imu.accel, boxes.groundtruth, R_CtoI=boxes.R_CtoI)
 
@@ -151,6 +151,42 @@ def test_gravity_on_an_axis_the_truth_contradicts(euroc, boxes):
     # the camera ground truth with the recording's extrinsics sees it too
     assert "contradicts" in _refused(boxes.imu.t, boxes.imu.gyro, boxes.imu.accel[:, [1, 2, 0]], boxes.groundtruth,
                                      R_CtoI=boxes.R_CtoI)
+
+
+def test_mirrored_or_swapped_axes_off_gravity_are_refused(euroc, boxes):
+    """A swap of the two axes gravity does not lie on (EuRoC's y and z: x is up) passes the gravity test; the
+    motion refuses it and names the order that fits the truth."""
+    imu, truth = euroc.imu, euroc.groundtruth_imu
+    message = _refused(imu.t, imu.gyro, imu.accel[:, [0, 2, 1]], truth)
+    assert "the accelerometer's axes" in message and "x = ax, y = az, z = ay" in message
+    assert "gyro's axes" not in message
+    message = _refused(imu.t, imu.gyro * [1.0, 1.0, -1.0], imu.accel, truth)
+    assert "the gyro's axes" in message and "z = -wz" in message and "accelerometer's axes" not in message
+    message = _refused(boxes.imu.t, boxes.imu.gyro[:, [1, 0, 2]], boxes.imu.accel, boxes.groundtruth_imu)
+    assert "x = wy, y = wx, z = wz" in message
+    message = _refused(boxes.imu.t, boxes.imu.gyro, boxes.imu.accel * [-1.0, 1.0, 1.0], boxes.groundtruth_imu)
+    assert "x = -ax, y = ay, z = az" in message
+
+
+def test_axes_are_checked_on_a_short_overlap_and_not_without_motion(boxes):
+    """1.5 s of truth suffice (the check once needed 2 s and let a flipped axis through); a still IMU with any
+    axis order explains a still truth equally well, so it passes."""
+    imu, truth = boxes.imu, boxes.groundtruth_imu
+    short = imu.t <= imu.t[0] + 1.5
+    assert "x = -ax" in _refused(imu.t[short], imu.gyro[short], (imu.accel * [-1.0, 1.0, 1.0])[short], truth)
+    summary = check_imu_units(imu.t[short], imu.gyro[short], imu.accel[short], truth)
+    assert "gravity and axes checked" in summary
+    tiny = imu.t <= imu.t[0] + 0.3
+    assert "axes not checked (the ground truth shares 0.30 s" in check_imu_units(imu.t[tiny], imu.gyro[tiny],
+                                                                                 imu.accel[tiny], truth)
+    n = 2000
+    t = np.arange(n) * 0.005
+    from evio_lib.sequence import GroundTruth
+
+    still = GroundTruth(t=t, p_BinG=np.zeros((n, 3)), q_GtoB=np.tile([0.0, 0.0, 0.0, 1.0], (n, 1)), body="imu")
+    accel = np.tile([0.0, 0.0, 9.81], (n, 1))
+    gyro = np.tile([0.002, -0.001, 0.003], (n, 1))
+    assert "gravity and axes checked" in check_imu_units(t, gyro[:, [1, 0, 2]], accel * [-1.0, 1.0, 1.0], still)
 
 
 # ----------------------------------------------------------------------------- readers and the command line
@@ -297,3 +333,23 @@ def test_calib_file_format(tmp_path):
     with pytest.raises(DataFileError, match="file not found"):
         read_calib(tmp_path / "none.txt", 346, 260)
     assert intrinsics_problem(PinholeRadtan(fx=250, fy=250, cx=172.5, cy=129.5, width=346, height=260)) is None
+
+
+@pytest.mark.parametrize("rows, shift, expected", [
+    (0, 0.0, "groundtruth.txt holds 0 poses; a ground truth needs at least 2"),
+    (1, 0.0, "groundtruth.txt holds 1 pose; a ground truth needs at least 2"),
+    (None, 1e9, "groundtruth.txt covers [1e+09, 1e+09] s and the IMU [0, 3] s: they share no time"),
+])
+def test_run_refuses_a_groundtruth_it_cannot_use(boxes, tmp_path, capsys, rows, shift, expected):
+    """An empty, one-pose or other-clock camera ground truth is named with what it holds, never a traceback."""
+    seq = boxes.slice_time(0.0, 3.1)
+    seq.groundtruth_imu = None
+    folder = write_ecd(seq, tmp_path / "user_rec")
+    lines = (folder / "groundtruth.txt").read_text().splitlines()
+    if rows is not None:
+        lines = lines[:rows]
+    else:
+        lines = [" ".join([repr(float(line.split()[0]) + shift)] + line.split()[1:]) for line in lines]
+    (folder / "groundtruth.txt").write_text("".join(line + "\n" for line in lines))
+    line = _run_refused(capsys, [str(folder)], folder)
+    assert line.startswith(f"error: {folder}: {expected}"), line
