@@ -104,6 +104,11 @@ BAD_OUTPUTS = [
     ("table --out . --force", "--out . is the working folder {w}"),
     ("table --events-cnn cnn/events.pt --out cnn --force", f"--out cnn contains the --events-cnn checkpoint cnn/events.pt"),
     ("table --out cache --force", "--out cache contains the recording cache"),
+    ("table --out /proc/evio_out --rows imu", "cannot create output folder /proc/evio_out: "),
+    ("run boxes_like --duration 3 --out /sys/kernel/evio_out",
+     "cannot create output folder /sys/kernel/evio_out: "),
+    ("table --duration 1e9 --rows imu", "--duration: duration of boxes_like must be in (0, 60] s (the preset's whole"),
+    ("table --presets aerial_like --duration 50", "--duration: duration of aerial_like must be in (0, 40] s"),
     # reconstruct
     ("reconstruct REC --out REC --force", f"--out REC is the input recording REC; {FORCED}"),
     ("reconstruct REC --out REC/frames", f"--out REC/frames lies inside the input recording REC; {FORCED}"),
@@ -118,6 +123,10 @@ BAD_OUTPUTS = [
     ("simulate boxes_like --out .. --force", "--out .. contains the working folder {w}"),
     ("vio-sim boxes_like --out . --force", "output folder . is the working folder {w}"),
     ("vio-sim boxes_like --out ''", "output folder . is the working folder {w}"),  # type=Path made it '.'
+    ("vio-sim boxes_like --features 10000000", "--features must be <= 2000 per image (MAX_SIM_FEATURES"),
+    ("vio-sim boxes_like --pixel-noise 1e9", "--pixel-noise must be <= 50 px (MAX_SIM_PIXEL_NOISE_PX"),
+    ("features-benchmark --detectors fast --speed-shapes 100000x100000",
+     "--speed-shapes 100000x100000 is 1e+10 pixels; the most is 16,777,216"),
     # features-benchmark
     ("features-benchmark --detectors fast --fast --out ''", "--out must be a folder path such as runs/out; got ''"),
     ("features-benchmark --detectors fast --fast --out . --force", "--out . is the working folder {w}"),
@@ -276,3 +285,24 @@ def test_sigterm_handler_is_restored(work, capsys):
     assert cli.main(["run", "REC", "--out", "REC"]) == 2
     assert signal.getsignal(signal.SIGTERM) is before
     capsys.readouterr()
+
+
+def test_ctrl_c_inside_joblib_is_one_line(work, monkeypatch, capsys):
+    """joblib, interrupted while it dispatches, may fail in its own clean-up (an AttributeError raised while the
+    KeyboardInterrupt is handled): `table` still ends with 130 and one line, not joblib's traceback."""
+    import joblib
+
+    class Broken:
+        def __init__(self, *args, **kwargs):
+            pass
+
+        def __call__(self, jobs):
+            try:
+                raise KeyboardInterrupt
+            except KeyboardInterrupt:
+                raise AttributeError("'Parallel' object has no attribute '_pre_dispatch_amount'")
+
+    monkeypatch.setattr(joblib, "Parallel", Broken)
+    assert cli.main(["table", "--fast", "--rows", "imu"]) == 130
+    assert capsys.readouterr().err.strip().splitlines() == ["error: interrupted"]
+    assert not (work / "out").exists()

@@ -832,6 +832,9 @@ def _parse_shape(text: str) -> tuple[int, int]:
         raise ValueError(f"--speed-shapes entries must look like 180x240 (height x width); got {text!r}") from None
     if h < 8 or w < 8:
         raise ValueError(f"--speed-shapes entries must be at least 8x8; got {text!r}")
+    from evio_lib.events.representations import check_sensor_pixels
+
+    check_sensor_pixels(w, h, f"--speed-shapes {text}")  # before any image is made: 100000x100000 is 10 GB
     return h, w
 
 

@@ -140,6 +140,11 @@ def check_output_dir(path: str | Path, force: bool = False, *, inputs: Iterable[
         raise ValueError(f"cannot create output folder {path}: {parent} is a file, not a folder")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise ValueError(f"cannot create output folder {path}: the folder {parent} is not writable")
+    try:  # os.access says yes to root everywhere; /proc, /sys, read-only mounts refuse only a real mkdir
+        os.rmdir(tempfile.mkdtemp(prefix=".evio-probe-", dir=parent))
+    except OSError as error:
+        raise ValueError(f"cannot create output folder {path}: {parent} refuses new folders "
+                         f"({error.strerror or type(error).__name__}); choose a folder on a writable disk") from None
     return path
 
 

@@ -59,6 +59,8 @@ __all__ = [
     "undistortion_noise_factor",
     "observation_covariance",
     "NOISE_MODELS",
+    "MAX_SIM_FEATURES",
+    "MAX_SIM_PIXEL_NOISE_PX",
     "simulate_data",
     "initial_state",
     "pose_nees",
@@ -75,6 +77,10 @@ _POSE_IDX = np.r_[0:3, 12:15]  # [δθ, δp] rows of the IMU error state
 #: 'global_factor': isotropic σ_px · :func:`undistortion_noise_factor` / f for every observation;
 #: 'nominal': isotropic σ_px / f (ignores the undistortion's stretch of the noise).
 NOISE_MODELS = ("per_observation", "global_factor", "nominal")
+#: Most simulated tracks per image (the thesis keeps about 60, OpenVINS 200-400; each costs memory and time).
+MAX_SIM_FEATURES = 2000
+#: Largest simulated track noise std [px]: a fifth of the 240 px image; real trackers are within 1-2 px.
+MAX_SIM_PIXEL_NOISE_PX = 50.0
 
 
 @dataclass(frozen=True)
@@ -146,6 +152,13 @@ class VioSimConfig:
                     or not math.isfinite(value) or value < 0 or (positive and value == 0):
                 raise ValueError(f"{name} must be a finite number {'> 0' if positive else '>= 0'}; got {value!r}")
             object.__setattr__(self, name, float(value))
+        if self.features > MAX_SIM_FEATURES:  # before any track is made: 10 M features per image would hang the run
+            raise ValueError(f"features must be <= {MAX_SIM_FEATURES} per image (MAX_SIM_FEATURES; the thesis tracks "
+                             f"about 60, OpenVINS a few hundred); got {self.features}")
+        if self.pixel_noise_px > MAX_SIM_PIXEL_NOISE_PX:
+            raise ValueError(f"pixel_noise_px must be <= {MAX_SIM_PIXEL_NOISE_PX:g} px (MAX_SIM_PIXEL_NOISE_PX: a "
+                             f"tracker this far off tracks nothing; real tracks are within 1-2 px); got "
+                             f"{self.pixel_noise_px:g}")
         if isinstance(self.gate_probability, bool) or not isinstance(self.gate_probability, (float, int, np.floating)) \
                 or not 0.0 < self.gate_probability < 1.0:
             raise ValueError(f"gate_probability must be a number in (0, 1), e.g. 0.99; got {self.gate_probability!r}")
@@ -626,11 +639,19 @@ def main_vio_sim(args: argparse.Namespace) -> int:
     force = getattr(args, "force", False)
     if args.out is not None:
         check_output_dir(args.out, force)
-    config = VioSimConfig(preset=args.preset, duration=args.duration, seed=args.seed, features=args.features,
-                          oc=not args.no_oc, imu_only=args.imu_only, pixel_noise_px=args.pixel_noise,
-                          noise_model=getattr(args, "noise_model", "per_observation"),
-                          gate_probability=getattr(args, "gate", 0.99),
-                          msckf_overrides=(("oc_update", getattr(args, "oc_update", "projected")),))
+    try:
+        config = VioSimConfig(preset=args.preset, duration=args.duration, seed=args.seed, features=args.features,
+                              oc=not args.no_oc, imu_only=args.imu_only, pixel_noise_px=args.pixel_noise,
+                              noise_model=getattr(args, "noise_model", "per_observation"),
+                              gate_probability=getattr(args, "gate", 0.99),
+                              msckf_overrides=(("oc_update", getattr(args, "oc_update", "projected")),))
+    except ValueError as error:  # the message names the config field; the user typed the option
+        text = str(error)
+        for field, option in (("features", "--features"), ("pixel_noise_px", "--pixel-noise"),
+                              ("duration", "--duration"), ("seed", "--seed"), ("gate_probability", "--gate")):
+            if text.startswith(field + " "):
+                raise ValueError(option + text[len(field):]) from None
+        raise
     result = run_vio_sim_config(config, baselines=not args.no_baselines)
     print(result.report())
     if args.out is not None:

@@ -182,6 +182,14 @@ def main_table(args: argparse.Namespace) -> int:
     seeds = 1 if args.fast else args.seeds
     duration = 3.0 if args.fast and args.duration is None else args.duration
     durations = {p: duration for p in args.presets} if duration is not None else None
+    if durations is not None:
+        from evio_lib.pipeline.dataset import check_preset_duration
+
+        for preset, seconds in durations.items():
+            try:
+                check_preset_duration(preset, seconds)
+            except ValueError as error:
+                raise ValueError(f"--duration: {error}") from None
     start = time.perf_counter()
     records = run_table(args.presets, list(range(seeds)), rows, durations, jobs=args.jobs)
     table = aggregate(records)

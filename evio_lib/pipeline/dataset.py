@@ -73,6 +73,20 @@ def sequence_cache_dir() -> Path:
     return default_cache_dir() / "sequences"
 
 
+def check_preset_duration(preset: str, duration: Any) -> float:
+    """Return ``duration`` as a float, or raise ValueError unless it lies in (0, the preset's length] seconds."""
+    if preset not in PRESETS:
+        raise ValueError(f"preset must be one of {PRESETS}; got {preset!r}")
+    full = PRESET_DURATIONS[preset]
+    try:
+        value = float(duration)
+    except (TypeError, ValueError):
+        raise ValueError(f"duration of {preset} must be a number of seconds in (0, {full:g}]; got {duration!r}") from None
+    if not np.isfinite(value) or value <= 0 or value > full:
+        raise ValueError(f"duration of {preset} must be in (0, {full:g}] s (the preset's whole motion); got {duration!r}")
+    return value
+
+
 def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, with_events: bool = False,
                     cache: bool = True, progress: bool = False) -> Sequence:
     """Return the simulated recording of a preset: the first ``duration`` s of its full motion (cached as .npz).
@@ -83,12 +97,8 @@ def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, w
     from evio_lib.io.cache import CacheError, discard_damaged_cache, load_sequence_npz, save_sequence_npz
     from evio_lib.sim.presets import SimulationConfig, simulate_sequence
 
-    if preset not in PRESETS:
-        raise ValueError(f"preset must be one of {PRESETS}; got {preset!r}")
-    full = PRESET_DURATIONS[preset]
-    duration = full if duration is None else float(duration)
-    if not np.isfinite(duration) or duration <= 0 or duration > full:
-        raise ValueError(f"duration of {preset} must be in (0, {full:g}] s; got {duration!r}")
+    full = PRESET_DURATIONS[preset] if preset in PRESETS else None
+    duration = check_preset_duration(preset, full if duration is None else duration)
     stem = sequence_cache_dir() / f"{preset}_d{duration:g}_seed{seed}"
     path = stem.with_name(stem.name + ("_events.npz" if with_events else "_frames.npz"))
     # a recording simulated with events also serves a run that needs only the frames (the same seed gives the same

@@ -26,7 +26,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from evio_lib.pipeline.dataset import PRESET_DURATIONS, PRESETS
+from evio_lib.pipeline.dataset import PRESET_DURATIONS, PRESETS, check_preset_duration
 
 __all__ = ["TABLE_ROWS", "TableRow", "table_rows", "table_job", "run_table", "aggregate", "format_table6"]
 
@@ -133,6 +133,8 @@ def run_table(presets: Sequence[str] = PRESETS, seeds: Sequence[int] = (0, 1, 2)
         if preset not in PRESETS:
             raise ValueError(f"preset must be one of {PRESETS}; got {preset!r}")
     durations = {p: PRESET_DURATIONS[p] for p in presets} | (durations or {})
+    for preset in presets:  # before any worker starts: a bad duration is one error, not one per job
+        check_preset_duration(preset, durations[preset])
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise ValueError(f"jobs must be an integer >= 1; got {jobs!r}")
     events = any(r.needs_events for r in rows)
@@ -140,8 +142,27 @@ def run_table(presets: Sequence[str] = PRESETS, seeds: Sequence[int] = (0, 1, 2)
     runs = [(p, durations[p], s, r) for p in presets for r in rows for s in seeds]
     verbose = 5 if progress else 0
     os.environ.setdefault("OMP_NUM_THREADS", "1")
-    Parallel(n_jobs=jobs, verbose=verbose)(delayed(_simulate)(*args) for args in sims)
-    return Parallel(n_jobs=jobs, verbose=verbose)(delayed(table_job)(*args) for args in runs)
+    try:
+        Parallel(n_jobs=jobs, verbose=verbose)(delayed(_simulate)(*args) for args in sims)
+        return Parallel(n_jobs=jobs, verbose=verbose)(delayed(table_job)(*args) for args in runs)
+    except Exception as error:
+        _raise_interruption_behind(error)
+        raise
+
+
+def _raise_interruption_behind(error: BaseException) -> None:
+    """Re-raise the Ctrl-C or SIGTERM behind ``error``, if any.
+
+    joblib, interrupted while it dispatches, can fail in its own clean-up (an AttributeError raised while handling
+    the KeyboardInterrupt); the user pressed Ctrl-C, so the command must say "interrupted", not show joblib's bug.
+    """
+    seen = set()
+    cause: BaseException | None = error
+    while cause is not None and id(cause) not in seen:
+        seen.add(id(cause))
+        if isinstance(cause, KeyboardInterrupt):
+            raise cause from None
+        cause = cause.__cause__ or cause.__context__
 
 
 def aggregate(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
