@@ -96,6 +96,7 @@ BAD_OUTPUTS = [
     # run: errors known before the recording is loaded
     ("run REC --features nope", "--features nope: unknown detector name 'nope'; available: harris"),
     ("run REC --features nope --out new", "--features nope: unknown detector name 'nope'; available: harris"),
+    ("run REC --features superpoint --weights cnn", "--weights cnn: a folder; expected a checkpoint file (.pt)"),
     ("run REC --features sift --weights w.pt", "--features sift with --weights w.pt: unknown option(s) ['weights']"),
     # table
     ("table --rows nope", "--rows: unknown table row(s) ['nope']; choose from ['imu'"),

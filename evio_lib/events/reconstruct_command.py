@@ -210,6 +210,9 @@ def main_reconstruct(args: argparse.Namespace | Sequence[str] | None = None) -> 
     check_output_dir(args.out, args.force, name="--out", inputs=[  # a preset name is no path: only a folder counts
         ("the input recording", args.sequence if Path(args.sequence).exists() else None),
         ("the --events file", args.events), ("the --times file", args.times), ("the --method checkpoint", method_file)])
+    if method_file is not None and not Path(method_file).is_file():  # before the events load (seconds to minutes)
+        raise ValueError(f"--method must be one of {available_reconstructors()} or a checkpoint file; got "
+                         f"{args.method!r}" + (" (a folder)" if Path(method_file).is_dir() else ""))
     times = read_times_file(args.times) if args.times is not None else None
     events, width, height = _load_events(args)
     if events is None or events.size == 0:

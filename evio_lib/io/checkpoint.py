@@ -152,7 +152,12 @@ def read_checkpoint(path: str | Path, kind: str, *, map_location: Any = "cpu", w
                 warnings.simplefilter("ignore", UserWarning)
                 checkpoint = torch.load(path, map_location=map_location, weights_only=weights_only)
         except Exception as error:  # torch.load raises pickle, EOF, zip (RuntimeError) and other errors
-            if head.startswith(_ZIP_MAGIC):
+            if head.startswith(_ZIP_MAGIC) and weights_only and isinstance(error, pickle.UnpicklingError):
+                # the archive is whole (its CRCs passed): what failed is torch's allow-list of pickled objects
+                problem = (f"a torch archive holding Python objects other than tensors, numbers, strings and "
+                           f"containers, refused unread because loading them could run code (torch.load: "
+                           f"{_first_line(error)})")
+            elif head.startswith(_ZIP_MAGIC):
                 problem = f"a truncated or damaged torch archive (torch.load: {_first_line(error)})"
             elif head[:1] == b"\x80" and isinstance(error, (RuntimeError, pickle.UnpicklingError, EOFError)):
                 problem = f"a plain Python pickle, not a file written by torch.save (torch.load: {_first_line(error)})"

@@ -26,7 +26,8 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="descriptor: detect + match + two-point RANSAC (thesis); klt: optical flow (msckf_vio)")
     p.add_argument("--max-features", type=integer(minimum=20), default=60, help="N, features per frame (default 60)")
     p.add_argument("--reconstructor", default="firenet",
-                   help="event frames: firenet (default, shipped), high_pass or direct")
+                   help="event frames: firenet (default, shipped), high_pass, direct, or a reconstruct-train "
+                        "checkpoint file")
     p.add_argument("--window-fraction", type=real(above=0.0), default=None,
                    help="event frames: n of N_e = n H W events per window (default: 0.7 boxes_like, 0.2 aerial_like, "
                         "0.5 otherwise)")
@@ -113,13 +114,17 @@ def main_run(args: argparse.Namespace) -> int:
     set_threads(args.threads)
     options = (("weights", str(args.weights)),) if args.weights is not None else ()
     if args.weights is not None and not args.weights.is_file():
-        raise ValueError(f"--weights {args.weights}: no such checkpoint file")
+        problem = "a folder; expected a checkpoint file (.pt)" if args.weights.is_dir() else "no such checkpoint file"
+        raise ValueError(f"--weights {args.weights}: {problem}")
     _check_detector(args.features, options)  # an unknown name fails now, not after loading the recording
-    config = PipelineConfig(frames=args.frames, features=args.features, detector_options=options, tracker=args.tracker,
-                            max_features=args.max_features, reconstructor=args.reconstructor,
-                            window_fraction=args.window_fraction, adaptive_windows=args.adaptive, init=args.init,
-                            bias_init=_bias(args.bias_init), imu_only=args.imu_only, oc=not args.no_oc,
-                            zupt=not args.no_zupt, max_duration=args.max_duration, seed=args.seed)
+    try:
+        config = PipelineConfig(frames=args.frames, features=args.features, detector_options=options,
+                                tracker=args.tracker, max_features=args.max_features, reconstructor=args.reconstructor,
+                                window_fraction=args.window_fraction, adaptive_windows=args.adaptive, init=args.init,
+                                bias_init=_bias(args.bias_init), imu_only=args.imu_only, oc=not args.no_oc,
+                                zupt=not args.no_zupt, max_duration=args.max_duration, seed=args.seed)
+    except ValueError as error:  # the message names the config field; the user typed the option
+        raise ValueError(_as_option(str(error))) from None
     start = time.perf_counter()
     data = load_dataset(args.dataset, duration=args.duration, seed=args.seed,
                         need_events=args.frames == "events" and not args.imu_only, need_frames=args.frames == "aps"
@@ -136,6 +141,20 @@ def main_run(args: argparse.Namespace) -> int:
         print(f"wrote {args.out} (trajectory.txt is the {'IMU' if data.kind == 'euroc' else 'camera'} pose in TUM "
               f"format)")
     return 0
+
+
+#: PipelineConfig fields and the ``run`` options that set them (for messages).
+_OPTIONS = {"reconstructor": "--reconstructor", "bias_init": "--bias-init", "max_duration": "--max-duration",
+            "window_fraction": "--window-fraction", "max_features": "--max-features", "init": "--init",
+            "frames": "--frames", "seed": "--seed", "method": "--tracker"}
+
+
+def _as_option(message: str) -> str:
+    """Return a PipelineConfig message with its leading field name replaced by the command-line option."""
+    for field, option in _OPTIONS.items():
+        if message.startswith(field + " ") or message.startswith(field + ":"):
+            return option + message[len(field):]
+    return message
 
 
 def add_table_arguments(p: argparse.ArgumentParser) -> None:
@@ -167,7 +186,8 @@ def main_table(args: argparse.Namespace) -> int:
         check_output_dir(args.out, args.force, name="--out", inputs=[
             ("the --events-cnn checkpoint", args.events_cnn), ("the recording cache", sequence_cache_dir())])
     if args.events_cnn is not None and not args.events_cnn.is_file():
-        raise ValueError(f"--events-cnn {args.events_cnn}: no such checkpoint file")
+        problem = "a folder; expected a checkpoint file (.pt)" if args.events_cnn.is_dir() else "no such checkpoint file"
+        raise ValueError(f"--events-cnn {args.events_cnn}: {problem}")
     if args.events_cnn is not None:  # a damaged or foreign checkpoint fails now, not in every run of its row
         from evio_lib.features.superpoint import load_model
 

@@ -110,6 +110,10 @@ def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, w
                 return load_sequence_npz(found)
             except CacheError as error:  # empty, truncated, damaged: deleted, said, simulated again
                 discard_damaged_cache(error, "re-simulating")
+    if cache and (path.exists() or path.is_symlink()) and not path.is_file():
+        raise ValueError(f"the recording cache {path} is {'a folder' if path.is_dir() else 'no regular file'}, where "
+                         f"the simulated recording is to be stored; remove it (the cache folder is set by "
+                         f"EVIO_CACHE_DIR)")
     config = SimulationConfig(preset=preset, duration=duration, trajectory_duration=full, seed=seed,
                               with_events=with_events)
     sequence = simulate_sequence(config, progress=progress)

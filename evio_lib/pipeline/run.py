@@ -40,6 +40,7 @@ import math
 import time
 import warnings
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Iterator
 
 import numpy as np
@@ -126,6 +127,14 @@ class PipelineConfig:
             from evio_lib.io.imu_checks import check_bias_values  # |b_g| <= 0.5 rad/s, |b_a| <= 3 m/s^2 per axis
 
             object.__setattr__(self, "bias_init", check_bias_values(values, "bias_init"))
+        if self.frames != "aps":  # before the recording loads: a name or a checkpoint file
+            from evio_lib.events.reconstruct import available_reconstructors
+
+            names = available_reconstructors()
+            if not isinstance(self.reconstructor, str) or (self.reconstructor not in names
+                                                           and not Path(self.reconstructor).is_file()):
+                raise ValueError(f"reconstructor must be one of {names} or a reconstruct-train checkpoint file; got "
+                                 f"{self.reconstructor!r}")
         if self.max_duration is not None and not (math.isfinite(self.max_duration) and self.max_duration > 0):
             raise ValueError(f"max_duration must be None or a number of seconds > 0; got {self.max_duration!r}")
         if isinstance(self.detector_options, dict):
@@ -375,8 +384,13 @@ def _frames(data: LoadedDataset, config: PipelineConfig, t_start: float, t_end: 
             ) -> Iterator[tuple[float, np.ndarray, float]]:
     if config.frames == "aps":
         return aps_frames(data.sequence, t_start, t_end)
-    return event_frames(data.sequence, config.reconstructor, config.window_fraction, config.adaptive_windows,
-                        t_start, t_end)
+    from evio_lib.events.reconstruct import available_reconstructors
+
+    if config.reconstructor in available_reconstructors():
+        return event_frames(data.sequence, config.reconstructor, config.window_fraction, config.adaptive_windows,
+                            t_start, t_end)
+    return event_frames(data.sequence, "learned", config.window_fraction, config.adaptive_windows, t_start, t_end,
+                        checkpoint=config.reconstructor)  # a reconstruct-train checkpoint file
 
 
 def _span(data: LoadedDataset, config: PipelineConfig) -> tuple[float, float]:

@@ -108,3 +108,15 @@ def test_damaged_training_sample_cache_is_made_again(private_cache, capsys, how)
     for key in fresh:
         np.testing.assert_array_equal(again[key], fresh[key])
     assert load_npz_arrays(path).keys() == fresh.keys()
+
+
+def test_a_folder_where_the_recording_cache_goes_is_named(private_cache):
+    """A folder in the cache's place (made by hand or by another tool) is named, never a temporary file's error."""
+    from evio_lib.pipeline.dataset import sequence_cache_dir, simulate_preset
+
+    blocker = sequence_cache_dir() / "boxes_like_d0.5_seed0_frames.npz"
+    blocker.mkdir(parents=True)
+    with pytest.raises(ValueError, match=r"the recording cache .*boxes_like_d0.5_seed0_frames.npz is a folder, where "
+                                         r"the simulated recording is to be stored; remove it"):
+        simulate_preset("boxes_like", 0.5)
+    assert blocker.is_dir() and list(blocker.parent.iterdir()) == [blocker]

@@ -41,6 +41,8 @@ def _make(folder: Path, name: str) -> Path:
         path.write_bytes(bytes(data))
     elif name == "pickle":
         path.write_bytes(pickle.dumps({"state_dict": {"w": [1.0, 2.0]}}))
+    elif name == "code":  # a whole torch archive whose pickle would call a function: refused unread
+        torch.save({"state_dict": _RunsCode()}, path)
     elif name == "tensor":
         torch.save(torch.zeros(3), path)
     elif name == "other_dict":
@@ -65,6 +67,13 @@ def _make(folder: Path, name: str) -> Path:
     return path
 
 
+class _RunsCode:
+    """Unpickled, calls print (a harmless stand-in for os.system): torch's weights_only loader must refuse it."""
+
+    def __reduce__(self):
+        return (print, ("this must never be printed",))
+
+
 # (bad file, what the message must say) for the SuperPoint readers
 SUPERPOINT_CASES = [
     ("corrupt", r"not a readable SuperPoint checkpoint: not a torch checkpoint file"),
@@ -72,6 +81,8 @@ SUPERPOINT_CASES = [
     ("truncated", r"not a readable SuperPoint checkpoint: a truncated or damaged torch archive"),
     ("flipped", r"a damaged torch archive \(member .* fails its CRC check\)"),
     ("pickle", r"a plain Python pickle, not a file written by torch.save"),
+    ("code", r"a torch archive holding Python objects other than tensors.*refused unread because loading them could "
+             r"run code"),
     ("tensor", r"holds a Tensor, not a checkpoint dict"),
     ("other_dict", r"not a SuperPoint checkpoint: lacks \['model_config', 'state_dict'\]"),
     ("firenet", r"is a reconstructor checkpoint \(written by reconstruct-train\), not a SuperPoint checkpoint"),
@@ -86,6 +97,7 @@ RECONSTRUCTOR_CASES = [
     ("truncated", r"not a readable reconstructor checkpoint: a truncated or damaged torch archive"),
     ("flipped", r"a damaged torch archive \(member .* fails its CRC check\)"),
     ("pickle", r"a plain Python pickle"),
+    ("code", r"refused unread because loading them could run code"),
     ("tensor", r"holds a Tensor, not a checkpoint dict"),
     ("other_dict", r"has no 'format' entry"),
     ("superpoint", r"is a SuperPoint checkpoint \(written by features-train or save_checkpoint\), not a reconstructor"),

@@ -27,12 +27,16 @@ def _simulated_sequence(rng: np.random.Generator, ns_grid: bool) -> Sequence:
     frame_times = np.arange(5) * 0.2 + (0.0 if ns_grid else 1e-12 * np.pi)
     frames = rng.integers(0, 256, (5, height, width), dtype=np.uint8)
     t_imu = np.arange(200) * 0.005 + (0.0 if ns_grid else 1e-13)
-    imu = ImuSamples(t_imu, rng.normal(size=(200, 3)), rng.normal(size=(200, 3)) + [0.0, 0.0, 9.81])
+    # the IMU truth is still in a random attitude R_ItoG, and the accelerometer reads gravity in it plus noise (the
+    # reader checks the IMU against its truth); poses and velocities' digits still go through the files
+    R_ItoG = Rotation.random(random_state=np.random.RandomState(2)).as_matrix()
+    accel = rng.normal(size=(200, 3)) * 0.5 + R_ItoG.T @ [0.0, 0.0, 9.81]
+    imu = ImuSamples(t_imu, rng.normal(size=(200, 3)) * 1e-2, accel)
     t_gt = np.arange(50) * 0.02 + (0.0 if ns_grid else 1 / 3)
     q_cam = rot_to_quat(Rotation.random(50, random_state=np.random.RandomState(1)).as_matrix())
-    q_imu = rot_to_quat(Rotation.random(50, random_state=np.random.RandomState(2)).as_matrix())
+    q_imu = rot_to_quat(np.repeat(R_ItoG.T[None], 50, axis=0))  # JPL q_GtoI: C(q) = R_GtoI
     gt_cam = GroundTruth(t_gt, rng.normal(size=(50, 3)), q_cam, body="camera")
-    gt_imu = GroundTruth(t_gt, rng.normal(size=(50, 3)), q_imu, body="imu", v_BinG=rng.normal(size=(50, 3)),
+    gt_imu = GroundTruth(t_gt, rng.normal(size=(50, 3)), q_imu, body="imu", v_BinG=rng.normal(size=(50, 3)) * 1e-3,
                          bias_gyro=rng.normal(size=(50, 3)) * 1e-3, bias_accel=rng.normal(size=(50, 3)) * 1e-2)
     metadata = {
         "imu_noise": {"gyroscope_noise_density": 1.6968e-4, "accelerometer_noise_density": 2.0e-3},

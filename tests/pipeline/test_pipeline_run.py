@@ -105,6 +105,8 @@ def test_static_initialisation_refuses_a_moving_start(boxes_aps):
     (dict(bias_init=(1.0, 2.0)), "six finite numbers"),
     (dict(max_duration=-1.0), "max_duration"),
     (dict(tracker="sift"), "method must be one of"),
+    (dict(frames="events", reconstructor="learned"), r"reconstructor must be one of \['direct', 'high_pass'"),
+    (dict(frames="events", reconstructor="no/such.pt"), "or a reconstruct-train checkpoint file; got 'no/such.pt'"),
 ])
 def test_bad_configs_are_refused(changes, message):
     with pytest.raises(ValueError, match=message):
@@ -121,6 +123,20 @@ def test_event_frames_with_a_stretch_without_events(boxes_events):
     assert not np.any((result.t > 0.61) & (result.t < 0.89))
     assert len(result.t) > 10 and np.all(np.isfinite(result.p_IinG))
     assert result.timings["reconstruction"] > 0
+
+
+def test_a_reconstructor_checkpoint_file_is_a_reconstructor(boxes_events):
+    """--reconstructor PATH runs the reconstruct-train checkpoint at PATH: the shipped FireNet's file gives the
+    frames of the name 'firenet'."""
+    from evio_lib.events.reconstruct import shipped_checkpoint
+    from evio_lib.pipeline.run import _frames
+
+    path = str(shipped_checkpoint("firenet"))
+    by_name = list(_frames(boxes_events, PipelineConfig(frames="events"), 0.0, 0.6))
+    by_file = list(_frames(boxes_events, PipelineConfig(frames="events", reconstructor=path), 0.0, 0.6))
+    assert len(by_name) == len(by_file) >= 2
+    for (t_a, image_a, _), (t_b, image_b, _) in zip(by_name, by_file):
+        assert t_a == t_b and np.array_equal(image_a, image_b)
 
 
 def test_event_frames_follow_the_window_size(boxes_events):
