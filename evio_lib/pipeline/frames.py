@@ -74,6 +74,11 @@ def event_frames(sequence: Sequence, reconstructor: str = "firenet", window_frac
         from evio_lib.events.representations import MAX_WINDOWS
 
         per_window = window_size_from_fraction(n, width, height)
+        if 0 < events.size < per_window:  # not one frame: say why, not "no events"
+            raise ValueError(f"the {events.size:,} events in [{events['t'][0]:.3f}, {events['t'][-1]:.3f}] s are fewer "
+                             f"than one window of N_e = n H W = {per_window:,} events (window_fraction "
+                             f"(--window-fraction) n = {n:g}, {width} x {height} px); use n <= "
+                             f"{events.size / (width * height):.3g}, adaptive windows (--adaptive) or APS frames")
         span = float(events["t"][-1] - events["t"][0]) if events.size > 1 else 0.0
         most = min(MAX_WINDOWS, max(1.0, MAX_EVENT_FRAME_RATE_HZ * span))
         if events.size / per_window > most:

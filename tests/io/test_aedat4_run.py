@@ -162,3 +162,12 @@ def test_run_end_to_end_with_calib(sample, tmp_path, capsys, calib):
     assert not any(key.startswith(("ate", "rmse", "drift")) for key in metrics["metrics"])  # no ground truth
     position = np.array([float(v) for v in rows[-1].split()[1:4]])
     assert np.linalg.norm(position) < 0.05  # the camera lies still: it stays where it started
+
+
+def test_too_few_events_for_one_window_is_said(sample, capsys, calib):
+    """The 0.16 s sample holds about 6 300 events after the first, fewer than one window of 0.5 H W = 44 980: the
+    message gives the count, the window and the n that would fit (it said 'no events or frames there')."""
+    line = _one_error_line(capsys, cli.main(["run", str(sample), "--calib", str(calib), "--frames", "events",
+                                             "--quiet"]))
+    assert "events in [" in line and "are fewer than one window of N_e = n H W = 44,980 events" in line
+    assert "(window_fraction (--window-fraction) n = 0.5, 346 x 260 px); use n <= 0.0" in line
