@@ -26,10 +26,14 @@ rad/s):
 
       mean over [t0, t1] of R_ItoG a_m = (v(t1) - v(t0)) / (t1 - t0) - g_G
 
-  so the mean specific force in the world must point up within :data:`GRAVITY_ANGLE_TOL_DEG` = 30 degrees
-  (at any speed; over 2 s or more, a change of speed of 1 m/s tilts it by 3 degrees). An accelerometer whose axes
-  the truth contradicts (columns in another order, a sign flipped, another sensor frame) is refused, naming the
-  IMU axis on which the truth expects the specific force and the one on which the file has it.
+  so the mean specific force in the world must lie within :data:`GRAVITY_ANGLE_TOL_DEG` = 30 degrees of the
+  truth's prediction (the truth's change of velocity is part of it, so any speed passes), over at least
+  :data:`MIN_GRAVITY_SPAN_S` = 0.5 s of overlap. An accelerometer whose axes the truth contradicts (columns in
+  another order, a sign flipped, another sensor frame) is refused, naming the IMU axis on which the truth expects
+  the specific force and the one on which the file has it.
+* **Axes off gravity.** A swap of the two axes gravity does not lie on passes that test (a mirror image keeps
+  gravity in place). The motion does not: per window of 0.05-0.2 s, every signed order of the file's columns (48)
+  is fitted to the truth's rotation (gyro) and acceleration (accelerometer), see :func:`_axes_problem`.
 
 Bounds for user-given values (``--bias-init``): :data:`GYRO_BIAS_BOUND` 0.5 rad/s and :data:`ACCEL_BIAS_BOUND`
 3 m/s^2 per axis, see :func:`check_bias_values`.
