@@ -14,7 +14,7 @@ import sys
 import threading
 import time
 from contextlib import contextmanager
-from typing import Container, Iterator, Sequence
+from typing import Callable, Container, Iterator, Sequence
 
 from evio_lib.cli_args import add_force_argument, integer, output_folder, real
 
@@ -95,29 +95,45 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
-#: Commands whose options and main function live in their own modules: name -> (module, add-options function, main
-#: function). Their modules import torch, SciPy or OpenCV (seconds), so :func:`main` imports only the one that runs.
+#: Commands whose options and main function live in their own modules: name -> (module of the options,
+#: add-options function, module of the main function, main function). The main modules import torch, SciPy or
+#: OpenCV (seconds); the options modules import none of them, so ``--help`` and a usage error start in well under a
+#: second, and :func:`main` imports the main module of the one command that runs.
 _COMMAND_MODULES = {
-    "features-benchmark": ("evio_lib.features.benchmark", "add_benchmark_arguments", "main_benchmark"),
-    "features-train": ("evio_lib.features.train", "add_train_arguments", "main_train"),
-    "vio-sim": ("evio_lib.msckf.experiment", "add_vio_sim_arguments", "main_vio_sim"),
-    "reconstruct": ("evio_lib.events.reconstruct_command", "add_reconstruct_arguments", "main_reconstruct"),
-    "reconstruct-train": ("evio_lib.events.reconstruction_train", "add_reconstruct_train_arguments",
-                          "main_reconstruct_train"),
-    "run": ("evio_lib.pipeline.command", "add_run_arguments", "main_run"),
-    "table": ("evio_lib.pipeline.command", "add_table_arguments", "main_table"),
+    "features-benchmark": ("evio_lib.features.benchmark_options", "add_benchmark_arguments",
+                           "evio_lib.features.benchmark", "main_benchmark"),
+    "features-train": ("evio_lib.features.train_options", "add_train_arguments", "evio_lib.features.train",
+                       "main_train"),
+    "vio-sim": ("evio_lib.msckf.experiment_options", "add_vio_sim_arguments", "evio_lib.msckf.experiment",
+                "main_vio_sim"),
+    "reconstruct": ("evio_lib.events.reconstruct_command", "add_reconstruct_arguments",
+                    "evio_lib.events.reconstruct_command", "main_reconstruct"),
+    "reconstruct-train": ("evio_lib.events.reconstruction_train_options", "add_reconstruct_train_arguments",
+                          "evio_lib.events.reconstruction_train", "main_reconstruct_train"),
+    "run": ("evio_lib.pipeline.command", "add_run_arguments", "evio_lib.pipeline.command", "main_run"),
+    "table": ("evio_lib.pipeline.command", "add_table_arguments", "evio_lib.pipeline.command", "main_table"),
 }
 
 
+def _lazy_main(module: str, function: str) -> Callable[[argparse.Namespace], int]:
+    """Return a main function that imports ``module`` when it is called (after the arguments parsed)."""
+
+    def run(args: argparse.Namespace) -> int:
+        return getattr(importlib.import_module(module), function)(args)
+
+    run.__qualname__ = run.__name__ = function
+    return run
+
+
 def _add_options(p: argparse.ArgumentParser, name: str, full: Container[str] | None) -> None:
-    """Give the sub-parser of command ``name`` its options and main function, importing the command's module, when
-    ``full`` is None (every command) or holds ``name``; otherwise leave it a stub with its help text only."""
+    """Give the sub-parser of command ``name`` its options and main function, importing the command's options
+    module, when ``full`` is None (every command) or holds ``name``; otherwise leave it a stub with its help text
+    only."""
     if full is not None and name not in full:
         return
-    module, add, main_function = _COMMAND_MODULES[name]
-    loaded = importlib.import_module(module)
-    getattr(loaded, add)(p)
-    p.set_defaults(func=getattr(loaded, main_function))
+    options, add, module, main_function = _COMMAND_MODULES[name]
+    getattr(importlib.import_module(options), add)(p)
+    p.set_defaults(func=_lazy_main(module, main_function))
 
 
 def _requested_command(argv: Sequence[str]) -> str | None:

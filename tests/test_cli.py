@@ -340,7 +340,11 @@ def test_train_force_replaces_a_run_only_when_training_returns(inputs, monkeypat
 
 
 @pytest.mark.parametrize("argv", [["--help"], ["run", "--help"], ["table", "--help"], ["simulate", "--help"],
-                                  ["course", "--help"], ["run", "--seed", "-1"]])
+                                  ["course", "--help"], ["run", "--seed", "-1"], ["vio-sim", "--help"],
+                                  ["vio-sim", "nowhere_like"], ["features-train", "--help"],
+                                  ["features-train", "--steps", "0"], ["reconstruct-train", "--help"],
+                                  ["features-benchmark", "--help"], ["features-benchmark", "--seed", "-2"],
+                                  ["reconstruct", "--help"]])
 def test_help_and_usage_errors_import_no_heavy_library(argv):
     """`--help` and a usage error build only the parser of the command named (issue 26: start-up under a second):
     torch, SciPy and OpenCV (seconds to import) stay unloaded. Counts modules, not seconds."""
@@ -353,4 +357,18 @@ def test_help_and_usage_errors_import_no_heavy_library(argv):
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=PROJECT_ROOT)
     status, heavy, count = done.stdout.split()
     assert int(status) in (0, 2) and heavy == "-", done.stdout + done.stderr
-    assert int(count) < 200  # the standard library's argparse, pathlib, ... and evio_lib's command-line modules
+    assert int(count) < 250  # the standard library's argparse, pathlib, ..., NumPy (0.1 s) and evio_lib's CLI modules
+
+
+def test_vio_sim_choices_are_the_librarys():
+    """The vio-sim options module lists the presets and noise models without importing them: they must agree."""
+    import argparse
+
+    from evio_lib.msckf.experiment import NOISE_MODELS
+    from evio_lib.msckf.experiment_options import add_vio_sim_arguments
+    from evio_lib.sim.trajectory import PRESETS
+
+    parser = argparse.ArgumentParser()
+    add_vio_sim_arguments(parser)
+    choices = {a.dest: tuple(a.choices) for a in parser._actions if a.choices}
+    assert choices["preset"] == tuple(PRESETS) and choices["noise_model"] == tuple(NOISE_MODELS)

@@ -7,6 +7,8 @@
 Every name of ``available_detectors()`` constructs with no options; "superpoint" is the best shipped network
 (``SUPERPOINT_DEFAULT_WEIGHTS``).
 """
-from evio_lib.features.base import SUPERPOINT_DEFAULT_WEIGHTS, Features, available_detectors, create_detector
+from evio_lib.lazy_exports import lazy_exports
 
 __all__ = ["Features", "available_detectors", "create_detector", "SUPERPOINT_DEFAULT_WEIGHTS"]
+# imported on first use: the command-line options modules of this package must not pull in OpenCV
+__getattr__, __dir__ = lazy_exports(__name__, {name: "base" for name in __all__}, globals())

@@ -54,6 +54,7 @@ from evio_lib.features.hpatches import (
     resize_pair,
 )
 from evio_lib.geometry.homography import crop_to_full_homography, sample_homography, warp_image
+from evio_lib.features.benchmark_options import add_benchmark_arguments  # the options alone
 
 __all__ = [
     "BenchmarkSettings",
@@ -783,47 +784,6 @@ def _lookup_eps(values: dict[Any, float], eps: float) -> float:
 
 
 # ---------------------------------------------------------------------------------------------- command line
-def add_benchmark_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    """Return ``parser`` with the options of ``python -m evio_lib features-benchmark`` added."""
-    from evio_lib.cli_args import add_force_argument, integer, output_folder
-
-    parser.add_argument("--detectors", nargs="+", metavar="NAME",
-                        help="detector names (create_detector); default: every available detector. A named detector "
-                             "that fails ends the command with an error unless --keep-going")
-    parser.add_argument("--keep-going", action="store_true",
-                        help="skip a detector that fails (report it) instead of stopping with an error")
-    parser.add_argument("--dataset", choices=["heldout", "events", "hpatches"], default="heldout",
-                        help="heldout: HPatches-style pairs of the held-out test images (default); events: event "
-                             "frames from --event-frames and warped copies; hpatches: the real HPatches folder")
-    parser.add_argument("--hpatches-root", type=Path, help="HPatches folder with i_*/v_* scenes (--dataset hpatches)")
-    parser.add_argument("--event-frames", type=Path,
-                        help=".npy (N, H, W) or .npz (array 'frames') of event frames (--dataset events)")
-    parser.add_argument("--seed", type=integer(minimum=0), default=0,
-                        help="seed of the image pool and the random changes, >= 0 (default 0)")
-    parser.add_argument("--n-images", type=integer(minimum=1), default=None,
-                        help="use only the first N images / frames / scenes per split (default: all; 2 with --fast)")
-    parser.add_argument("--pairs-per-image", type=integer(minimum=1), default=None,
-                        help="pairs per image and split (default 5; 1 with --fast)")
-    parser.add_argument("--settings", choices=["thesis-hpatches", "thesis-events"],
-                        help="evaluation settings (default: thesis-events for --dataset events, else thesis-hpatches)")
-    parser.add_argument("--speed-shapes", nargs="*", default=None, metavar="HxW",
-                        help="also time detect_and_describe at these resolutions (default 180x240 240x320; give the "
-                             "option with no value to skip the timing)")
-    parser.add_argument("--speed-frames", type=integer(minimum=1), default=None,
-                        help="timed frames per resolution (default 20; 5 with --fast)")
-    parser.add_argument("--out", type=output_folder(),
-                        help="folder to write results.json and tables.md into (new or empty unless --force; written "
-                             "when the run is complete)")
-    add_force_argument(parser)
-    parser.add_argument("--fast", action="store_true",
-                        help="tiny run: 2 images, 1 pair each, 5 timed frames (values given explicitly win)")
-    parser.add_argument("--weights", default=None,
-                        help="weights of the 'superpoint' detector: a shipped name (evio_lib/weights/NAME.pt) or a .pt "
-                             "path (default: the shipped default weights); the row is named after them")
-    parser.add_argument("--quiet", action="store_true", help="no progress bars")
-    return parser
-
-
 def _parse_shape(text: str) -> tuple[int, int]:
     """Return (height, width) from 'HxW'."""
     try:

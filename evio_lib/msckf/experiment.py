@@ -50,6 +50,7 @@ from evio_lib.sim.imu import ImuData, ImuNoiseParams, synthesize_imu
 from evio_lib.sim.rig import CameraImuExtrinsics
 from evio_lib.sim.tracks import FeatureFrame, simple_geometry, simulate_feature_tracks, track_lengths
 from evio_lib.sim.trajectory import PRESETS, Trajectory, trajectory_from_preset
+from evio_lib.msckf.experiment_options import add_vio_sim_arguments  # the options alone
 
 __all__ = [
     "VioSimConfig",
@@ -597,37 +598,6 @@ def run_vio_sim(
 
 
 # ==================================================================================================== command line
-def add_vio_sim_arguments(parser: argparse.ArgumentParser) -> None:
-    """Add the arguments of ``python -m evio_lib vio-sim`` to ``parser``."""
-    from evio_lib.cli_args import add_force_argument, integer, real
-
-    parser.add_argument("preset", choices=list(PRESETS), help="simulated preset trajectory and scene")
-    parser.add_argument("--duration", type=real(at_least=2.0), default=None,
-                        help="seconds to simulate, >= 2 (default: the preset's, 60 s boxes_like, 40 s aerial_like)")
-    parser.add_argument("--seed", type=integer(minimum=0), default=0,
-                        help="seed of every random stream, >= 0 (default 0)")
-    parser.add_argument("--features", type=integer(minimum=1), default=60,
-                        help="tracked features per image, >= 1 (default 60)")
-    parser.add_argument("--pixel-noise", type=real(at_least=0.0), default=1.0,
-                        help="pixel noise std of the tracks, >= 0 px (default 1)")
-    parser.add_argument("--no-oc", action="store_true", help="plain EKF instead of the observability-constrained one")
-    parser.add_argument("--noise-model", choices=list(NOISE_MODELS), default="per_observation",
-                        help="feature noise model of the filter (default per_observation: each observation's own "
-                             "covariance from the undistortion Jacobian)")
-    parser.add_argument("--oc-update", choices=["projected", "eq86"], default="projected",
-                        help="update side of the OC-EKF: constraint on the projected feature Jacobian (default) or the "
-                             "thesis's Eq. 86")
-    parser.add_argument("--gate", type=real(above=0.0, below=1.0), default=0.99,
-                        help="chi-square gate probability of the filter, in (0, 1) (default 0.99: the simulated tracks "
-                             "hold no outliers; the library default 0.95 is for real tracks)")
-    parser.add_argument("--imu-only", action="store_true", help="propagate only (no visual updates)")
-    parser.add_argument("--no-baselines", action="store_true", help="skip the IMU-only baseline rows")
-    parser.add_argument("--out", type=Path, default=None,
-                        help="folder for trajectory.txt and groundtruth.txt (TUM, IMU body; created, must be new or "
-                             "empty unless --force; written when the run is complete)")
-    add_force_argument(parser)
-
-
 def main_vio_sim(args: argparse.Namespace) -> int:
     """Run the experiment for parsed ``vio-sim`` arguments, print the report; return the exit code (0).
 

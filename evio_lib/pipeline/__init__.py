@@ -11,8 +11,7 @@ and its metrics), ``output`` (the run's folder), ``table`` (thesis Table 6 over 
 """
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from evio_lib.lazy_exports import lazy_exports
 
 #: name -> module of the names this package offers; imported on first use (PEP 562), so that ``python -m evio_lib run
 #: --help`` and the command's argument checks do not import OpenCV, torch and SciPy first.
@@ -23,15 +22,4 @@ _EXPORTS = {
 }
 
 __all__ = list(_EXPORTS)
-
-
-def __getattr__(name: str) -> Any:
-    if name not in _EXPORTS:
-        raise AttributeError(f"module 'evio_lib.pipeline' has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"evio_lib.pipeline.{_EXPORTS[name]}"), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(list(globals()) + __all__)
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, globals())

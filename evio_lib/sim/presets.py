@@ -163,7 +163,7 @@ def simulate_sequence(config: SimulationConfig, progress: bool = False,
 
     Args:
         config: the preset, duration, seed and sensor settings.
-        progress: show progress bars and print the time each sensor took.
+        progress: show progress bars (on stderr).
         timings: when given, filled with the wall-clock seconds of each sensor (``imu_s``, ``events_s``,
             ``frames_s``). They are kept out of the recording's metadata, so that equal configs (seeds) give equal
             recordings, byte for byte once written.
@@ -223,8 +223,6 @@ def simulate_sequence(config: SimulationConfig, progress: bool = False,
         frames = render_aps_frames(scene, camera, pose_at, frame_times, config.aps, np.random.default_rng(seed_aps),
                                    progress=progress)
         timings["frames_s"] = time.perf_counter() - start
-    if progress:
-        print("simulation timings: " + ", ".join(f"{k}={v:.1f}" for k, v in (timings | counts).items()))
 
     metadata = {
         "source": "evio simulator",
