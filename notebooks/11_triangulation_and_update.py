@@ -308,6 +308,7 @@ for k in range(30):  # 30 landmarks around the first one, all seen by the same f
 H_big, r_big = np.vstack(H_stack), np.concatenate(r_stack)
 T_H, r_n = measurement_compress(H_big, r_big)
 print(f"stacked rows {H_big.shape[0]} -> compressed rows {T_H.shape[0]} (state size {state_dim})")
+assert T_H.shape[0] <= state_dim  # at most the state size
 assert np.allclose(T_H.T @ T_H, H_big.T @ H_big, atol=1e-9)
 assert np.allclose(T_H.T @ r_n, H_big.T @ r_big, atol=1e-12)
 
@@ -424,6 +425,7 @@ config = MsckfConfig().with_imu_noise(imu_noise)
 print(f"window N_max = {config.max_camera_states}, prune a third: {config.marginalize_third}, "
       f"gate {config.chi2_probability}, tracks need >= {config.min_track_length} observations")
 assert config.max_camera_states == 40 and config.marginalize_third and config.chi2_probability == 0.95
+assert config.min_track_length == 3  # shorter tracks are counted as too_few_observations (below)
 s0 = traj.evaluate(0.0)
 state0 = initial_state_from_truth(0.0, s0.R_ItoG[0], s0.p_IinG[0], s0.v_IinG[0], ext.R_CtoI, ext.p_CinI, config)
 frame_input = [(f.t, f.ids, f.xy) for f in frames]
