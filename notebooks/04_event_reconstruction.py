@@ -145,8 +145,9 @@ assert abs(adaptive_n["boxes_like_fast"] - adaptive_n["boxes_like_slow"]) < 0.2
 # - the **polarity frame** sums the polarities per pixel: edges appear, but their direction of motion decides their
 #   sign, and nothing inside a uniform region is ever seen;
 # - the **time surface** exp(-(t_ref - t_last)/tau) shows when each pixel last fired: a trail behind each moving edge;
-# - the **voxel grid** (E2VID's input) spreads each event over the two nearest of B = 5 time bins with weights
-#   max(0, 1 - |b - t*|), t* = 4 (t - t_0)/(t_N - t_0), then scales the non-zero voxels to zero mean and unit variance.
+# - the **voxel grid** (the input of the reconstruction networks of section 5, E2VID and FireNet) spreads each event
+#   over the two nearest of B = 5 time bins with weights max(0, 1 - |b - t*|), t* = 4 (t - t_0)/(t_N - t_0), then
+#   scales the non-zero voxels to zero mean and unit variance.
 #   Summed over its bins, the grid gives back the polarity frame: the weights of each event sum to one.
 
 # %%
@@ -295,7 +296,8 @@ assert my_ssim(dim, truth) < 0.95 and np.isclose(image_quality(dim, truth)["ssim
 #
 # An event camera never sees a still region, so a good reconstruction must **remember** what it saw earlier and
 # **guess** what a typical image looks like where it has no events. E2VID (Rebecq et al. 2019) does both with a
-# recurrent UNet of 10.7 M parameters; FireNet (Scheerlinck et al. 2020) shows that a tiny recurrent network, two
+# recurrent UNet (an encoder-decoder whose skip connections hand each resolution's features to the decoder) of
+# 10.7 M parameters; FireNet (Scheerlinck et al. 2020) shows that a tiny recurrent network, two
 # convolutional GRU cells and 38 k parameters, gets close. Both read the voxel grid of each window and carry a hidden
 # state to the next one.
 
@@ -457,6 +459,9 @@ flat = {name: max(v[1:]) - min(v[1:]) for name, v in sweep.items()}
 print(f"largest gap between the two curves: {gap.max():.3f}; spread above the smallest n:",
       {name: round(f, 3) for name, f in flat.items()})
 assert gap.max() < 0.03 and max(flat.values()) < 0.05
+train_data = checkpoint["config"]["data"]  # the shipped network's training data, recorded in its checkpoint
+print(f"the shipped network was trained on windows of n = {train_data['fraction_min']}-{train_data['fraction_max']}")
+assert (train_data["fraction_min"], train_data["fraction_max"]) == (0.1, 0.8)
 
 # %% [markdown]
 # Too few events per frame (the smallest n) always scores below the best: each frame sees only part of the edges.
