@@ -26,7 +26,9 @@
 # Every metric is first computed by hand on one image pair and checked against `evio_lib.features.evaluate`; the
 # tables then come from `evio_lib.features.benchmark`.
 #
-# **Data.** HPatches and the thesis's aerial recordings cannot be downloaded here. The library builds an
+# **Data.** The thesis evaluated on HPatches (§3.2.3): 116 scenes, each a reference image and 5 others of the same
+# planar scene under changed illumination (57 scenes) or viewpoint (59), with the true homography to the reference.
+# HPatches and the thesis's aerial recordings cannot be downloaded here. The library builds an
 # HPatches-style benchmark instead (`heldout_pairs`): images of the held-out TEST split of the project's image pool
 # (never seen in training), each paired with copies warped by random homographies (the *viewpoint* split) or
 # changed only photometrically (the *illumination* split, $H = I$). The event-frame split pairs event frames of
@@ -54,6 +56,7 @@ from evio_lib.evaluation.plots_features import (
 from evio_lib.events.array import event_count_image, events_between
 from evio_lib.features.base import available_detectors, create_detector
 from evio_lib.features.benchmark import (
+    VIEWPOINT_HOMOGRAPHY,
     BenchmarkSettings,
     diagnose_pairs,
     event_frame_pairs,
@@ -273,6 +276,7 @@ for (split, name), (good, total) in qualitative.items():
     assert 0 <= good <= total
 view = {name: qualitative[("viewpoint", name)] for name in ("sift", "orb", "fast_freak")}
 assert all(view["sift"][0] > v[0] and view["sift"][0] / view["sift"][1] > v[0] / v[1] for n, v in view.items() if n != "sift")
+assert all(view["sift"][1] > v[1] for n, v in view.items() if n != "sift")  # and the most mutual matches
 assert all(qualitative[("illumination", n)][1] < view[n][1] for n in view)  # fewer mutual matches under illumination
 
 # %% [markdown]
@@ -506,6 +510,10 @@ if not FAST:  # 16 viewpoint pairs: SIFT scores below its thesis row at every ep
     assert all(ours < ref for ours, ref in zip(sift_view, thesis[("homography", "sift")][0]))
 if "sift" in by_name and "orb" in by_name:
     assert by_name["sift"]["homography"]["viewpoint"][3.0] >= by_name["orb"]["homography"]["viewpoint"][3.0]
+event_hom = [next(iter(row["homography"].values())) for row in event_rows]  # the event split's scores per detector
+print("event-frame homography correctness at eps = 3 / 5:", [(row["detector"], h[3.0], h[5.0])
+                                                              for row, h in zip(event_rows, event_hom)])
+assert np.mean([min(h[3.0], h[5.0]) >= 0.85 for h in event_hom]) > 0.5  # close to 1 for most methods
 if cnn:
     best = {}
     for metric in ("repeatability", "homography"):
@@ -515,10 +523,14 @@ if cnn:
               f"best classical {best[metric]['classical']:.3f}")
     assert best["repeatability"]["cnn"] > best["repeatability"]["classical"]  # the thesis's claim holds here
     assert best["homography"]["cnn"] <= best["homography"]["classical"]  # ... but not for homographies
+    assert by_name["harris"]["homography"]["illumination"][3.0] == best["homography"]["classical"]  # Harris: the best
     event_rep = {row["detector"]: row["repeatability"]["event"][3.0] if "event" in row["repeatability"]
                  else next(iter(row["repeatability"].values()))[3.0] for row in event_rows}
     print("event-frame repeatability at eps = 3:", {n: round(v, 3) for n, v in event_rep.items()})
     assert all(event_rep[w] < event_rep["harris"] for w, _ in cnn)  # Harris leads, as in the thesis
+    if "pretrained_detdesc_round1_gpu" in event_rep:  # the GPU-trained network: near SIFT and FAST, clearly below Harris
+        gpu_rep = event_rep["pretrained_detdesc_round1_gpu"]
+        assert all(abs(gpu_rep - event_rep[n]) < 0.1 for n in ("sift", "fast")) and gpu_rep < event_rep["harris"] - 0.1
     assert "pretrained_detdesc_round2_cpu" not in event_rep or \
         event_rep["pretrained_detdesc_round2_cpu"] < 0.5 * event_rep["harris"]  # less than half of Harris
 
@@ -592,21 +604,30 @@ fig = plot_oracle_corner_errors({name: (d[:, 1], d[:, 4]) for name, d in diagnos
 plt.show()
 
 # %% [markdown]
-# Read the table from left to right. The networks find correct matches on most pairs, but their keypoints sit
-# further from the true points than SIFT's (the ratio is printed below): SIFT fits each keypoint to a sub-pixel extremum of its
-# scale space, so a zoomed copy of a blob is found at the same scene point. A single-scale corner detector, the
-# network or Harris, fires a little inside or outside a corner depending on the zoom. The network also has a
-# fixed 8 x 8 cell grid: `bench/detector_localisation.py` shows that a shift by a whole cell (8 px) moves its
-# points exactly, while shifts by 1-4 px do not. Many network pairs therefore miss 3 px even with the oracle, and
-# no RANSAC setting can fix that. What would: more correct matches (the error falls as $1/\sqrt n$), or a
-# detector that localises under a change of scale. The claim checked below is the localisation gap.
+# Read the table from left to right. The networks find correct matches (at least four, enough for a homography) on
+# most pairs, but their keypoints sit further from the true points than SIFT's (the ratio is printed below): SIFT
+# fits each keypoint to a sub-pixel extremum of its scale space, so a zoomed copy of a blob is found at the same
+# scene point. A single-scale corner detector, the network or Harris, fires a little inside or outside a corner
+# depending on the zoom. The network also has a fixed 8 x 8 cell grid: `bench/detector_localisation.py` shows that
+# a shift by a whole cell (8 px) moves its points exactly, while shifts by 1-4 px do not. Many network pairs (a
+# quarter or more, printed below) therefore miss 3 px even with the oracle, and no RANSAC setting can fix that.
+# What would: more correct matches (the error falls as $1/\sqrt n$), or a
+# detector that localises under a change of scale. The cell below checks these claims, the localisation gap first.
 
 # %%
 sift_error = np.nanmean(diagnoses["sift"][:, 2])
 for w, _ in cnn:
-    ratio = np.nanmean(diagnoses[w][:, 2]) / sift_error
-    print(f"{w}: localisation error {np.nanmean(diagnoses[w][:, 2]):.2f} px vs SIFT {sift_error:.2f} px ({ratio:.1f}x)")
+    d = diagnoses[w]
+    ratio = np.nanmean(d[:, 2]) / sift_error
+    print(f"{w}: localisation error {np.nanmean(d[:, 2]):.2f} px vs SIFT {sift_error:.2f} px ({ratio:.1f}x); "
+          f"at least 4 correct matches on {np.mean(d[:, 1] >= 4):.0%} of the pairs; the oracle misses 3 px on "
+          f"{np.mean(~(d[:, 4] <= 3)):.0%}")
     assert 1.15 < ratio < 2.05  # SIFT's correct matches are better localised: 1.2 to 2 times
+    assert np.mean(d[:, 1] >= 4) > 0.5 and np.mean(~(d[:, 4] <= 3)) >= 0.25  # matches on most pairs; many oracle misses
+assert all(by_name["sift"]["homography"]["viewpoint"][3.0] > by_name[w]["homography"]["viewpoint"][3.0] for w, _ in cnn)
+zoom = [np.sqrt(abs(np.linalg.det(p.H[:2, :2]))) for p in diag_pairs]  # linear scale of each viewpoint homography
+print(f"zoom of the viewpoint pairs: median {np.median(zoom):.2f}x (patch ratio {VIEWPOINT_HOMOGRAPHY['patch_ratio']})")
+assert 1.3 < np.median(zoom) < 1.8 and VIEWPOINT_HOMOGRAPHY["patch_ratio"] == 0.65
 
 # %% [markdown]
 # ## 11. From features to the filter
