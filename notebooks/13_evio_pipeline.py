@@ -62,6 +62,7 @@ from evio_lib.frontend.two_point_ransac import two_point_ransac
 from evio_lib.geometry.rotation import so3_log
 from evio_lib.pipeline import PipelineConfig, load_dataset, run_pipeline
 from evio_lib.pipeline.frames import default_window_fraction
+from evio_lib.pipeline.run import msckf_config_for
 
 cv2.setNumThreads(1)
 torch.set_num_threads(1)
@@ -207,14 +208,16 @@ assert np.all(np.abs(np.diff(box_times) - 0.04) < 0.005)  # frames about 40 ms a
 assert box_stats["total"][1:].min() >= 50  # the grid is refilled to about N = 60 features
 assert 0.2 < box_stats["tracked"][1:].mean() / box_stats["total"][1:].mean() < 0.9
 assert box_stats["rejected_ransac"][1:].mean() > 0.3 * box_stats["tracked"][1:].mean()
+assert PipelineConfig().match_ratio is None and frontend_config.ratio is None  # no ratio test in the pipeline
 
 # %% [markdown]
 # The grid keeps about N = 60 features in every frame, but only part of them continue from the previous frame; the
 # rest are new detections filling cells that lost theirs. In this repetitive, low-resolution room many SIFT
 # descriptors have a near twin: the pipeline matches without a ratio test (it measured better so, see
 # `PipelineConfig.match_ratio`), and two-point RANSAC then rejects a large share of the candidate matches (more than
-# 0.3 per continued track here). Short tracks are the price: the MSCKF needs a feature in at least two views, and gains
-# most from long tracks.
+# 0.3 per continued track here). Short tracks are the price: the MSCKF uses a track only once it has at least
+# three observations (`min_track_length` of the filter's `MsckfConfig`, notebook 11; asserted in section 2), and
+# gains most from long tracks.
 #
 # **Two-point RANSAC by hand.** Match *every* SIFT detection of the last two frames (no search window, only Lowe's
 # ratio test at 0.8, so some wrong matches get through) and let two-point RANSAC, given the gyro's rotation, decide.
@@ -344,7 +347,8 @@ assert angle_deg(library.t_dir, t_ours) < 1 and np.mean(our_inliers == library.i
 # Two matches per hypothesis and a few hundred draws: RANSAC found a translation direction within 5° of the true one
 # (from the matches and the gyro alone), and the from-scratch version and `two_point_ransac` agree to within 1° and
 # on more than 90 % of the decisions (the library scores with the Sampson distance, which also counts the error of
-# $f_1$, and ranks hypotheses by MSAC's truncated cost instead of the inlier count). In the figure, each green segment
+# $f_1$, and ranks hypotheses by MSAC's truncated cost $\sum_k \min(d_k, 1.5\,\text{px})^2$, Torr & Zisserman 2000,
+# instead of the inlier count). In the figure, each green segment
 # joins a previous feature, its rotation removed, to its match: what remains is the translation's parallax, segments
 # along lines through the epipole (here far outside the image, since the camera moved mostly sideways), longer for
 # nearer points. In the consecutive pair above the kept matches moved less than 4.5 px after the rotation was removed
@@ -428,6 +432,7 @@ for k in (73, 76):  # the next frame, and 3 frames later
 print(f"structure tensor eigenvalues at the corner: {np.linalg.eigvalsh(G).round(0)}")
 assert (frontend_config.klt_window, frontend_config.klt_levels) == (15, 3)
 assert np.abs(flow[73][0] - flow[73][2][0]).max() < 0.05 and np.abs(flow[73][1] - flow[73][2][3]).max() < 0.05
+assert 3 < np.linalg.norm(flow[73][1]) < 7  # about 5 px to the next frame
 assert np.linalg.norm(flow[76][1]) > 2 * 7 and np.abs(flow[76][1] - flow[76][2][3]).max() < 0.05
 assert np.linalg.norm(flow[76][0] - flow[76][1]) > 3 and np.linalg.norm(flow[76][2][0] - flow[76][1]) > 3
 assert np.linalg.eigvalsh(G)[0] > 0.2 * np.linalg.eigvalsh(G)[1]
@@ -474,6 +479,7 @@ assert imu_halves[1] > 3 * imu_halves[0]
 assert all(halves["IMU only"][1] / halves[name][1] > halves["IMU only"][0] / halves[name][0]
            for name in ("SIFT", "KLT + FAST"))  # the gap to dead reckoning grows
 assert all(r.metrics["percent_of_distance"] < 20 for name, r in results.items() if name != "IMU only")
+assert msckf_config_for(configs["SIFT"], data).min_track_length == 3  # a track is used from 3 observations (1b)
 
 # %% [markdown]
 # Both visual front-ends beat dead reckoning by a wide margin (more than 3x in RMSE here), and the gap grows with the
@@ -694,6 +700,10 @@ assert all(aerial_rmse[name] > rmse[name] for name in configs)
 # without it (`PipelineConfig(zupt=False)`, `python -m evio_lib run --no-zupt`):
 
 # %%
+from evio_lib.msckf.zero_velocity import ZeroVelocityConfig
+
+still_test = ZeroVelocityConfig()  # the thresholds named above: 0.5 px of median track motion, 0.25 s, 0.1 m/s
+assert (still_test.max_disparity_px, still_test.imu_window, still_test.max_velocity) == (0.5, 0.25, 0.1)
 D_STILL = 2.0 if FAST else None  # seconds of the EuRoC slice (None: all 4.7 s)
 if HAVE_EUROC:
     euroc_data = load_dataset(EUROC)
