@@ -512,7 +512,7 @@ assert scores["boxes_like_fast", "APS"]["ssim"] > scores["boxes_like_fast", "fir
 # reconstruction has to invent the brightness of everything that did not move. But the gap narrows from the gentle to
 # the violent stretch: the network scores higher where many more events per second fill its state, while the APS
 # frames do not improve. In the thesis, event frames beat the grayscale frames in the full pipeline on the real
-# Boxes recording (Table 6: RMSE 0.437 m with SIFT on event frames against 1.11 m on grayscale frames), which its
+# Boxes recording (Table 6: RMSE, the root-mean-square position error over the run, 0.437 m with SIFT on event frames against 1.11 m on grayscale frames), which its
 # conclusions (Chapter V) put down to motion blur in the grayscale frames during the rapid second half; over the
 # sparse Camp Atterbury flight they lost (34.12 m against 8.96 m). On this simulator the blur of a 10 ms exposure
 # does not cost the APS frames their lead in SSIM; lesson 13 runs both kinds of frames through the whole pipeline.
