@@ -11,7 +11,8 @@
 # %% [markdown]
 # # 03 — Event cameras and a simulated world with ground truth
 #
-# The pipeline this course builds needs event data **together with** an IMU and a perfect ground truth: lesson 04
+# The pipeline this course builds needs event data **together with** an IMU (inertial measurement unit: a gyroscope
+# and an accelerometer, lesson 02's source of metric scale) and a perfect ground truth: lesson 04
 # turns events into image frames, lesson 08 tests detectors on event frames, and lessons 09-12 build and check the
 # filter on the simulator's trajectories, IMU signals and ground truth. Real recordings with all three are rare (and
 # none ship with the course), so the course simulates them. This lesson opens the simulator up:
@@ -27,7 +28,9 @@
 #    truth, the event rate over time, and writing/reading a recording in the Event-Camera-Dataset (ECD) layout.
 #
 # The code lives in `evio_lib.events.simulate` (event generation), `evio_lib.sim` (scenes, trajectories, IMU, APS
-# frames, whole recordings) and `evio_lib.io.ecd` (files).
+# frames, whole recordings) and `evio_lib.io.ecd` (files). APS frames are the ordinary grayscale images that a DAVIS
+# ("dynamic and active-pixel vision sensor", such as lesson 01's DAVIS240C) records beside its events: the
+# active-pixel sensor (APS) part of each pixel exposes frames like a normal camera; section 4 simulates them.
 
 # %% [markdown]
 # First the idea as a picture. Left: the pixel's three stages (thesis Fig. 3) and the reset that makes each event's
