@@ -225,7 +225,11 @@ for oc in (True, False):  # both variants: time-averaged pose and yaw NEES insid
 assert abs(summary[True]["pose"].mean() / summary[False]["pose"].mean() - 1) < 0.05  # and within 5 % of each other
 assert summary[True]["rmse"] < 0.1  # centimetres
 
+# %% [markdown]
+# The time means above can hide stretches of images outside the band. Image by image:
 
+
+# %%
 def excursions(mask):
     """'k stretches, t0-t1 s' for the images where mask is True (a stretch: consecutive images)."""
     if not mask.any():
@@ -306,6 +310,11 @@ for oc, runs in results_att.items():
 plot_consistency(results_att[True][0].t, {f"OC {'on' if oc else 'off'}": c for oc, c in summary_att.items()},
                  (lo6a, hi6a), (lo1a, hi1a), n_runs_att, title="3° initial attitude error")
 plt.show()
+
+# %% [markdown]
+# Which part of the pose NEES is off, the attitude or the position? Each has 3 degrees of freedom, and its own band:
+
+# %%
 lo3a, hi3a = chi2_bounds(3, n_runs_att)
 att_nees, pos_nees = {}, {}
 for oc, runs in results_att.items():  # which part of the pose NEES: attitude (roll, pitch, yaw) or position?
