@@ -213,8 +213,9 @@ assert PipelineConfig().match_ratio is None and frontend_config.ratio is None  #
 # %% [markdown]
 # The grid keeps about N = 60 features in every frame, but only part of them continue from the previous frame; the
 # rest are new detections filling cells that lost theirs. In this repetitive, low-resolution room many SIFT
-# descriptors have a near twin: the pipeline matches without a ratio test (it measured better so, see
-# `PipelineConfig.match_ratio`), and two-point RANSAC then rejects a large share of the candidate matches (more than
+# descriptors have a near twin: the pipeline matches without Lowe's ratio test (which keeps a match only when its
+# descriptor distance is below, say, 0.8 times that of the second-best candidate; the pipeline measured better
+# without it, see `PipelineConfig.match_ratio`), and two-point RANSAC then rejects a large share of the candidate matches (more than
 # 0.3 per continued track here). Short tracks are the price: the MSCKF uses a track only once it has at least
 # three observations (`min_track_length` of the filter's `MsckfConfig`, notebook 11; asserted in section 2), and
 # gains most from long tracks.
@@ -318,6 +319,10 @@ for _ in range(200):
     our_inliers = inliers if inliers.sum() > our_inliers.sum() else our_inliers
 t_ours = np.linalg.svd(c[our_inliers])[2][-1]  # least squares on the inliers: min |C t|, |t| = 1
 
+# %% [markdown]
+# The from-scratch direction against the truth (from the simulator's poses) and against `two_point_ransac`:
+
+# %%
 pose_i, pose_j = seq.groundtruth.interpolate([t_i]), seq.groundtruth.interpolate([t_j])
 t_true_ij = pose_j.R_BtoG[0].T @ (pose_i.p_BinG[0] - pose_j.p_BinG[0])  # p_C1inC2, from the ground truth
 library = two_point_ransac(x1, x2, R_gyro, focal_px=seq.camera.fx, rng=0)
@@ -411,6 +416,11 @@ def pyramidal_lucas_kanade(I0, I1, point, levels=3):
     return d
 
 
+# %% [markdown]
+# One corner of the room, at least 40 px from the border, followed to the next frame and to the third frame after,
+# with one level and with the pyramid, against OpenCV:
+
+# %%
 frame0 = seq.frames[72]
 corners = cv2.goodFeaturesToTrack(frame0, maxCorners=50, qualityLevel=0.01, minDistance=10)[:, 0]
 corner = corners[np.all((corners > 40) & (corners < [200, 140]), axis=1)][0].astype(float)  # 40 px from the border
@@ -482,7 +492,8 @@ assert all(r.metrics["percent_of_distance"] < 20 for name, r in results.items() 
 assert msckf_config_for(configs["SIFT"], data).min_track_length == 3  # a track is used from 3 observations (1b)
 
 # %% [markdown]
-# Both visual front-ends beat dead reckoning by a wide margin (more than 3x in RMSE here), and the gap grows with the
+# Both visual front-ends beat dead reckoning by a wide margin (more than 3x in RMSE, the root-mean-square of the
+# position error over the run, here), and the gap grows with the
 # length of the run: IMU-only's error over the second half is more than 3x that over the first (under a gyro bias the
 # tilt error grows linearly, the misread gravity integrates twice: the position error grows like $t^3$). Both stay
 # under 20 % of the distance travelled over these first seconds of gentle motion. The thesis's unit, **% of
