@@ -496,6 +496,10 @@ for (metric, name), (view, illum) in thesis.items():
                      f"{' / '.join(f'{v:.3f}' for v in ours)} |")
 display(Markdown("\n".join(lines)))
 
+# %% [markdown]
+# The best row of each split at $\varepsilon = 3$, and the checks of the ranking claims above:
+
+# %%
 for metric, split in (("repeatability", "viewpoint"), ("repeatability", "illumination"),
                       ("homography", "viewpoint"), ("homography", "illumination")):
     best = max(rows, key=lambda r: r[metric][split][3.0])
@@ -514,6 +518,11 @@ event_hom = [next(iter(row["homography"].values())) for row in event_rows]  # th
 print("event-frame homography correctness at eps = 3 / 5:", [(row["detector"], h[3.0], h[5.0])
                                                               for row, h in zip(event_rows, event_hom)])
 assert np.mean([min(h[3.0], h[5.0]) >= 0.85 for h in event_hom]) > 0.5  # close to 1 for most methods
+
+# %% [markdown]
+# The claims about the trained networks (the CNN rows), on the illumination split and on the event frames:
+
+# %%
 if cnn:
     best = {}
     for metric in ("repeatability", "homography"):
@@ -528,7 +537,7 @@ if cnn:
                  else next(iter(row["repeatability"].values()))[3.0] for row in event_rows}
     print("event-frame repeatability at eps = 3:", {n: round(v, 3) for n, v in event_rep.items()})
     assert all(event_rep[w] < event_rep["harris"] for w, _ in cnn)  # Harris leads, as in the thesis
-    if "pretrained_detdesc_round1_gpu" in event_rep:  # the GPU-trained network: near SIFT and FAST, clearly below Harris
+    if "pretrained_detdesc_round1_gpu" in event_rep:  # GPU-trained network: near SIFT and FAST, clearly below Harris
         gpu_rep = event_rep["pretrained_detdesc_round1_gpu"]
         assert all(abs(gpu_rep - event_rep[n]) < 0.1 for n in ("sift", "fast")) and gpu_rep < event_rep["harris"] - 0.1
     assert "pretrained_detdesc_round2_cpu" not in event_rep or \
