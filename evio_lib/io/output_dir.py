@@ -58,6 +58,39 @@ def _within(inner: str, outer: str) -> bool:
 
 #: The installed library (its code and shipped weights): never an output folder nor inside one.
 _PACKAGE_DIR = Path(__file__).resolve().parents[1]
+#: How deep below an input folder its symbolic links are looked for (EuRoC's mav0/cam0/data is 3 deep), and how many
+#: entries at most are looked at (a recording's frames folder can hold tens of thousands).
+_LINK_DEPTH, _LINK_ENTRIES = 3, 20000
+
+
+def _spellings(path: str | Path) -> list[str]:
+    """Return the absolute path as given (links kept) and resolved (links followed): both name the same place."""
+    literal = os.path.normpath(os.path.abspath(path))
+    real = _real(path)
+    return [literal] if literal == real else [literal, real]
+
+
+def _link_targets(folder: str | Path) -> list[tuple[str, str]]:
+    """Return (link, resolved target) of the symbolic links inside ``folder`` (depth <= _LINK_DEPTH).
+
+    A recording whose files or sub-folders are links (frames kept elsewhere, a shared ground truth) reads those
+    targets: they are inputs as much as the folder.
+    """
+    found: list[tuple[str, str]] = []
+    if not os.path.isdir(folder):
+        return found
+    top = os.path.normpath(os.path.abspath(folder))
+    seen = 0
+    for root, dirs, files in os.walk(top, followlinks=False):
+        depth = root[len(top):].count(os.sep)
+        for entry in dirs + files:
+            seen += 1
+            full = os.path.join(root, entry)
+            if os.path.islink(full):
+                found.append((full, _real(full)))
+        if depth + 1 >= _LINK_DEPTH or seen > _LINK_ENTRIES:
+            dirs[:] = []
+    return found
 
 
 def check_inputs_apart(path: str | Path, inputs: Iterable[tuple[str, str | Path | None]] = (),
@@ -67,8 +100,9 @@ def check_inputs_apart(path: str | Path, inputs: Iterable[tuple[str, str | Path 
     Refused, with or without ``--force`` (replacing such a folder would delete what the command reads, or the user's
     working folder): the working folder itself and any folder that contains it; a folder that is an input, lies
     inside an input or contains one; the ``evio_lib`` package, a folder that contains it, and an existing folder
-    inside it (its code and shipped weights). Symbolic links are resolved
-    (``os.path.realpath``), so a link to the input is the input.
+    inside it (its code and shipped weights). Paths are compared as given and with their symbolic links resolved
+    (``os.path.realpath``): a link to the input is the input, a link inside the input lies inside it, and the
+    targets of the links inside an input folder (frames or a ground truth kept elsewhere) are inputs too.
 
     Args:
         path: the output folder as the user gave it.
@@ -90,21 +124,27 @@ def check_inputs_apart(path: str | Path, inputs: Iterable[tuple[str, str | Path 
         where = "is" if out == cwd else "contains"
         raise ValueError(f"{name} {path} {where} the working folder {cwd}; choose a new folder for the output, e.g. "
                          f"a subfolder of the working folder")
+    outs = _spellings(path)  # REC/images, where images links elsewhere, still lies inside REC
     for description, given in [*inputs, ("the evio_lib package", _PACKAGE_DIR)]:
         if given is None or str(given) == "":
             continue
-        source = _real(given)
-        if out == source:
-            relation = "is"
-        elif _within(out, source):
-            relation = "lies inside"
-        elif _within(source, out):
-            relation = "contains"
-        else:
-            continue
-        if description == "the evio_lib package" and relation == "lies inside" and not os.path.lexists(path):
-            continue  # a new folder below the package (e.g. for new weights) replaces nothing of it
-        raise ValueError(f"{name} {path} {relation} {description} {given}; choose a folder outside every input")
+        sources = [(description, str(given), source) for source in _spellings(given)]
+        if description != "the evio_lib package":  # what the input's links point to is read too
+            sources += [(f"the target of {description}'s link", link, target) for link, target in _link_targets(given)]
+        for what, shown, source in sources:
+            relation = None
+            for candidate in outs:
+                if candidate == source:
+                    relation = "is"
+                elif _within(candidate, source):
+                    relation = relation or "lies inside"
+                elif _within(source, candidate):
+                    relation = relation or "contains"
+            if relation is None:
+                continue
+            if what == "the evio_lib package" and relation == "lies inside" and not os.path.lexists(path):
+                continue  # a new folder below the package (e.g. for new weights) replaces nothing of it
+            raise ValueError(f"{name} {path} {relation} {what} {shown}; choose a folder outside every input")
 
 
 def check_output_dir(path: str | Path, force: bool = False, *, inputs: Iterable[tuple[str, str | Path | None]] = (),

@@ -232,3 +232,26 @@ def test_check_refuses_to_replace_an_unwritable_folder(tmp_path, monkeypatch):
     with pytest.raises(ValueError, match=r"cannot replace output folder .*ro: the folder is not writable"):
         check_output_dir(folder, force=True)
     assert _tree(folder) == {"old.txt": b"old"}
+
+
+def test_links_inside_an_input_and_their_targets_are_inputs(tmp_path, monkeypatch):
+    """A recording whose frames folder is a link (frames kept elsewhere), or whose files are links into another
+    folder: --out on the link, or on the folder the links point to, would break the recording (found by the
+    campaign of issue 25: both replaced with --force, exit 0)."""
+    monkeypatch.chdir(tmp_path)
+    store = tmp_path / "store"
+    (store / "images").mkdir(parents=True)
+    (store / "images" / "frame_0.png").write_bytes(b"png")
+    (store / "imu.txt").write_text("0 0 0 9.81 0 0 0\n")
+    rec = tmp_path / "rec"
+    rec.mkdir()
+    (rec / "images").symlink_to(store / "images")
+    (rec / "imu.txt").symlink_to(store / "imu.txt")
+    inputs = [("the input recording", "rec")]
+    with pytest.raises(ValueError, match=r"--out rec/images lies inside the input recording rec; choose a folder"):
+        check_output_dir("rec/images", True, inputs=inputs, name="--out")
+    with pytest.raises(ValueError, match=r"--out store contains the target of the input recording.s link .*rec/images"):
+        check_output_dir("store", True, inputs=inputs, name="--out")
+    with pytest.raises(ValueError, match=r"--out store/images is the target of the input recording's link"):
+        check_output_dir("store/images", True, inputs=inputs, name="--out")
+    assert check_output_dir("elsewhere", True, inputs=inputs, name="--out") == Path("elsewhere")
