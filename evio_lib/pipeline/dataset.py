@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from evio_lib.io.errors import DataFileError
-from evio_lib.io.imu_checks import check_imu_units
+from evio_lib.io.imu_checks import ImuUnitsError, check_imu_units
 from evio_lib.sequence import Sequence
 from evio_lib.sim.imu import ImuNoiseParams
 
@@ -304,10 +304,6 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
     if seq.camera is None:
         raise ValueError(f"{source} has no camera calibration (calib.txt / mav0/cam0/sensor.yaml): the front-end needs "
                          f"it to undistort the features")
-    if need_frames and len(seq.frame_times) < 2:
-        raise ValueError(f"{source} has fewer than 2 frames (images.txt): use --frames events, or a recording with frames")
-    if need_events and len(seq.events) == 0:
-        raise ValueError(f"{source} has no events (events.txt is empty): use --frames aps")
 
     if extrinsics is not None:
         R_CtoI, p_CinI = read_kalibr_extrinsics(extrinsics)
@@ -321,10 +317,23 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
         notes.append("extrinsics: none in the recording; assumed camera = IMU frame (the DAVIS's own IMU); "
                      "give --extrinsics FILE if it differs")
     truth = seq.groundtruth_imu if seq.groundtruth_imu is not None else seq.groundtruth
-    known_R = R_CtoI if (extrinsics is not None or seq.R_CtoI is not None) else None  # not an assumed one
+    assumed = extrinsics is None and seq.R_CtoI is None  # the run assumes camera = IMU frame
     gravity_G = seq.metadata.get("gravity_G") if isinstance(seq.metadata, dict) else None
-    check_imu_units(seq.imu.t, seq.imu.gyro, seq.imu.accel, truth, source=f"{source} IMU", R_CtoI=known_R,
-                    gravity_G=gravity_G)  # the readers checked already; presets and --extrinsics are checked here
+    try:  # the readers checked already; presets, --extrinsics and the assumed extrinsics are checked here
+        check_imu_units(seq.imu.t, seq.imu.gyro, seq.imu.accel, truth, source=f"{source} IMU", R_CtoI=R_CtoI,
+                        gravity_G=gravity_G)
+    except ImuUnitsError as error:
+        if not (assumed and truth is not None and truth.body == "camera"):
+            raise
+        # with a camera ground truth the check needs the rotation the run will use: a recording without extrinsics
+        # whose IMU axes contradict its camera truth would run to a confident, wrong trajectory
+        raise ImuUnitsError(f"{error} (the recording holds no camera-IMU extrinsics, so the check, like the run, "
+                            f"took the camera frame as the IMU frame; if they differ, give the camera-IMU "
+                            f"transformation with --extrinsics FILE, a Kalibr camchain with T_cam_imu)") from None
+    if need_frames and len(seq.frame_times) < 2:
+        raise ValueError(f"{source} has fewer than 2 frames (images.txt): use --frames events, or a recording with frames")
+    if need_events and len(seq.events) == 0:
+        raise ValueError(f"{source} has no events (events.txt is empty): use --frames aps")
     noise, defaulted = _noise_from_metadata(seq.metadata, source)
     if noise is None:
         noise = ImuNoiseParams()

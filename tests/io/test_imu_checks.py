@@ -353,3 +353,25 @@ def test_run_refuses_a_groundtruth_it_cannot_use(boxes, tmp_path, capsys, rows, 
     (folder / "groundtruth.txt").write_text("".join(line + "\n" for line in lines))
     line = _run_refused(capsys, [str(folder)], folder)
     assert line.startswith(f"error: {folder}: {expected}"), line
+
+
+@pytest.mark.parametrize("column, fix", [(4, "x = -wx"), (1, "x = -ax")])
+def test_run_checks_axes_under_the_extrinsics_it_assumes(boxes, tmp_path, capsys, column, fix):
+    """An ECD folder with a camera ground truth and no extrinsics runs with camera = IMU frame; the axes check makes
+    the same assumption, so a flipped column is refused (it ran to exit 0 with 18-26 deg of orientation error)."""
+    seq = boxes.slice_time(0.0, 3.1)
+    seq.groundtruth_imu = None
+    folder = write_ecd(seq, tmp_path / "user_rec")
+    (folder / "evio_sim.json").unlink()  # no extrinsics: a user's own recording
+    lines = (folder / "imu.txt").read_text().splitlines()
+    flipped = []
+    for line in lines:
+        values = line.split()
+        if values and not line.startswith("#"):
+            values[column] = repr(-float(values[column]))
+        flipped.append(" ".join(values))
+    (folder / "imu.txt").write_text("\n".join(flipped) + "\n")
+    line = _run_refused(capsys, [str(folder), "--imu-only"], folder)
+    assert "the ground truth contradicts" in line and fix in line
+    assert "took the camera frame as the IMU frame; if they differ, give the camera-IMU transformation with " \
+           "--extrinsics FILE" in line
