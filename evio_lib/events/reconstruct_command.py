@@ -33,12 +33,19 @@ def _check_frame_count(args: argparse.Namespace, events: np.ndarray, width: int,
     The count is estimated from the inputs before any reconstruction: events / (n H W) for --window-fraction,
     (last - first event time) / S for --window-time, the listed times for --times.
     """
-    from evio_lib.events.representations import MAX_WINDOWS, window_size_from_fraction
+    from evio_lib.events.representations import MAX_EVENT_FRAME_RATE_HZ, MAX_WINDOWS, window_size_from_fraction
 
     frame_bytes = 4.0 * width * height
     most = int(min(MAX_WINDOWS, MAX_FRAME_MEMORY_GIB * 2**30 // frame_bytes))
     limit = (f"the most is {most:,} (MAX_WINDOWS {MAX_WINDOWS:,}; frames of {width}x{height} within "
              f"MAX_FRAME_MEMORY_GIB = {MAX_FRAME_MEMORY_GIB:g} GiB)")
+    span = float(events["t"][-1] - events["t"][0]) if events.size > 1 else 0.0
+    if times is None and not args.adaptive:  # cut windows: also at most MAX_EVENT_FRAME_RATE_HZ per recorded second
+        by_rate = int(max(1.0, MAX_EVENT_FRAME_RATE_HZ * span))
+        if by_rate < most:
+            most = by_rate
+            limit = (f"the most is {most:,} ({MAX_EVENT_FRAME_RATE_HZ:g} frames per recorded second, "
+                     f"MAX_EVENT_FRAME_RATE_HZ, over {span:.3g} s)")
     if times is not None:
         if times.size > most:
             raise ValueError(f"--times {args.times} lists {times.size:,} times, about "
@@ -47,7 +54,6 @@ def _check_frame_count(args: argparse.Namespace, events: np.ndarray, width: int,
     if args.adaptive:  # windows of at least 0.02 H W events: bounded like --window-fraction 0.02
         return
     if args.window_time is not None:
-        span = float(events["t"][-1] - events["t"][0]) if events.size else 0.0
         count = span / args.window_time
         if count > most:
             raise ValueError(f"--window-time {args.window_time:g} gives about {count:.3g} windows over the {span:.3g} s "

@@ -29,6 +29,7 @@ from evio_lib.events.array import EVENT_DTYPE
 
 __all__ = [
     "MAX_SENSOR_PIXELS",
+    "MAX_EVENT_FRAME_RATE_HZ",
     "MAX_WINDOWS",
     "check_sensor_pixels",
     "window_size_from_fraction",
@@ -46,6 +47,12 @@ __all__ = [
 #: 1280 x 960); every representation and reconstructor holds a few float arrays of H x W (64 MiB each at this size), so
 #: a mistyped size such as 100000 x 100000 (1e10 px: 40 GB per float32 frame) is refused before any allocation.
 MAX_SENSOR_PIXELS = 4096 * 4096
+
+#: Most event frames per second of recording. Each frame goes through the reconstructor (and in ``run`` the
+#: front-end: 10-50 ms on a 2-core CPU), so 1000 frames per recorded second already run 10-50 times slower than real
+#: time; the thesis's windows give 10-40 per second. A window per event (--window-fraction 1e-9) is refused instead
+#: of running for hours.
+MAX_EVENT_FRAME_RATE_HZ = 1000.0
 
 #: Most windows one cut of the stream may give. Each window is one reconstruction step (1-10 ms with the shipped
 #: FireNet at 240 x 180, so 10^6 windows is hours) and one frame of H x W floats kept or written (173 KB at 240 x 180:

@@ -15,15 +15,12 @@ from typing import Iterator
 
 import numpy as np
 
+from evio_lib.events.representations import MAX_EVENT_FRAME_RATE_HZ  # re-exported here
 from evio_lib.sequence import Sequence
 
 __all__ = ["FRAME_SOURCES", "MAX_EVENT_FRAME_RATE_HZ", "THESIS_WINDOW_FRACTION", "aps_frames", "event_frames", "default_window_fraction"]
 
 FRAME_SOURCES = ("aps", "events")
-#: Most event frames per second of recording. Each frame goes through the reconstructor and the front-end (10-50 ms on
-#: a 2-core CPU), so 1000 frames per recorded second already run 10-50 times slower than real time; the thesis's
-#: windows give 10-40 per second. A window per event (--window-fraction 1e-9) is refused instead of running for days.
-MAX_EVENT_FRAME_RATE_HZ = 1000.0
 #: The thesis's n (§4.1, Figs. 16/18): 0.7 for boxes_like, 0.2 for aerial_like.
 THESIS_WINDOW_FRACTION = {"boxes_like": 0.7, "aerial_like": 0.2}
 

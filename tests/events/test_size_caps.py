@@ -100,12 +100,13 @@ def test_command_line_caps(tmp_path, capsys, ecd_folder, monkeypatch):
     line = _cli(["reconstruct", ecd_folder, "--out", out, "--sensor-size", 32, 24, "--window-time", 1e-9, "--quiet"],
                 capsys)
     assert line.startswith("error: --window-time 1e-09 gives about 9.99e+08 windows over the 0.999") and \
-        "the most is 1,000,000 (MAX_WINDOWS 1,000,000; frames of 32x24 within MAX_FRAME_MEMORY_GIB = 8 GiB)" in line
-    monkeypatch.setattr(rep, "MAX_WINDOWS", 1000)  # 2000 events at n H W = 1: a window per event
+        "the most is 999 (1000 frames per recorded second, MAX_EVENT_FRAME_RATE_HZ, over 0.999 s)" in line, line
+    monkeypatch.setattr(rep, "MAX_WINDOWS", 500)  # 2000 events at n H W = 1: a window per event
     line = _cli(["reconstruct", ecd_folder, "--out", out, "--sensor-size", 32, 24, "--window-fraction", 1e-9,
                  "--quiet"], capsys)
     assert line.startswith("error: --window-fraction 1e-09 gives about 2e+03 windows of 1 event(s) (n H W = 7.68e-07)"
-                           " for 2,000 events; the most is 1,000") and "use --window-fraction >= 0.0026" in line, line
+                           " for 2,000 events; the most is 500 (MAX_WINDOWS 500; frames of 32x24") \
+        and "use --window-fraction >= 0.0052" in line, line
     assert not out.exists()
     for argv in (["simulate", "boxes_like", "--out", tmp_path / "sim", "--duration", 1e9, "--quiet"],
                  ["reconstruct", "boxes_like", "--out", out, "--duration", 1e9, "--quiet"]):
