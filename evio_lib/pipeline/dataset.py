@@ -114,6 +114,15 @@ def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, w
         raise ValueError(f"the recording cache {path} is {'a folder' if path.is_dir() else 'no regular file'}, where "
                          f"the simulated recording is to be stored; remove it (the cache folder is set by "
                          f"EVIO_CACHE_DIR)")
+    if cache:  # before the simulation (seconds to minutes): a cache folder that cannot be written is said now
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            os.rmdir(tempfile.mkdtemp(prefix=".evio-probe-", dir=path.parent))
+        except OSError as error:
+            origin = ("EVIO_CACHE_DIR=" + os.environ["EVIO_CACHE_DIR"] if os.environ.get("EVIO_CACHE_DIR")
+                      else "the default cache folder")
+            raise ValueError(f"cannot write the recording cache {path.parent} ({origin}): "
+                             f"{error.strerror or type(error).__name__}; set EVIO_CACHE_DIR to a writable folder") from None
     config = SimulationConfig(preset=preset, duration=duration, trajectory_duration=full, seed=seed,
                               with_events=with_events)
     sequence = simulate_sequence(config, progress=progress)

@@ -120,3 +120,17 @@ def test_a_folder_where_the_recording_cache_goes_is_named(private_cache):
                                          r"the simulated recording is to be stored; remove it"):
         simulate_preset("boxes_like", 0.5)
     assert blocker.is_dir() and list(blocker.parent.iterdir()) == [blocker]
+
+
+def test_a_cache_folder_that_cannot_be_written_is_named_before_simulating(tmp_path, monkeypatch):
+    """EVIO_CACHE_DIR naming a file: said before the simulation, naming the variable (it failed after the work,
+    naming a folder the user never gave)."""
+    from evio_lib.pipeline import dataset
+
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    monkeypatch.setenv("EVIO_CACHE_DIR", str(blocker))
+    with pytest.raises(ValueError, match=r"cannot write the recording cache .*a_file/sequences \(EVIO_CACHE_DIR=.*"
+                                         r"a_file\): Not a directory; set EVIO_CACHE_DIR to a writable folder"):
+        dataset.simulate_preset("boxes_like", 0.5)
+    assert blocker.read_text() == "not a folder"
