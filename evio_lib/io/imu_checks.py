@@ -49,7 +49,7 @@ from evio_lib.io.errors import DataFileError
 
 __all__ = ["ImuUnitsError", "check_imu_units", "check_bias_values", "check_noise_values", "STANDARD_GRAVITY",
            "DEG_PER_RAD", "GYRO_FULL_SCALE_BOUND", "STILL_GYRO_BOUND", "SUSTAINED_FRACTION", "GRAVITY_ANGLE_TOL_DEG",
-           "GYRO_BIAS_BOUND", "ACCEL_BIAS_BOUND", "MIN_GRAVITY_SPAN_S", "ACCEL_AXES_FLOOR", "GYRO_AXES_FLOOR",
+           "GYRO_BIAS_BOUND", "ACCEL_BIAS_BOUND", "MIN_GRAVITY_SPAN_S", "MAX_IMU_STEP_S", "ACCEL_AXES_FLOOR", "GYRO_AXES_FLOOR",
            "AXES_RATIO"]
 
 #: Standard gravity [m/s^2]: one g.
@@ -64,6 +64,9 @@ STILL_GYRO_BOUND = 0.5
 SUSTAINED_FRACTION = 0.05
 #: Largest angle between the measured and the predicted mean specific force in the world [deg].
 GRAVITY_ANGLE_TOL_DEG = 30.0
+#: Longest median step between IMU samples [s]: an IMU samples at 100 Hz or more (the DAVIS 1 kHz, EuRoC 200 Hz), so
+#: a median step above 0.1 s is a time unit other than seconds (ms, us, ns), said with the factor.
+MAX_IMU_STEP_S = 0.1
 #: Shortest overlap of IMU and ground truth over which gravity and the axes are checked [s].
 MIN_GRAVITY_SPAN_S = 0.5
 #: m/s^2: median residual of the per-window specific force above which wrong accelerometer axes are refused
@@ -379,6 +382,13 @@ def check_imu_units(t: Any, gyro: Any, accel: Any, truth: Any = None, *, source:
     if t.size < 2:
         return "IMU units: not checked (fewer than 2 finite samples)"
 
+    step = float(np.median(np.diff(t)))
+    if step > MAX_IMU_STEP_S:
+        guess = next((f"; they look like {unit}: divide them by {factor:g} to get seconds"
+                      for unit, factor in (("milliseconds", 1e3), ("microseconds", 1e6), ("nanoseconds", 1e9))
+                      if 0.5e-3 <= step / factor <= 0.05), "; convert them to seconds")
+        raise ImuUnitsError(f"{source}: the IMU times are not seconds: the samples lie {step:.4g} apart (median "
+                            f"step), where an IMU samples at 100 Hz or more (steps of 0.01 s or less){guess}")
     accel_median = float(np.median(_norms(accel)))
     gyro_median = float(np.median(_norms(gyro)))
     problem = _accel_problem(accel_median, gyro_median, columns)

@@ -375,3 +375,12 @@ def test_run_checks_axes_under_the_extrinsics_it_assumes(boxes, tmp_path, capsys
     assert "the ground truth contradicts" in line and fix in line
     assert "took the camera frame as the IMU frame; if they differ, give the camera-IMU transformation with " \
            "--extrinsics FILE" in line
+
+
+@pytest.mark.parametrize("factor, unit", [(1e3, "milliseconds: divide them by 1000"),
+                                          (1e6, "microseconds: divide them by 1e+06"), (1e9, "nanoseconds")])
+def test_imu_times_in_another_unit_are_named(euroc, factor, unit):
+    """IMU times in ms, us or ns (a ground truth in seconds beside them) are named as such, not as a gap."""
+    imu = euroc.imu
+    message = _refused((imu.t - imu.t[0]) * factor, imu.gyro, imu.accel)
+    assert "the IMU times are not seconds: the samples lie" in message and f"they look like {unit}" in message
