@@ -16,6 +16,8 @@ stores Python's shortest round-trip repr).
 from __future__ import annotations
 
 import json
+import os
+import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +33,8 @@ __all__ = [
     "discard_damaged_cache",
     "save_sequence_npz",
     "load_sequence_npz",
+    "check_cache_file_writable",
+    "store_sequence_npz",
     "to_json_value",
     "from_json_value",
     "camera_to_dict",
@@ -195,6 +199,48 @@ def save_sequence_npz(sequence: Sequence, path: str | Path, *, compress: bool = 
     path = Path(path)
     with open(path, "wb") as f:
         (np.savez_compressed if compress else np.savez)(f, **arrays)
+    return path
+
+
+def check_cache_file_writable(path: str | Path) -> None:
+    """Raise ValueError unless the cache file ``path`` can be written: no folder in its place, its folder writable.
+
+    Called before the work that makes the file (a simulation of seconds to minutes), so that the user learns now,
+    with ``EVIO_CACHE_DIR`` named, and not after the work.
+    """
+    path = Path(path)
+    if (path.exists() or path.is_symlink()) and not path.is_file():
+        raise ValueError(f"the recording cache {path} is {'a folder' if path.is_dir() else 'no regular file'}, where "
+                         f"the simulated recording is to be stored; remove it (the cache folder is set by "
+                         f"EVIO_CACHE_DIR)")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        os.rmdir(tempfile.mkdtemp(prefix=".evio-probe-", dir=path.parent))
+    except OSError as error:
+        origin = ("EVIO_CACHE_DIR=" + os.environ["EVIO_CACHE_DIR"] if os.environ.get("EVIO_CACHE_DIR")
+                  else "the default cache folder")
+        raise ValueError(f"cannot write the recording cache {path.parent} ({origin}): "
+                         f"{error.strerror or type(error).__name__}; set EVIO_CACHE_DIR to a writable folder") from None
+
+
+def store_sequence_npz(sequence: Sequence, path: str | Path) -> Path:
+    """Write ``sequence`` to the cache file ``path`` whole or not at all (a temporary file renamed into place).
+
+    The file gets the permissions of any file the user writes (``mkstemp`` alone would make it 0o600).
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(suffix=".npz", dir=path.parent)
+    os.close(fd)
+    try:
+        save_sequence_npz(sequence, tmp)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
     return path
 
 

@@ -23,8 +23,6 @@ NaN are refused, never replaced by defaults (defaults for missing ones are named
 """
 from __future__ import annotations
 
-import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -94,7 +92,8 @@ def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, w
     The motion is always the preset's whole trajectory (60 s boxes_like: gentle start, violent end; 40 s
     aerial_like), so a shorter duration is the start of the same recording, not a faster one.
     """
-    from evio_lib.io.cache import CacheError, discard_damaged_cache, load_sequence_npz, save_sequence_npz
+    from evio_lib.io.cache import (CacheError, check_cache_file_writable, discard_damaged_cache, load_sequence_npz,
+                                   store_sequence_npz)
     from evio_lib.sim.presets import SimulationConfig, simulate_sequence
 
     full = PRESET_DURATIONS[preset] if preset in PRESETS else None
@@ -110,35 +109,13 @@ def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, w
                 return load_sequence_npz(found)
             except CacheError as error:  # empty, truncated, damaged: deleted, said, simulated again
                 discard_damaged_cache(error, "re-simulating")
-    if cache and (path.exists() or path.is_symlink()) and not path.is_file():
-        raise ValueError(f"the recording cache {path} is {'a folder' if path.is_dir() else 'no regular file'}, where "
-                         f"the simulated recording is to be stored; remove it (the cache folder is set by "
-                         f"EVIO_CACHE_DIR)")
-    if cache:  # before the simulation (seconds to minutes): a cache folder that cannot be written is said now
-        try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            os.rmdir(tempfile.mkdtemp(prefix=".evio-probe-", dir=path.parent))
-        except OSError as error:
-            origin = ("EVIO_CACHE_DIR=" + os.environ["EVIO_CACHE_DIR"] if os.environ.get("EVIO_CACHE_DIR")
-                      else "the default cache folder")
-            raise ValueError(f"cannot write the recording cache {path.parent} ({origin}): "
-                             f"{error.strerror or type(error).__name__}; set EVIO_CACHE_DIR to a writable folder") from None
+    if cache:  # before the simulation (seconds to minutes): a cache that cannot be written is said now
+        check_cache_file_writable(path)
     config = SimulationConfig(preset=preset, duration=duration, trajectory_duration=full, seed=seed,
                               with_events=with_events)
     sequence = simulate_sequence(config, progress=progress)
     if cache:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(suffix=".npz", dir=path.parent)  # written whole, then renamed: never half a file
-        os.close(fd)
-        try:
-            save_sequence_npz(sequence, tmp)
-            umask = os.umask(0)
-            os.umask(umask)
-            os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0o600; the cache should look like any written file
-            os.replace(tmp, path)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
+        store_sequence_npz(sequence, path)
     return sequence
 
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import asdict, dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -32,7 +33,8 @@ from evio_lib.sim.trajectory import trajectory_from_preset
 
 PRESETS = ("boxes_like", "aerial_like")
 
-__all__ = ["PRESETS", "MAX_RECORDING_DURATION_S", "CameraPoseTable", "SimulationConfig", "simulate_sequence"]
+__all__ = ["PRESETS", "MAX_RECORDING_DURATION_S", "CameraPoseTable", "SimulationConfig", "simulate_sequence",
+           "simulation_cache_path", "simulate_sequence_cached"]
 
 #: Longest recording with events or frames that one simulation makes, seconds (ten minutes). The presets make about
 #: 0.35 M events/s on average and up to 1 M/s in fast motion (13 B each) plus 24 frames/s of 43 KB, all held in memory:
@@ -248,3 +250,42 @@ def simulate_sequence(config: SimulationConfig, progress: bool = False,
         p_CinI=np.array(config.extrinsics.p_CinI),
         metadata=metadata,
     )
+
+
+def simulation_cache_path(config: SimulationConfig) -> Path:
+    """Return the cache file of ``config``'s recording: ``<cache>/sequences/<preset>_<sha1 of the config>.npz``.
+
+    The cache folder is the project's one (``$EVIO_CACHE_DIR``, else ``data/cache``, git-ignored). The name hashes
+    every field of the config (the camera, extrinsics and sensor settings included, arrays at full precision), so
+    two configs share a file only when they are equal, and equal configs give equal recordings (every random
+    stream is seeded by the config).
+    """
+    import hashlib
+    import json
+
+    from evio_lib.features.datasets import default_cache_dir  # the project's one cache folder
+
+    fields = json.dumps(asdict(config), sort_keys=True, default=lambda value: np.asarray(value).tolist())
+    digest = hashlib.sha1(fields.encode("utf-8")).hexdigest()[:16]
+    return default_cache_dir() / "sequences" / f"{config.preset}_{digest}.npz"
+
+
+def simulate_sequence_cached(config: SimulationConfig, progress: bool = False) -> Sequence:
+    """Return :func:`simulate_sequence` of ``config``, read from :func:`simulation_cache_path` when it was made before.
+
+    The first call simulates and stores the recording whole (a temporary file renamed into place); a damaged cache
+    file is said, deleted and simulated again. ``metadata["timings"]`` (deterministic counts) comes back as stored.
+    """
+    from evio_lib.io.cache import (CacheError, check_cache_file_writable, discard_damaged_cache, load_sequence_npz,
+                                   store_sequence_npz)
+
+    path = simulation_cache_path(config)
+    if path.is_file():
+        try:
+            return load_sequence_npz(path)
+        except CacheError as error:  # empty, truncated, damaged: deleted, said, simulated again
+            discard_damaged_cache(error, "re-simulating")
+    check_cache_file_writable(path)
+    sequence = simulate_sequence(config, progress=progress)
+    store_sequence_npz(sequence, path)
+    return sequence

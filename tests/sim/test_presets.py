@@ -127,3 +127,32 @@ def test_same_seed_same_recording_and_streams_are_independent():
     no_events = simulate_sequence(replace(config, with_events=False))
     np.testing.assert_array_equal(no_events.imu.gyro, a.imu.gyro)  # switching a sensor off changes no other sensor
     assert len(no_events.events) == 0
+
+
+def test_cached_simulation_is_the_simulation_and_is_keyed_by_every_field(tmp_path, monkeypatch, capsys):
+    """simulate_sequence_cached: the first call simulates and stores, the second reads the same arrays back; a config
+    that differs in any field (here the camera, or the extrinsics' 9th digit) gets its own file; a damaged file is
+    said and simulated again."""
+    from evio_lib.sim.presets import simulate_sequence_cached, simulation_cache_path
+
+    monkeypatch.setenv("EVIO_CACHE_DIR", str(tmp_path / "cache"))
+    cfg = SimulationConfig(preset="boxes_like", duration=0.2, trajectory_duration=2.0,
+                           camera=PinholeRadtan.davis240c().scaled(0.25), seed=3)
+    first = simulate_sequence_cached(cfg)
+    path = simulation_cache_path(cfg)
+    assert path.is_file() and path.parent == tmp_path / "cache" / "sequences"
+    direct = simulate_sequence(cfg)
+    again = simulate_sequence_cached(cfg)
+    for seq in (first, again):
+        np.testing.assert_array_equal(seq.events, direct.events)
+        np.testing.assert_array_equal(seq.frames, direct.frames)
+        np.testing.assert_array_equal(seq.imu.accel, direct.imu.accel)
+        assert seq.metadata["timings"] == direct.metadata["timings"]
+    other_camera = replace(cfg, camera=PinholeRadtan.davis240c().scaled(0.5))
+    R = cfg.extrinsics.R_CtoI.copy()
+    nudged = replace(cfg, extrinsics=CameraImuExtrinsics(R_CtoI=R, p_CinI=cfg.extrinsics.p_CinI + 1e-9))
+    assert len({simulation_cache_path(c) for c in (cfg, other_camera, nudged)}) == 3
+    path.write_bytes(path.read_bytes()[:100])  # truncated
+    healed = simulate_sequence_cached(cfg)
+    assert "was damaged" in capsys.readouterr().err
+    np.testing.assert_array_equal(healed.events, direct.events)
