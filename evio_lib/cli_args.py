@@ -16,9 +16,9 @@ from __future__ import annotations
 import argparse
 import math
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Mapping
 
-__all__ = ["integer", "real", "add_force_argument", "output_folder"]
+__all__ = ["integer", "real", "add_force_argument", "output_folder", "as_option_error"]
 
 
 def _show(value: float) -> str:
@@ -92,3 +92,19 @@ def output_folder() -> Callable[[str], Path]:
 
     parse.__name__ = "folder"
     return parse
+
+
+def as_option_error(error: ValueError, options: Mapping[str, str]) -> ValueError:
+    """Return ``error`` with its leading config field name replaced by the option that sets it, else ``error``.
+
+    A config class names its fields (``bias_init must be ...``); the user typed the option (``--bias-init``).
+    ``options`` maps field names to options.
+
+    >>> str(as_option_error(ValueError("bias_init must be six numbers"), {"bias_init": "--bias-init"}))
+    '--bias-init must be six numbers'
+    """
+    message = str(error)
+    for field, option in options.items():
+        if message.startswith(field + " ") or message.startswith(field + ":"):
+            return ValueError(option + message[len(field):])
+    return error

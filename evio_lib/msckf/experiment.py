@@ -616,12 +616,11 @@ def main_vio_sim(args: argparse.Namespace) -> int:
                               gate_probability=getattr(args, "gate", 0.99),
                               msckf_overrides=(("oc_update", getattr(args, "oc_update", "projected")),))
     except ValueError as error:  # the message names the config field; the user typed the option
-        text = str(error)
-        for field, option in (("features", "--features"), ("pixel_noise_px", "--pixel-noise"),
-                              ("duration", "--duration"), ("seed", "--seed"), ("gate_probability", "--gate")):
-            if text.startswith(field + " "):
-                raise ValueError(option + text[len(field):]) from None
-        raise
+        from evio_lib.cli_args import as_option_error
+
+        raise as_option_error(error, {"features": "--features", "pixel_noise_px": "--pixel-noise",
+                                      "duration": "--duration", "seed": "--seed",
+                                      "gate_probability": "--gate"}) from None
     result = run_vio_sim_config(config, baselines=not args.no_baselines)
     print(result.report())
     if args.out is not None:

@@ -5,7 +5,7 @@ import argparse
 import time
 from pathlib import Path
 
-from evio_lib.cli_args import add_force_argument, integer, output_folder, real
+from evio_lib.cli_args import add_force_argument, as_option_error, integer, output_folder, real
 
 __all__ = ["add_run_arguments", "main_run", "add_table_arguments", "main_table"]
 
@@ -113,9 +113,7 @@ def main_run(args: argparse.Namespace) -> int:
             ("the recording cache", sequence_cache_dir() if preset else None)])
     set_threads(args.threads)
     options = (("weights", str(args.weights)),) if args.weights is not None else ()
-    if args.weights is not None and not args.weights.is_file():
-        problem = "a folder; expected a checkpoint file (.pt)" if args.weights.is_dir() else "no such checkpoint file"
-        raise ValueError(f"--weights {args.weights}: {problem}")
+    _require_checkpoint_file("--weights", args.weights)
     _check_detector(args.features, options)  # an unknown name fails now, not after loading the recording
     try:
         config = PipelineConfig(frames=args.frames, features=args.features, detector_options=options,
@@ -124,7 +122,7 @@ def main_run(args: argparse.Namespace) -> int:
                                 bias_init=_bias(args.bias_init), imu_only=args.imu_only, oc=not args.no_oc,
                                 zupt=not args.no_zupt, max_duration=args.max_duration, seed=args.seed)
     except ValueError as error:  # the message names the config field; the user typed the option
-        raise ValueError(_as_option(str(error))) from None
+        raise as_option_error(error, _OPTIONS) from None
     start = time.perf_counter()
     data = load_dataset(args.dataset, duration=args.duration, seed=args.seed,
                         need_events=args.frames == "events" and not args.imu_only, need_frames=args.frames == "aps"
@@ -143,18 +141,17 @@ def main_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _require_checkpoint_file(option: str, path: Path | None) -> None:
+    """Raise ValueError unless ``path`` (the value of ``option``) is None or an existing file."""
+    if path is not None and not path.is_file():
+        problem = "a folder; expected a checkpoint file (.pt)" if path.is_dir() else "no such checkpoint file"
+        raise ValueError(f"{option} {path}: {problem}")
+
+
 #: PipelineConfig fields and the ``run`` options that set them (for messages).
 _OPTIONS = {"reconstructor": "--reconstructor", "bias_init": "--bias-init", "max_duration": "--max-duration",
             "window_fraction": "--window-fraction", "max_features": "--max-features", "init": "--init",
             "frames": "--frames", "seed": "--seed", "method": "--tracker"}
-
-
-def _as_option(message: str) -> str:
-    """Return a PipelineConfig message with its leading field name replaced by the command-line option."""
-    for field, option in _OPTIONS.items():
-        if message.startswith(field + " ") or message.startswith(field + ":"):
-            return option + message[len(field):]
-    return message
 
 
 def add_table_arguments(p: argparse.ArgumentParser) -> None:
@@ -185,9 +182,7 @@ def main_table(args: argparse.Namespace) -> int:
     if args.out is not None:
         check_output_dir(args.out, args.force, name="--out", inputs=[
             ("the --events-cnn checkpoint", args.events_cnn), ("the recording cache", sequence_cache_dir())])
-    if args.events_cnn is not None and not args.events_cnn.is_file():
-        problem = "a folder; expected a checkpoint file (.pt)" if args.events_cnn.is_dir() else "no such checkpoint file"
-        raise ValueError(f"--events-cnn {args.events_cnn}: {problem}")
+    _require_checkpoint_file("--events-cnn", args.events_cnn)
     if args.events_cnn is not None:  # a damaged or foreign checkpoint fails now, not in every run of its row
         from evio_lib.features.superpoint import load_model
 
