@@ -184,19 +184,31 @@ def _gyro_truth_ratio(t: np.ndarray, gyro: np.ndarray, truth: Any) -> float | No
     return float(np.median(np.linalg.norm(mean_gyro, axis=1) / rate[moving][ok]))
 
 
-def _gravity_problem(t: np.ndarray, accel: np.ndarray, truth: Any, R_CtoI: Any, gravity_G: Any) -> str | None:
-    """Return what the truth contradicts about the accelerometer's axes, or None (also when it cannot tell)."""
-    if truth.body == "camera":
-        if R_CtoI is None:
-            return None
-        R_CtoI = np.asarray(R_CtoI, dtype=np.float64)
+def _checkable_overlap(t: np.ndarray, truth: Any, R_CtoI: Any) -> tuple[float, float, np.ndarray | None] | None:
+    """Return (t0, t1, R_CtoI as an array or None) of the IMU's overlap with the truth, or None when the truth cannot
+    check the axes: a camera truth without the camera-IMU rotation, or less than MIN_GRAVITY_SPAN_S of overlap."""
+    if truth.body == "camera" and R_CtoI is None:
+        return None
     t0, t1 = max(t[0], truth.t[0]), min(t[-1], truth.t[-1])
     if t1 - t0 < MIN_GRAVITY_SPAN_S:
         return None
+    return t0, t1, None if R_CtoI is None else np.asarray(R_CtoI, dtype=np.float64)
+
+
+def _imu_to_world(R_BtoG: np.ndarray, body: str, R_CtoI: np.ndarray | None) -> np.ndarray:
+    """Return R_ItoG from the truth's body rotations: the body itself, or the camera (R_CtoG R_CtoI^T)."""
+    return R_BtoG if body == "imu" else np.einsum("nij,kj->nik", R_BtoG, R_CtoI)
+
+
+def _gravity_problem(t: np.ndarray, accel: np.ndarray, truth: Any, R_CtoI: Any, gravity_G: Any) -> str | None:
+    """Return what the truth contradicts about the accelerometer's axes, or None (also when it cannot tell)."""
+    overlap = _checkable_overlap(t, truth, R_CtoI)
+    if overlap is None:
+        return None
+    t0, t1, R_CtoI = overlap
     sel = (t >= t0) & (t <= t1)
     at = truth.interpolate(t[sel])
-    R_BtoG = at.R_BtoG
-    R_ItoG = R_BtoG if truth.body == "imu" else np.einsum("nij,kj->nik", R_BtoG, R_CtoI)  # R_CtoG R_CtoI^T
+    R_ItoG = _imu_to_world(at.R_BtoG, truth.body, R_CtoI)
     g = np.array([0.0, 0.0, -9.81]) if gravity_G is None else np.asarray(gravity_G, dtype=np.float64).reshape(3)
     span = t[sel][-1] - t[sel][0]
     if at.v_BinG is not None and truth.body == "imu":
@@ -275,14 +287,11 @@ def _axes_problem(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, truth: Any
     """
     from scipy.spatial.transform import Rotation
 
-    if truth.body == "camera":
-        if R_CtoI is None:
-            return None
-        R_CtoI = np.asarray(R_CtoI, dtype=np.float64)
-    t0, t1 = max(t[0], truth.t[0]), min(t[-1], truth.t[-1])
-    span = t1 - t0
-    if span < MIN_GRAVITY_SPAN_S:
+    overlap = _checkable_overlap(t, truth, R_CtoI)
+    if overlap is None:
         return None
+    t0, t1, R_CtoI = overlap
+    span = t1 - t0
     length = float(np.clip(span / 10.0, 0.05, 0.2))
     edges = t0 + length * np.arange(int(span // length) + 1)
     i_edges = np.searchsorted(t, edges)
@@ -290,7 +299,7 @@ def _axes_problem(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, truth: Any
     if ok.sum() < 3:
         return None
     at = truth.interpolate(edges)
-    R_ItoG = at.R_BtoG if truth.body == "imu" else np.einsum("nij,kj->nik", at.R_BtoG, R_CtoI)
+    R_ItoG = _imu_to_world(at.R_BtoG, truth.body, R_CtoI)
     orders = _signed_permutations()
     cumulative_gyro = np.concatenate([np.zeros((1, 3)), np.cumsum(gyro, axis=0)])
     counts = np.diff(i_edges)[ok]
@@ -318,9 +327,7 @@ def _axes_problem(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, truth: Any
     expected_G = (np.diff(v, axis=0) / length - g)[ok]
     rows = np.repeat(np.arange(len(i_edges) - 1), np.diff(i_edges))
     inside = slice(i_edges[0], i_edges[-1])
-    R_samples = truth.interpolate(t[inside]).R_BtoG
-    if truth.body == "camera":
-        R_samples = np.einsum("nij,kj->nik", R_samples, R_CtoI)
+    R_samples = _imu_to_world(truth.interpolate(t[inside]).R_BtoG, truth.body, R_CtoI)
     # M[k, :, i, j] = mean over window k of R_ItoG[:, i] a_m[j]: then mean_k R_ItoG P a_m = sum_ij P_ij M[k, :, i, j]
     outer = np.einsum("nai,nj->naij", R_samples, accel[inside])
     M = np.zeros((len(i_edges) - 1, 3, 3, 3))
@@ -424,13 +431,13 @@ def check_imu_units(t: Any, gyro: Any, accel: Any, truth: Any = None, *, source:
             problem = _axes_problem(t, gyro, accel, truth, R_CtoI, gravity_G)
         if problem is not None:
             raise ImuUnitsError(f"{source}: {problem}")
-        overlap = min(t[-1], truth.t[-1]) - max(t[0], truth.t[0])
-        if overlap >= MIN_GRAVITY_SPAN_S and (truth.body == "imu" or R_CtoI is not None):
+        if _checkable_overlap(t, truth, R_CtoI) is not None:
             done.append("gravity and axes checked against the ground truth")
         else:
-            done.append(f"axes not checked (the ground truth shares {max(overlap, 0.0):.2f} s with the IMU; "
-                        f"{MIN_GRAVITY_SPAN_S:g} s needed" + ("" if truth.body == "imu" or R_CtoI is not None
-                                                             else ", and camera-IMU extrinsics") + ")")
+            shared = max(min(t[-1], truth.t[-1]) - max(t[0], truth.t[0]), 0.0)
+            done.append(f"axes not checked (the ground truth shares {shared:.2f} s with the IMU; "
+                        f"{MIN_GRAVITY_SPAN_S:g} s needed" + (", and camera-IMU extrinsics"
+                                                             if truth.body == "camera" and R_CtoI is None else "") + ")")
     return "IMU units: " + ", ".join(done)
 
 
