@@ -33,6 +33,7 @@ __all__ = [
     "discard_damaged_cache",
     "save_sequence_npz",
     "load_sequence_npz",
+    "load_cached_sequence",
     "check_cache_file_writable",
     "store_sequence_npz",
     "to_json_value",
@@ -200,6 +201,18 @@ def save_sequence_npz(sequence: Sequence, path: str | Path, *, compress: bool = 
     with open(path, "wb") as f:
         (np.savez_compressed if compress else np.savez)(f, **arrays)
     return path
+
+
+def load_cached_sequence(path: str | Path) -> Sequence | None:
+    """Return the Sequence cached at ``path``, or None when there is none or it was damaged (then said and deleted,
+    :func:`discard_damaged_cache`, so that the caller simulates it again)."""
+    if not Path(path).is_file():
+        return None
+    try:
+        return load_sequence_npz(path)
+    except CacheError as error:  # empty, truncated, damaged
+        discard_damaged_cache(error, "re-simulating")
+        return None
 
 
 def check_cache_file_writable(path: str | Path) -> None:

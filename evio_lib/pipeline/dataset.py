@@ -92,8 +92,7 @@ def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, w
     The motion is always the preset's whole trajectory (60 s boxes_like: gentle start, violent end; 40 s
     aerial_like), so a shorter duration is the start of the same recording, not a faster one.
     """
-    from evio_lib.io.cache import (CacheError, check_cache_file_writable, discard_damaged_cache, load_sequence_npz,
-                                   store_sequence_npz)
+    from evio_lib.io.cache import check_cache_file_writable, load_cached_sequence, store_sequence_npz
     from evio_lib.sim.presets import SimulationConfig, simulate_sequence
 
     full = PRESET_DURATIONS[preset] if preset in PRESETS else None
@@ -103,12 +102,10 @@ def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, w
     # a recording simulated with events also serves a run that needs only the frames (the same seed gives the same
     # frames, IMU and ground truth with or without events)
     candidates = [path] if with_events else [path, stem.with_name(stem.name + "_events.npz")]
-    for found in candidates:
-        if cache and found.is_file():
-            try:
-                return load_sequence_npz(found)
-            except CacheError as error:  # empty, truncated, damaged: deleted, said, simulated again
-                discard_damaged_cache(error, "re-simulating")
+    for found in candidates if cache else ():
+        sequence = load_cached_sequence(found)  # None: not there, or damaged (said, deleted, simulated again)
+        if sequence is not None:
+            return sequence
     if cache:  # before the simulation (seconds to minutes): a cache that cannot be written is said now
         check_cache_file_writable(path)
     config = SimulationConfig(preset=preset, duration=duration, trajectory_duration=full, seed=seed,

@@ -276,15 +276,12 @@ def simulate_sequence_cached(config: SimulationConfig, progress: bool = False) -
     The first call simulates and stores the recording whole (a temporary file renamed into place); a damaged cache
     file is said, deleted and simulated again. ``metadata["timings"]`` (deterministic counts) comes back as stored.
     """
-    from evio_lib.io.cache import (CacheError, check_cache_file_writable, discard_damaged_cache, load_sequence_npz,
-                                   store_sequence_npz)
+    from evio_lib.io.cache import check_cache_file_writable, load_cached_sequence, store_sequence_npz
 
     path = simulation_cache_path(config)
-    if path.is_file():
-        try:
-            return load_sequence_npz(path)
-        except CacheError as error:  # empty, truncated, damaged: deleted, said, simulated again
-            discard_damaged_cache(error, "re-simulating")
+    cached = load_cached_sequence(path)  # None: not there, or damaged (said, deleted, simulated again)
+    if cached is not None:
+        return cached
     check_cache_file_writable(path)
     sequence = simulate_sequence(config, progress=progress)
     store_sequence_npz(sequence, path)
