@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 
 from evio_lib.events.reconstruct import create_reconstructor
-from evio_lib.events.reconstruction_eval import EVAL_STRETCHES, score_windows, simulated_eval_sequence
+from evio_lib.events.reconstruction.evaluation import EVAL_STRETCHES, score_windows, simulated_eval_sequence
 from evio_lib.events.representations import adaptive_windows
 
 

@@ -18,7 +18,7 @@ import torch
 
 from evio_lib.events.array import make_events
 from evio_lib.events.reconstruct import create_reconstructor
-from evio_lib.events.reconstruction_nets import E2VIDRecurrent
+from evio_lib.events.reconstruction.nets import E2VIDRecurrent
 from evio_lib.events.representations import voxel_grid
 
 

@@ -1,5 +1,5 @@
 """Print the reconstruction quality table: MSE / SSIM of every method on the held-out simulated stretches and the real
-slider_depth frames (see evio_lib.events.reconstruction_eval for the protocol and the normalisation).
+slider_depth frames (see evio_lib.events.reconstruction.evaluation for the protocol and the normalisation).
 
 Usage:  python bench/reconstruction_quality.py [--methods direct high_pass firenet] [--max-frames 12]
 
@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import argparse
 
-from evio_lib.events.reconstruction_eval import quality_table
+from evio_lib.events.reconstruction.evaluation import quality_table
 
 
 def main() -> None:

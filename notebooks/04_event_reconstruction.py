@@ -26,8 +26,8 @@
 # 7. **fast motion**, where the APS frames blur and the event windows shrink to milliseconds.
 #
 # The code lives in `evio_lib.events.representations`, `evio_lib.events.reconstruct` (one call,
-# `create_reconstructor(name)`, for every method), `evio_lib.events.reconstruction_train` and
-# `evio_lib.events.reconstruction_eval`.
+# `create_reconstructor(name)`, for every method), `evio_lib.events.reconstruction.training` and
+# `evio_lib.events.reconstruction.evaluation`.
 
 # %% [markdown]
 # The learned half of the lesson in one picture, unrolled over two windows: each window of events becomes a voxel
@@ -62,7 +62,7 @@ FAST = os.environ.get("EVIO_FAST", "0") == "1"  # CI sets EVIO_FAST=1: fewer sco
 # stretch alone has millions of events; fast mode keeps only its first 0.1 s).
 
 # %%
-from evio_lib.events.reconstruction_eval import EVAL_STRETCHES, simulated_eval_sequence
+from evio_lib.events.reconstruction.evaluation import EVAL_STRETCHES, simulated_eval_sequence
 
 durations = {"boxes_like_slow": 0.4, "boxes_like_fast": 0.1 if FAST else 0.4, "aerial_like": 0.4}
 stretches = {name: simulated_eval_sequence(name, duration=durations[name]) for name in EVAL_STRETCHES}
@@ -271,12 +271,12 @@ assert np.isclose(my_ssim(rec, truth), reference)
 # %% [markdown]
 # An event camera cannot know absolute brightness, so a reconstruction's brightness and contrast are arbitrary, and
 # SSIM's luminance and contrast terms would punish that. The project's score (`image_quality` in
-# `evio_lib.events.reconstruction_eval`) therefore first stretches both images the same way, their 1st and 99th
+# `evio_lib.events.reconstruction.evaluation`) therefore first stretches both images the same way, their 1st and 99th
 # percentiles to 0 and 1, clipped (percentiles rather than min and max, so that a few hot pixels cannot set the
 # scale), then computes MSE and the SSIM above. A darker, flatter copy of the truth shows why:
 
 # %%
-from evio_lib.events.reconstruction_eval import image_quality
+from evio_lib.events.reconstruction.evaluation import image_quality
 
 
 def stretch(image):
@@ -302,7 +302,7 @@ assert my_ssim(dim, truth) < 0.95 and np.isclose(image_quality(dim, truth)["ssim
 # state to the next one.
 
 # %%
-from evio_lib.events.reconstruction_nets import E2VIDRecurrent, FireNet, count_parameters
+from evio_lib.events.reconstruction.nets import E2VIDRecurrent, FireNet, count_parameters
 
 print("FireNet:", count_parameters(FireNet()), "parameters;  E2VID-style UNet:", count_parameters(E2VIDRecurrent()))
 assert count_parameters(FireNet()) == 37777 and 10.6e6 < count_parameters(E2VIDRecurrent()) < 10.8e6
@@ -345,7 +345,7 @@ assert difference < 1e-5
 # %% [markdown]
 # E2VID's training code was never released; the project trains its FireNet itself, the way E2VID was trained: on
 # simulated sequences of images on planes under random 6-DoF motion, with contrast thresholds, noise, hot pixels and
-# refractory periods drawn per sequence (`evio_lib.events.reconstruction_data`). Each training sample is 8 consecutive
+# refractory periods drawn per sequence (`evio_lib.events.reconstruction.data`). Each training sample is 8 consecutive
 # windows with the sharp image at the end of each; the loss is L1 + (1 - SSIM) per window (the SSIM of section 4,
 # written in torch so that it has gradients: `ssim_torch`) plus a temporal-consistency term that warps the previous
 # output with the true motion. The shipped weights were trained in two stages: the default schedule of
@@ -381,7 +381,7 @@ assert stage1[-1]["step"] == 3000 and history[-1]["step"] == 4500
 # intensity at their mid-exposure times, for reference.
 
 # %%
-from evio_lib.events.reconstruction_eval import THESIS_FRACTION, score_aps_frames, score_windows
+from evio_lib.events.reconstruction.evaluation import THESIS_FRACTION, score_aps_frames, score_windows
 
 methods = ["direct", "high_pass", "firenet"]
 scores = {}
@@ -526,7 +526,7 @@ assert scores["boxes_like_fast", "APS"]["ssim"] > scores["boxes_like_fast", "fir
 # protocol) and is scored against the real frame as recorded.
 
 # %%
-from evio_lib.events.reconstruction_eval import load_slider_slice, score_at_frame_times
+from evio_lib.events.reconstruction.evaluation import load_slider_slice, score_at_frame_times
 
 slider = load_slider_slice()
 if slider is None:
@@ -563,8 +563,8 @@ else:
 # %%
 import tempfile
 
-from evio_lib.events.reconstruction_data import ReconstructionDataConfig, reconstruction_dataset
-from evio_lib.events.reconstruction_train import ReconstructionTrainConfig, train_reconstructor
+from evio_lib.events.reconstruction.data import ReconstructionDataConfig, reconstruction_dataset
+from evio_lib.events.reconstruction.training import ReconstructionTrainConfig, train_reconstructor
 
 data_config = ReconstructionDataConfig(height=32, width=32, duration=0.3, windows=4)
 train_set = reconstruction_dataset("train", 8, config=data_config, cache=False)
@@ -572,7 +572,7 @@ val_set = reconstruction_dataset("val", 4, config=data_config, cache=False)
 steps = 20 if FAST else 200
 config = ReconstructionTrainConfig(data=data_config, n_train=8, n_val=4, batch_size=2, crop=32, steps=steps,
                                    validate_every=steps // 4, lr=3e-3)
-from evio_lib.events.reconstruction_train import evaluate_on_samples
+from evio_lib.events.reconstruction.training import evaluate_on_samples
 
 torch.manual_seed(config.seed)   # the same initial weights that train_reconstructor starts from (it seeds torch alike)
 untrained = evaluate_on_samples(FireNet(), val_set, config)

@@ -15,7 +15,7 @@ One function per figure, each returning the matplotlib Figure:
   error metrics (Chapter IV §4.5).
 
 The sizes written in the boxes are those of the library (`evio_lib.features.superpoint`,
-`evio_lib.events.reconstruction_nets`, `evio_lib.msckf.state`); nothing here is computed from data, except the
+`evio_lib.events.reconstruction.nets`, `evio_lib.msckf.state`); nothing here is computed from data, except the
 one-pixel curve of :func:`plot_event_pixel_schematic`, whose events follow the thesis's rule exactly.
 Matplotlib is imported when a figure is made.
 """

@@ -16,7 +16,7 @@
   The image returned is the intensity exp(L^), stretched between its 1st and 99th percentiles: linear intensity, like
   the learned networks' output and the simulator's truth (up to the unknown brightness of each pixel at the start).
 - ``firenet`` (the default, shipped weights) and any other shipped checkpoint by name, or ``learned`` with
-  ``checkpoint=PATH``: a recurrent network (:mod:`evio_lib.events.reconstruction_nets`) fed E2VID's voxel grid
+  ``checkpoint=PATH``: a recurrent network (:mod:`evio_lib.events.reconstruction.nets`) fed E2VID's voxel grid
   (B = 5 bins) of each window.
 """
 from __future__ import annotations
@@ -135,14 +135,14 @@ class LogIntegrator(Reconstructor):
 
 
 class LearnedReconstructor(Reconstructor):
-    """A recurrent network from a checkpoint of :func:`evio_lib.events.reconstruction_train.train_reconstructor`."""
+    """A recurrent network from a checkpoint of :func:`evio_lib.events.reconstruction.training.train_reconstructor`."""
 
     def __init__(self, width: int, height: int, checkpoint: str | Path, device: str | None = None,
                  name: str = "learned", threads: int | None = None) -> None:
         super().__init__(width, height)
         import torch
 
-        from evio_lib.events.reconstruction_nets import build_network
+        from evio_lib.events.reconstruction.nets import build_network
 
         from evio_lib.io.checkpoint import CheckpointError, load_state, read_checkpoint
 

@@ -1,11 +1,11 @@
-"""Tests of `python -m evio_lib reconstruct` (evio_lib.events.reconstruct_command) on a small ECD folder."""
+"""Tests of `python -m evio_lib reconstruct` (evio_lib.events.reconstruction.command) on a small ECD folder."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
 from evio_lib.events.array import make_events
-from evio_lib.events.reconstruct_command import main_reconstruct, read_times_file
+from evio_lib.events.reconstruction.command import main_reconstruct, read_times_file
 
 
 @pytest.fixture()

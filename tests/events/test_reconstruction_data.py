@@ -5,7 +5,7 @@ import cv2
 import numpy as np
 import pytest
 
-from evio_lib.events.reconstruction_data import (SPLIT_PHOTOS, ReconstructionDataConfig, make_training_sample,
+from evio_lib.events.reconstruction.data import (SPLIT_PHOTOS, ReconstructionDataConfig, make_training_sample,
                                                  random_planar_sequence, reconstruction_dataset)
 
 SMALL = ReconstructionDataConfig(height=32, width=32, duration=0.3, windows=4)

@@ -7,8 +7,8 @@ import torch
 from skimage.metrics import structural_similarity
 
 from evio_lib.events.reconstruct import create_reconstructor
-from evio_lib.events.reconstruction_data import ReconstructionDataConfig, reconstruction_dataset
-from evio_lib.events.reconstruction_train import (ReconstructionTrainConfig, main_reconstruct_train, ssim_torch,
+from evio_lib.events.reconstruction.data import ReconstructionDataConfig, reconstruction_dataset
+from evio_lib.events.reconstruction.training import (ReconstructionTrainConfig, main_reconstruct_train, ssim_torch,
                                                   train_reconstructor, warp_with_homography)
 
 DATA = ReconstructionDataConfig(height=32, width=32, duration=0.3, windows=3)

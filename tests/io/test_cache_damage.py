@@ -96,7 +96,7 @@ def test_damaged_label_cache_is_relabelled_with_a_note(tmp_path, capsys, how):
 
 @pytest.mark.parametrize("how", ["empty", "truncated"])
 def test_damaged_training_sample_cache_is_made_again(private_cache, capsys, how):
-    from evio_lib.events.reconstruction_data import ReconstructionDataConfig, reconstruction_dataset
+    from evio_lib.events.reconstruction.data import ReconstructionDataConfig, reconstruction_dataset
 
     config = ReconstructionDataConfig(height=32, width=32, duration=0.3, windows=3)
     fresh = reconstruction_dataset("val", 1, seed=0, config=config, workers=1)

@@ -51,7 +51,7 @@ def _make(folder: Path, name: str) -> Path:
         torch.save({"format": "evio-superpoint-1", "model_config": build_model("narrow").config,
                     "state_dict": build_model("full").state_dict(), "metadata": {}}, path)
     elif name == "firenet_wide":  # the settings say the default FireNet, the tensors are 8 channels wide
-        from evio_lib.events.reconstruction_nets import build_network
+        from evio_lib.events.reconstruction.nets import build_network
 
         ckpt = torch.load(FIRENET, weights_only=True)
         ckpt["state_dict"] = build_network("firenet", 5, channels=8).state_dict()
@@ -151,8 +151,8 @@ def test_good_checkpoints_still_load(tmp_path):
 @pytest.fixture()
 def tiny_train(tmp_path):
     """A reconstruct-train config small enough to fail or start in a second."""
-    from evio_lib.events.reconstruction_data import ReconstructionDataConfig
-    from evio_lib.events.reconstruction_train import ReconstructionTrainConfig
+    from evio_lib.events.reconstruction.data import ReconstructionDataConfig
+    from evio_lib.events.reconstruction.training import ReconstructionTrainConfig
 
     data = ReconstructionDataConfig(height=32, width=32, duration=0.3, windows=3)
     return lambda **kw: ReconstructionTrainConfig(data=data, n_train=2, n_val=1, batch_size=1, crop=24, steps=1, **kw)
@@ -160,7 +160,7 @@ def tiny_train(tmp_path):
 
 @pytest.mark.parametrize("name", ["corrupt", "empty", "truncated", "pickle", "superpoint", "firenet_wide"])
 def test_reconstruct_train_init_from_and_resume_refuse(tmp_path, tiny_train, name):
-    from evio_lib.events.reconstruction_train import train_reconstructor
+    from evio_lib.events.reconstruction.training import train_reconstructor
 
     path = _make(tmp_path, name)
     with pytest.raises(ValueError, match=r"^init_from .*" + str(path.name)) as info:

@@ -1,0 +1,155 @@
+"""Recurrent networks that turn event voxel grids into intensity images (PyTorch).
+
+Two architectures, both fully convolutional (any image size) and recurrent (a hidden state carried from window to window,
+which is what lets an event camera, which only sees changes, accumulate a whole image):
+
+- :class:`FireNet` (Scheerlinck et al., WACV 2020), the small default: a 3x3 head, two ConvGRU cells each followed by a
+  residual block, and a 1x1 prediction layer. 16 channels give 37 777 parameters.
+- :class:`E2VIDRecurrent` (Rebecq et al., TPAMI 2019), the large option: a UNet whose three encoder stages are strided
+  convolutions followed by ConvLSTM cells, two residual blocks at the bottom, and decoders that upsample and add the skip
+  connections. 32 base channels give 10 710 401 (10.7 M).
+
+ConvGRU (Ballas et al. 2016), for input x and hidden state h:
+    z = sigmoid(W_z * [x, h]),  r = sigmoid(W_r * [x, h]),  h~ = tanh(W_h * [x, r . h]),  h' = (1 - z) . h + z . h~
+ConvLSTM (Shi et al. 2015): [i, f, o, g] = W * [x, h];  c' = sigmoid(f) . c + sigmoid(i) . tanh(g);  h' = sigmoid(o) . tanh(c')
+
+Both networks output an image in [0, 1] (a sigmoid on the last layer) and return their new state; ``state=None`` starts
+from zeros.
+"""
+from __future__ import annotations
+
+import torch
+from torch import nn
+from torch.nn import functional as F
+
+__all__ = ["ConvGRUCell", "ConvLSTMCell", "FireNet", "E2VIDRecurrent", "build_network", "count_parameters"]
+
+
+class ConvGRUCell(nn.Module):
+    """A convolutional GRU cell: ``forward(x, h) -> h'`` (equations in the module docstring)."""
+
+    def __init__(self, in_channels: int, hidden_channels: int, kernel_size: int = 3) -> None:
+        super().__init__()
+        self.hidden_channels = hidden_channels
+        pad = kernel_size // 2
+        self.gates = nn.Conv2d(in_channels + hidden_channels, 2 * hidden_channels, kernel_size, padding=pad)
+        self.candidate = nn.Conv2d(in_channels + hidden_channels, hidden_channels, kernel_size, padding=pad)
+
+    def forward(self, x: torch.Tensor, h: torch.Tensor | None) -> torch.Tensor:
+        if h is None:
+            h = x.new_zeros(x.shape[0], self.hidden_channels, x.shape[2], x.shape[3])
+        z, r = torch.sigmoid(self.gates(torch.cat([x, h], dim=1))).chunk(2, dim=1)   # update and reset gates
+        h_tilde = torch.tanh(self.candidate(torch.cat([x, r * h], dim=1)))
+        return (1 - z) * h + z * h_tilde                                              # h' = (1 - z) h + z h~
+
+
+class ConvLSTMCell(nn.Module):
+    """A convolutional LSTM cell: ``forward(x, (h, c)) -> (h', c')``."""
+
+    def __init__(self, in_channels: int, hidden_channels: int, kernel_size: int = 3) -> None:
+        super().__init__()
+        self.hidden_channels = hidden_channels
+        self.gates = nn.Conv2d(in_channels + hidden_channels, 4 * hidden_channels, kernel_size, padding=kernel_size // 2)
+
+    def forward(self, x: torch.Tensor, state: tuple[torch.Tensor, torch.Tensor] | None
+                ) -> tuple[torch.Tensor, torch.Tensor]:
+        if state is None:
+            zeros = x.new_zeros(x.shape[0], self.hidden_channels, x.shape[2], x.shape[3])
+            state = (zeros, zeros)
+        h, c = state
+        i, f, o, g = self.gates(torch.cat([x, h], dim=1)).chunk(4, dim=1)
+        c = torch.sigmoid(f) * c + torch.sigmoid(i) * torch.tanh(g)                   # c' = f c + i g
+        return torch.sigmoid(o) * torch.tanh(c), c                                    # h' = o tanh(c')
+
+
+class _ResidualBlock(nn.Module):
+    """Two 3x3 convolutions with a skip connection: y = relu(x + conv(relu(conv(x))))."""
+
+    def __init__(self, channels: int) -> None:
+        super().__init__()
+        self.conv1 = nn.Conv2d(channels, channels, 3, padding=1)
+        self.conv2 = nn.Conv2d(channels, channels, 3, padding=1)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return F.relu(x + self.conv2(F.relu(self.conv1(x))))
+
+
+class FireNet(nn.Module):
+    """The small recurrent reconstructor: ``forward(voxels (N, B, H, W), state) -> (image (N, 1, H, W), state)``."""
+
+    def __init__(self, num_bins: int = 5, channels: int = 16) -> None:
+        super().__init__()
+        self.num_bins = num_bins
+        self.head = nn.Conv2d(num_bins, channels, 3, padding=1)
+        self.gru1 = ConvGRUCell(channels, channels)
+        self.res1 = _ResidualBlock(channels)
+        self.gru2 = ConvGRUCell(channels, channels)
+        self.res2 = _ResidualBlock(channels)
+        self.pred = nn.Conv2d(channels, 1, 1)
+
+    def forward(self, voxels: torch.Tensor, state: list | None = None) -> tuple[torch.Tensor, list]:
+        h1, h2 = state if state is not None else (None, None)
+        x = F.relu(self.head(voxels))
+        h1 = self.gru1(x, h1)
+        x = self.res1(h1)
+        h2 = self.gru2(x, h2)
+        x = self.res2(h2)
+        return torch.sigmoid(self.pred(x)), [h1, h2]
+
+
+class E2VIDRecurrent(nn.Module):
+    """The large recurrent UNet: ``forward(voxels (N, B, H, W), state) -> (image (N, 1, H, W), state)``.
+
+    Input sizes are padded to a multiple of 8 internally (three stride-2 stages) and cropped back.
+    """
+
+    def __init__(self, num_bins: int = 5, base_channels: int = 32, num_encoders: int = 3) -> None:
+        super().__init__()
+        self.num_bins = num_bins
+        self.num_encoders = num_encoders
+        ch = [base_channels * 2 ** i for i in range(num_encoders + 1)]            # 32, 64, 128, 256
+        self.head = nn.Conv2d(num_bins, ch[0], 5, padding=2)
+        self.down = nn.ModuleList(nn.Conv2d(ch[i], ch[i + 1], 5, stride=2, padding=2) for i in range(num_encoders))
+        self.lstm = nn.ModuleList(ConvLSTMCell(ch[i + 1], ch[i + 1]) for i in range(num_encoders))
+        self.res = nn.Sequential(_ResidualBlock(ch[-1]), _ResidualBlock(ch[-1]))
+        self.up = nn.ModuleList(nn.Conv2d(ch[i + 1], ch[i], 5, padding=2) for i in reversed(range(num_encoders)))
+        self.pred = nn.Conv2d(ch[0], 1, 1)
+
+    def forward(self, voxels: torch.Tensor, state: list | None = None) -> tuple[torch.Tensor, list]:
+        height, width = voxels.shape[-2:]
+        multiple = 2 ** self.num_encoders
+        pad_h, pad_w = (-height) % multiple, (-width) % multiple
+        x = F.pad(voxels, (0, pad_w, 0, pad_h))
+        state = state if state is not None else [None] * self.num_encoders
+        x = F.relu(self.head(x))
+        skips, new_state = [x], []
+        for down, lstm, s in zip(self.down, self.lstm, state):
+            x = F.relu(down(x))
+            h, c = lstm(x, s)
+            new_state.append((h, c))
+            x = h
+            skips.append(x)
+        x = self.res(x)
+        for up, skip in zip(self.up, reversed(skips[:-1])):
+            x = F.interpolate(x, size=skip.shape[-2:], mode="bilinear", align_corners=False)
+            x = F.relu(up(x)) + skip                                                # upsample, convolve, add skip
+        image = torch.sigmoid(self.pred(x))
+        return image[..., :height, :width], new_state
+
+
+def build_network(architecture: str, num_bins: int = 5, **options) -> nn.Module:
+    """Return a new network: ``firenet`` (default small) or ``e2vid`` (large), with ``options`` for its constructor."""
+    if architecture == "firenet":
+        return FireNet(num_bins=num_bins, **options)
+    if architecture == "e2vid":
+        return E2VIDRecurrent(num_bins=num_bins, **options)
+    raise ValueError(f"architecture must be 'firenet' or 'e2vid'; got {architecture!r}")
+
+
+def count_parameters(net: nn.Module) -> int:
+    """Return the number of trainable parameters of ``net``.
+
+    >>> count_parameters(FireNet())
+    37777
+    """
+    return sum(p.numel() for p in net.parameters() if p.requires_grad)

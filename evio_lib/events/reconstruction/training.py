@@ -1,0 +1,399 @@
+"""Training the recurrent reconstructors on the project's simulated planar sequences.
+
+Loss over a sample of L consecutive windows, with the network's state carried from window to window (truncated
+back-propagation through time over L windows, from a zero state):
+
+    loss = 1/L sum_k [ |I^_k - I_k|_1  +  lambda_ssim (1 - SSIM(I^_k, I_k))  +  lambda_tc TC_k ]
+
+- L1 and SSIM (Wang et al. 2004; Gaussian window sigma 1.5, C1 = 0.01^2, C2 = 0.03^2, data range 1) against the sharp
+  intensity I_k at the end of window k;
+- temporal consistency (Lai et al., ECCV 2018, as E2VID+ uses it): TC_k = mean( M_k . |I^_k - W_k(I^_k-1)| ), where W_k
+  warps the previous prediction into view k with the true motion (the simulator's homography) and
+  M_k = exp(-alpha |I_k - W_k(I_k-1)|^2), alpha = 50, masks pixels where the warp does not explain the true images
+  (occlusions, borders).
+
+E2VID's perceptual LPIPS term needs an ImageNet-pretrained VGG/AlexNet, whose weights cannot be downloaded here; it is
+left out rather than imitated.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import time
+from dataclasses import asdict, dataclass, field, fields
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+import torch
+from torch.nn import functional as F
+
+from evio_lib.events.reconstruction.data import ReconstructionDataConfig, reconstruction_dataset
+from evio_lib.events.reconstruction.nets import build_network, count_parameters
+from evio_lib.io.checkpoint import load_state, read_checkpoint
+from evio_lib.events.reconstruction.training_options import add_reconstruct_train_arguments  # no torch
+
+__all__ = ["ReconstructionTrainConfig", "ssim_torch", "warp_with_homography", "temporal_consistency_loss",
+           "sequence_loss", "train_reconstructor", "evaluate_on_samples", "add_reconstruct_train_arguments",
+           "main_reconstruct_train"]
+
+
+@dataclass(frozen=True)
+class ReconstructionTrainConfig:
+    """Every setting of a reconstructor training run (saved in each checkpoint)."""
+
+    architecture: str = "firenet"
+    network_options: dict = field(default_factory=dict)
+    data: ReconstructionDataConfig = field(default_factory=ReconstructionDataConfig)
+    n_train: int = 400                 # training samples of L windows (each its own simulated sequence)
+    n_val: int = 32
+    batch_size: int = 4
+    crop: int = 48                     # random square crops of the samples (and flips) per step
+    lr: float = 1e-3
+    steps: int = 3000                  # the default schedule: about an hour on this 2-core CPU, data included
+    max_minutes: float | None = None   # wall-clock budget of one call; --resume continues
+    lambda_ssim: float = 1.0
+    lambda_tc: float = 1.0
+    tc_alpha: float = 50.0
+    validate_every: int = 250
+    seed: int = 0
+    threads: int = 1                   # torch threads: 1 is fastest on a loaded 2-core machine (OpenMP spin-waits)
+    device: str = "cpu"
+    init_from: str | None = None       # a reconstruct-train checkpoint whose weights start the run (fine-tuning)
+
+    def __post_init__(self) -> None:
+        if isinstance(self.data, dict):
+            object.__setattr__(self, "data", ReconstructionDataConfig(**self.data))
+        for name in ("n_train", "n_val", "batch_size", "steps", "validate_every", "threads", "crop"):
+            value = getattr(self, name)
+            if int(value) != value or value < 1:
+                raise ValueError(f"{name} must be a positive integer; got {value!r}")
+        if not (np.isfinite(self.lr) and self.lr > 0):
+            raise ValueError(f"lr must be > 0; got {self.lr!r}")
+        if self.max_minutes is not None and not (np.isfinite(self.max_minutes) and self.max_minutes > 0):
+            raise ValueError(f"max_minutes must be > 0 when given; got {self.max_minutes!r}")
+        if self.seed < 0:
+            raise ValueError(f"seed must be >= 0; got {self.seed}")
+        build_network(self.architecture, self.data.num_bins, **self.network_options)  # fails early on a bad name
+        if self.init_from is not None and not Path(self.init_from).is_file():
+            raise ValueError(f"init_from must be a reconstruct-train checkpoint file; {self.init_from!r} does not exist")
+
+    def to_dict(self) -> dict:
+        """Return the config as plain JSON-able values."""
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, values: dict) -> "ReconstructionTrainConfig":
+        """Return a config from :meth:`to_dict`'s output, refusing unknown keys."""
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(values) - known)
+        if unknown:
+            raise ValueError(f"unknown reconstruction training settings {unknown}; known: {sorted(known)}")
+        return cls(**values)
+
+
+def _gaussian_window(size: int = 11, sigma: float = 1.5) -> torch.Tensor:
+    """Return the (1, 1, size, size) normalised Gaussian window of SSIM."""
+    x = torch.arange(size, dtype=torch.float32) - (size - 1) / 2
+    g = torch.exp(-x ** 2 / (2 * sigma ** 2))
+    g = g / g.sum()
+    return (g[:, None] * g[None, :])[None, None]
+
+
+def ssim_torch(a: torch.Tensor, b: torch.Tensor, data_range: float = 1.0) -> torch.Tensor:
+    """Return the mean SSIM of two (N, 1, H, W) image batches (differentiable; 'valid' windows only).
+
+    SSIM = (2 mu_a mu_b + C1)(2 sigma_ab + C2) / ((mu_a^2 + mu_b^2 + C1)(sigma_a^2 + sigma_b^2 + C2)), Gaussian
+    sigma = 1.5, C1 = (0.01 L)^2, C2 = (0.03 L)^2: scikit-image's ``structural_similarity(gaussian_weights=True,
+    use_sample_covariance=False)`` on the same 'valid' region.
+    """
+    window = _gaussian_window().to(a.device, a.dtype)
+    c1, c2 = (0.01 * data_range) ** 2, (0.03 * data_range) ** 2
+    mu_a, mu_b = F.conv2d(a, window), F.conv2d(b, window)
+    var_a = F.conv2d(a * a, window) - mu_a ** 2
+    var_b = F.conv2d(b * b, window) - mu_b ** 2
+    cov = F.conv2d(a * b, window) - mu_a * mu_b
+    ssim_map = (2 * mu_a * mu_b + c1) * (2 * cov + c2) / ((mu_a ** 2 + mu_b ** 2 + c1) * (var_a + var_b + c2))
+    return ssim_map.mean()
+
+
+def warp_with_homography(image: torch.Tensor, H_cur_to_prev: torch.Tensor) -> torch.Tensor:
+    """Return ``image`` (the previous view, (N, C, H, W)) resampled into the current view: out(u) = image(H u).
+
+    ``H_cur_to_prev`` (N, 3, 3) maps current-view pixels (x, y, 1) into the previous view. Outside samples are zero.
+    """
+    n, _, h, w = image.shape
+    ys, xs = torch.meshgrid(torch.arange(h, dtype=image.dtype, device=image.device),
+                            torch.arange(w, dtype=image.dtype, device=image.device), indexing="ij")
+    pts = torch.stack([xs, ys, torch.ones_like(xs)], dim=-1).reshape(1, -1, 3)           # (1, HW, 3)
+    mapped = pts @ H_cur_to_prev.to(image.dtype).transpose(1, 2)                           # (N, HW, 3)
+    xy = mapped[..., :2] / mapped[..., 2:3].clamp(min=1e-6)
+    grid = torch.stack([2 * xy[..., 0] / (w - 1) - 1, 2 * xy[..., 1] / (h - 1) - 1], dim=-1).reshape(n, h, w, 2)
+    return F.grid_sample(image, grid, mode="bilinear", padding_mode="zeros", align_corners=True)
+
+
+def temporal_consistency_loss(pred: torch.Tensor, pred_prev: torch.Tensor, frame: torch.Tensor, frame_prev: torch.Tensor,
+                              H_cur_to_prev: torch.Tensor, alpha: float = 50.0) -> torch.Tensor:
+    """Return mean(M . |pred - W(pred_prev)|) with M = exp(-alpha |frame - W(frame_prev)|^2) (Lai et al. 2018)."""
+    warped_pred = warp_with_homography(pred_prev, H_cur_to_prev)
+    with torch.no_grad():
+        mask = torch.exp(-alpha * (frame - warp_with_homography(frame_prev, H_cur_to_prev)) ** 2)
+        inside = warp_with_homography(torch.ones_like(frame_prev), H_cur_to_prev) > 0.999
+        mask = mask * inside
+    return (mask * (pred - warped_pred).abs()).sum() / mask.sum().clamp(min=1.0)
+
+
+def sequence_loss(net: torch.nn.Module, voxels: torch.Tensor, frames: torch.Tensor, H_prev: torch.Tensor,
+                  config: ReconstructionTrainConfig) -> tuple[torch.Tensor, dict[str, float]]:
+    """Return (loss, parts) of one batch: voxels (N, L, B, H, W), frames (N, L, H, W), H_prev (N, L, 3, 3)."""
+    state, prev, parts = None, None, {"l1": 0.0, "ssim": 0.0, "tc": 0.0}
+    total = voxels.new_zeros(())
+    n_windows = voxels.shape[1]
+    for k in range(n_windows):
+        pred, state = net(voxels[:, k], state)
+        target = frames[:, k:k + 1]
+        l1 = (pred - target).abs().mean()
+        ssim = ssim_torch(pred, target)
+        loss = l1 + config.lambda_ssim * (1 - ssim)
+        parts["l1"] += l1.item() / n_windows
+        parts["ssim"] += ssim.item() / n_windows
+        if prev is not None and config.lambda_tc > 0:
+            tc = temporal_consistency_loss(pred, prev, target, frames[:, k - 1:k], H_prev[:, k], config.tc_alpha)
+            loss = loss + config.lambda_tc * tc
+            parts["tc"] += tc.item() / n_windows
+        total = total + loss / n_windows
+        prev = pred
+    return total, parts
+
+
+def _augment_batch(rng: np.random.Generator, voxels: np.ndarray, frames: np.ndarray, H_prev: np.ndarray,
+                   crop: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return random crop x crop windows of the batch, flipped at random (homographies conjugated to match).
+
+    A crop at offset o has pixels u' = u - o = S u, so H' = S H S^-1; a flip u' = (size - 1) - u is its own inverse F,
+    so H' = F H F.
+    """
+    height, width = frames.shape[-2:]
+    crop_h, crop_w = min(crop, height), min(crop, width)
+    out_v = np.empty(voxels.shape[:3] + (crop_h, crop_w), voxels.dtype)
+    out_f = np.empty(frames.shape[:2] + (crop_h, crop_w), frames.dtype)
+    H_prev = H_prev.astype(np.float64)
+    for i in range(voxels.shape[0]):
+        oy, ox = int(rng.integers(0, height - crop_h + 1)), int(rng.integers(0, width - crop_w + 1))
+        out_v[i] = voxels[i, ..., oy:oy + crop_h, ox:ox + crop_w]
+        out_f[i] = frames[i, ..., oy:oy + crop_h, ox:ox + crop_w]
+        shift = np.array([[1.0, 0.0, -ox], [0.0, 1.0, -oy], [0.0, 0.0, 1.0]])
+        H_prev[i] = shift @ H_prev[i] @ np.linalg.inv(shift)
+    voxels, frames = out_v, out_f
+    width, height = crop_w, crop_h
+    for i in range(voxels.shape[0]):
+        for axis, size in ((-1, width), (-2, height)):
+            if rng.random() < 0.5:
+                voxels[i] = np.flip(voxels[i], axis=axis)
+                frames[i] = np.flip(frames[i], axis=axis)
+                flip = np.eye(3)
+                j = 0 if axis == -1 else 1
+                flip[j, j], flip[j, 2] = -1.0, size - 1.0          # u' = (size - 1) - u, its own inverse
+                H_prev[i] = flip @ H_prev[i] @ flip
+    return voxels, frames, H_prev.astype(np.float32)
+
+
+def evaluate_on_samples(net: torch.nn.Module, data: dict[str, np.ndarray], config: ReconstructionTrainConfig,
+                        batch_size: int = 8) -> dict[str, float]:
+    """Return the mean loss parts (l1, ssim, tc) of ``net`` on a stack of samples, without gradients."""
+    sums, count = {"l1": 0.0, "ssim": 0.0, "tc": 0.0, "loss": 0.0}, 0
+    was_training = net.training
+    net.eval()
+    with torch.no_grad():
+        for i in range(0, data["voxels"].shape[0], batch_size):
+            v = torch.from_numpy(data["voxels"][i:i + batch_size].astype(np.float32)).to(config.device)
+            f = torch.from_numpy(data["frames"][i:i + batch_size].astype(np.float32)).to(config.device)
+            h = torch.from_numpy(data["H_prev"][i:i + batch_size]).to(config.device)
+            loss, parts = sequence_loss(net, v, f, h, config)
+            n = v.shape[0]
+            for k in parts:
+                sums[k] += parts[k] * n
+            sums["loss"] += loss.item() * n
+            count += n
+    net.train(was_training)
+    return {k: v / count for k, v in sums.items()}
+
+
+#: Settings that may change between a run and its --resume (the budget, the hardware); all others must match.
+_RESUMABLE_KEYS = ("steps", "max_minutes", "threads", "device", "validate_every")
+
+
+def _run_defining(values: dict) -> dict:
+    """Return the settings that define a run (everything but :data:`_RESUMABLE_KEYS`)."""
+    return {k: v for k, v in values.items() if k not in _RESUMABLE_KEYS}
+
+
+def _save(path: Path, net, optimizer, config: ReconstructionTrainConfig, step: int, history: list,
+          rng: np.random.Generator, best: float) -> None:
+    """Write a checkpoint atomically (a temporary file, then rename)."""
+    tmp = path.with_suffix(".tmp")
+    torch.save({"format": "evio-reconstructor-v1", "config": config.to_dict(), "architecture": config.architecture,
+                "network_options": config.network_options, "num_bins": config.data.num_bins,
+                "state_dict": net.state_dict(), "optimizer": optimizer.state_dict(), "step": step,
+                "history": history, "rng": rng.bit_generator.state, "best_val_loss": best}, tmp)
+    tmp.replace(path)
+
+
+def _load_initial_weights(net: torch.nn.Module, config: ReconstructionTrainConfig) -> None:
+    """Copy the weights of ``config.init_from`` into ``net``, refusing a checkpoint of another network."""
+    try:  # a missing, empty, truncated, foreign or SuperPoint file: one line naming it
+        ckpt = read_checkpoint(config.init_from, "reconstructor", map_location=config.device, weights_only=True)
+    except ValueError as error:
+        raise ValueError(f"init_from {error}") from None
+    theirs = (ckpt.get("architecture"), ckpt.get("num_bins"), ckpt.get("network_options", {}))
+    ours = (config.architecture, config.data.num_bins, config.network_options)
+    if theirs != ours:
+        raise ValueError(f"init_from {config.init_from} holds a {theirs[0]} network with {theirs[1]} bins and options "
+                         f"{theirs[2]}; this run trains a {ours[0]} with {ours[1]} bins and options {ours[2]}")
+    try:
+        load_state(net, ckpt["state_dict"], config.init_from,
+                   f"its state_dict does not fit this run's {config.architecture} network")
+    except ValueError as error:
+        raise ValueError(f"init_from {error}") from None
+
+
+def train_reconstructor(config: ReconstructionTrainConfig, out: str | Path, resume: bool = False,
+                        progress: bool = True, data: dict | None = None, val_data: dict | None = None) -> dict:
+    """Train a reconstructor; write ``last.pt``, ``best.pt`` (lowest validation loss) and ``history.json`` in ``out``.
+
+    Returns a summary: steps done, minutes, final and best validation metrics. With ``resume`` the run continues from
+    ``out/last.pt`` (same config required) and gives the same result as an uninterrupted run of the same total steps.
+
+    Args:
+        config: the run's settings.
+        out: the run folder (created).
+        resume: continue from ``out/last.pt``.
+        progress: show a tqdm progress bar.
+        data, val_data: pre-made sample stacks (tests); default: :func:`reconstruction_dataset` for train and val.
+    """
+    out = Path(out)
+    torch.set_num_threads(config.threads)
+    torch.manual_seed(config.seed)
+    net = build_network(config.architecture, config.data.num_bins, **config.network_options).to(config.device)
+    optimizer = torch.optim.Adam(net.parameters(), lr=config.lr)
+    rng = np.random.default_rng(config.seed)
+    step, history, best = 0, [], math.inf
+    last = out / "last.pt"
+    if config.init_from is not None and not resume:
+        _load_initial_weights(net, config)
+    if resume:
+        if not last.is_file():
+            raise FileNotFoundError(f"--resume: no checkpoint {last} to continue from")
+        try:  # a damaged last.pt (e.g. a full disk) is one line naming it
+            ckpt = read_checkpoint(last, "reconstructor", map_location=config.device, weights_only=True)
+        except ValueError as error:
+            raise ValueError(f"--resume: {error}") from None
+        missing = [key for key in ("config", "optimizer", "step", "history", "best_val_loss", "rng") if key not in ckpt]
+        if missing:
+            raise ValueError(f"--resume: {last} lacks {missing}: not the last.pt of a reconstruct-train run "
+                             f"(start a new --out folder)")
+        if not isinstance(ckpt["config"], dict) or _run_defining(ckpt["config"]) != _run_defining(config.to_dict()):
+            raise ValueError(f"--resume: {last} was trained with a different config; start a new --out folder")
+        try:
+            load_state(net, ckpt["state_dict"], last, f"its state_dict does not fit this run's {config.architecture} "
+                       f"network")
+            load_state(optimizer, ckpt["optimizer"], last, "its optimizer state does not fit this run's optimizer")
+        except ValueError as error:
+            raise ValueError(f"--resume: {error}") from None
+        step, history, best = ckpt["step"], ckpt["history"], ckpt["best_val_loss"]
+        rng.bit_generator.state = ckpt["rng"]
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "config.json").write_text(json.dumps(config.to_dict(), indent=2) + "\n")
+    if data is None:
+        data = reconstruction_dataset("train", config.n_train, config.seed, config.data, progress=progress,
+                                      workers=max(2, config.threads))
+    if val_data is None:
+        val_data = reconstruction_dataset("val", config.n_val, config.seed, config.data, progress=progress,
+                                          workers=max(2, config.threads))
+    n_train = data["voxels"].shape[0]
+    start = time.perf_counter()
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=config.steps, initial=step, desc=f"training {config.architecture}", unit="step")
+    running = None
+    try:
+        while step < config.steps:
+            idx = rng.integers(0, n_train, config.batch_size)
+            v, f, h = _augment_batch(rng, data["voxels"][idx], data["frames"][idx], data["H_prev"][idx], config.crop)
+            loss, parts = sequence_loss(net, torch.from_numpy(v.astype(np.float32)).to(config.device),
+                                        torch.from_numpy(f.astype(np.float32)).to(config.device),
+                                        torch.from_numpy(h).to(config.device), config)
+            optimizer.zero_grad()
+            loss.backward()
+            torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)
+            optimizer.step()
+            step += 1
+            running = loss.item() if running is None else 0.98 * running + 0.02 * loss.item()
+            if bar is not None:
+                bar.update(1)
+                bar.set_postfix(loss=f"{running:.3f}", ssim=f"{parts['ssim']:.3f}")
+            out_of_time = config.max_minutes is not None and time.perf_counter() - start > 60 * config.max_minutes
+            if step % config.validate_every == 0 or step == config.steps or out_of_time:
+                val = evaluate_on_samples(net, val_data, config)
+                history.append({"step": step, "train_loss": running, **{f"val_{k}": x for k, x in val.items()}})
+                if val["loss"] < best:
+                    best = val["loss"]
+                    _save(out / "best.pt", net, optimizer, config, step, history, rng, best)
+                _save(last, net, optimizer, config, step, history, rng, best)
+                (out / "history.json").write_text(json.dumps(history, indent=1) + "\n")
+            if out_of_time:
+                break
+    finally:
+        if bar is not None:
+            bar.close()
+    return {"steps": step, "minutes": (time.perf_counter() - start) / 60, "best_val_loss": best,
+            "last": history[-1] if history else None, "parameters": count_parameters(net)}
+
+
+def main_reconstruct_train(args: argparse.Namespace | Sequence[str] | None = None) -> int:
+    """Run ``reconstruct-train`` (see :func:`add_reconstruct_train_arguments`); return the exit code."""
+    if not isinstance(args, argparse.Namespace):
+        args = add_reconstruct_train_arguments(argparse.ArgumentParser()).parse_args(args)
+    values: dict = {"architecture": args.architecture, "seed": args.seed}
+    if args.threads is not None:
+        values["threads"] = args.threads
+    if args.steps is not None:
+        values["steps"] = args.steps
+    if args.max_minutes is not None:
+        values["max_minutes"] = args.max_minutes
+    if args.device is not None:
+        values["device"] = args.device
+    if args.init_from is not None:
+        values["init_from"] = str(args.init_from)
+    for item in args.set:
+        key, sep, raw = item.partition("=")
+        if not sep:
+            raise ValueError(f"--set expects KEY=JSON; got {item!r}")
+        try:
+            values[key] = json.loads(raw)
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"--set {key}: the value must be JSON ({exc.msg}); got {raw!r}") from None
+    if values.get("seed", 0) < 0:
+        raise ValueError(f"--seed must be >= 0; got {values['seed']}")
+    config = ReconstructionTrainConfig.from_dict(values)
+    out = Path(args.out)
+    from evio_lib.io.output_dir import check_output_dir
+
+    # not the working folder, no input nor inside one, a folder that can be created (OUT itself is --resume's input)
+    check_output_dir(out, force=True, name="--out", inputs=[("the --init-from checkpoint", args.init_from)])
+    if not args.resume and out.exists() and any(out.iterdir()) and not args.force:
+        raise ValueError(f"--out {out} is not empty; use --resume to continue the run there or --force to start afresh")
+    print(f"training {config.architecture} ({count_parameters(build_network(config.architecture, config.data.num_bins))} "
+          f"parameters) into {out}")
+    summary = train_reconstructor(config, out, resume=args.resume, progress=not args.quiet)
+    print(json.dumps(summary, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    import sys
+
+    sys.exit(main_reconstruct_train(sys.argv[1:]))

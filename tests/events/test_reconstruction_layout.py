@@ -1,0 +1,16 @@
+"""The reconstruction package's layout: the former flat module names still import, as the same module objects."""
+import importlib
+
+import pytest
+
+FORMER = {"reconstruction_nets": "nets", "reconstruction_data": "data", "reconstruction_train": "training",
+          "reconstruction_train_options": "training_options", "reconstruction_eval": "evaluation",
+          "reconstruct_command": "command"}
+
+
+@pytest.mark.parametrize("old,new", sorted(FORMER.items()))
+def test_former_module_name_is_an_alias(old, new):
+    former = importlib.import_module(f"evio_lib.events.{old}")
+    current = importlib.import_module(f"evio_lib.events.reconstruction.{new}")
+    assert former is current
+    assert former.__all__ and all(hasattr(current, name) for name in former.__all__)
