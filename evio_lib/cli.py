@@ -108,6 +108,8 @@ _COMMAND_MODULES = {
                 "main_vio_sim"),
     "reconstruct": ("evio_lib.events.reconstruction.command", "add_reconstruct_arguments",
                     "evio_lib.events.reconstruction.command", "main_reconstruct"),
+    "reconstruct-data": ("evio_lib.events.reconstruction.training_options", "add_reconstruct_data_arguments",
+                         "evio_lib.events.reconstruction.training_set", "main_reconstruct_data"),
     "reconstruct-train": ("evio_lib.events.reconstruction.training_options", "add_reconstruct_train_arguments",
                           "evio_lib.events.reconstruction.training", "main_reconstruct_train"),
     "run": ("evio_lib.pipeline.command", "add_run_arguments", "evio_lib.pipeline.command", "main_run"),
@@ -213,10 +215,16 @@ def build_parser(full: Container[str] | None = None) -> argparse.ArgumentParser:
                                    "writes images.txt and images/frame_XXXXXXXX.png.")
     _add_options(p, "reconstruct", full)
 
+    p = sub.add_parser("reconstruct-data", help="simulate a training set for the event-to-image networks",
+                       description="Simulate many short, independent sequences (layered textured planes, random "
+                                   "6-DoF motion, thresholds and noise drawn per sequence) into one file each, in "
+                                   "parallel; running it again on the same folder resumes or extends the set.")
+    _add_options(p, "reconstruct-data", full)
+
     p = sub.add_parser("reconstruct-train", help="train a recurrent event-to-image network on simulated sequences",
-                       description="Train FireNet (default) or the E2VID-style UNet on the project's simulated planar "
-                                   "sequences; the default schedule (3000 steps) takes about an hour on a 2-core CPU. "
-                                   "Writes last.pt, best.pt and history.json; --resume continues a run.")
+                       description="Train FireNet (default) or the E2VID-style UNet on a reconstruct-data training set "
+                                   "(--data) or on short planar samples simulated on the fly. Writes last.pt, best.pt "
+                                   "(highest validation SSIM) and history.json; --resume continues a run.")
     _add_options(p, "reconstruct-train", full)
 
     p = sub.add_parser("run", help="the whole EVIO pipeline on a recording: frames -> features -> MSCKF -> trajectory",

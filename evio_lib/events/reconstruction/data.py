@@ -35,7 +35,7 @@ from evio_lib.events.simulate import EventCameraParams, simulate_events
 from evio_lib.sim.textures import PROCEDURAL_KINDS, load_texture, procedural_texture
 
 __all__ = ["SPLIT_PHOTOS", "ReconstructionDataConfig", "PlanarSequence", "random_planar_sequence",
-           "make_training_sample", "reconstruction_dataset"]
+           "make_training_sample", "reconstruction_dataset", "hot_pixel_events"]
 
 #: Photographs (scikit-image's bundled images) per split: no texture is shared between splits.
 SPLIT_PHOTOS = {
@@ -187,22 +187,26 @@ def random_planar_sequence(rng: np.random.Generator, split: str = "train",
                                background_rate_hz=float(rng.uniform(0.0, config.noise_rate_max_hz)))
     events, _ = simulate_events(render, 0.0, config.duration, w, h, params=params, rng=rng, change_quantile=0.99,
                                 dt_min=1e-5)
-    events = concatenate_events([events, _hot_pixel_events(rng, w, h, config)])
+    events = concatenate_events([events, hot_pixel_events(rng, w, h, config.duration, config.hot_pixel_fraction_max)])
     fraction = float(rng.uniform(config.fraction_min, config.fraction_max))
     return PlanarSequence(events=events, render=render, homography=homography, contrast=contrast, fraction=fraction)
 
 
-def _hot_pixel_events(rng: np.random.Generator, width: int, height: int, config: ReconstructionDataConfig) -> np.ndarray:
-    """Return the events of a few hot pixels (each fires one polarity at 100-1000 Hz), sorted by time."""
-    n_hot = rng.binomial(width * height, rng.uniform(0.0, config.hot_pixel_fraction_max))
+def hot_pixel_events(rng: np.random.Generator, width: int, height: int, duration: float,
+                     fraction_max: float) -> np.ndarray:
+    """Return the events over [0, duration] of a few hot pixels, sorted by time.
+
+    The share of hot pixels is drawn from U(0, fraction_max); each fires one polarity at a rate of U(100, 1000) Hz.
+    """
+    n_hot = rng.binomial(width * height, rng.uniform(0.0, fraction_max))
     if n_hot == 0:
         return np.zeros(0, EVENT_DTYPE)
-    counts = rng.poisson(rng.uniform(100.0, 1000.0, n_hot) * config.duration)
+    counts = rng.poisson(rng.uniform(100.0, 1000.0, n_hot) * duration)
     pixel = rng.integers(0, width * height, n_hot)
     polarity = rng.choice(np.array([-1, 1], np.int8), n_hot)
     idx = np.repeat(np.arange(n_hot), counts)
     events = np.zeros(idx.size, EVENT_DTYPE)
-    events["t"] = rng.uniform(0.0, config.duration, idx.size)
+    events["t"] = rng.uniform(0.0, duration, idx.size)
     events["x"] = pixel[idx] % width
     events["y"] = pixel[idx] // width
     events["p"] = polarity[idx]

@@ -1,4 +1,4 @@
-"""Training the recurrent reconstructors on the project's simulated planar sequences.
+"""Training the recurrent reconstructors on simulated sequences (a training set, or quick planar samples).
 
 Loss over a sample of L consecutive windows, with the network's state carried from window to window (truncated
 back-propagation through time over L windows, from a zero state):
@@ -10,7 +10,20 @@ back-propagation through time over L windows, from a zero state):
 - temporal consistency (Lai et al., ECCV 2018, as E2VID+ uses it): TC_k = mean( M_k . |I^_k - W_k(I^_k-1)| ), where W_k
   warps the previous prediction into view k with the true motion (the simulator's homography) and
   M_k = exp(-alpha |I_k - W_k(I_k-1)|^2), alpha = 50, masks pixels where the warp does not explain the true images
-  (occlusions, borders).
+  (occlusions, borders). The true motion is a flow field per window, W_k(I)(u) = I(u + flow_k(u)): a training set
+  (:mod:`evio_lib.events.reconstruction.training_set`) stores it, and a planar sample's homography gives it as
+  flow_k(u) = pi(H u) - u.
+
+Data come from a training set folder (``training_set``: every sequence of its ``train`` split, validation on its ``val``
+split) or, without one, from :func:`~evio_lib.events.reconstruction.data.reconstruction_dataset`'s planar samples.
+Augmentation per step: a random crop, horizontal and vertical flips (the flow's components negated to match), and with
+probability ``time_reversal`` the batch played backwards: window order and voxel bins reversed and the polarity negated
+(events at T - t with -p are the events of the reversed video), each window's label the image at its new end (the
+previous window's end: one window fewer), and no temporal-consistency term (the stored flow points the other way).
+A polarity swap alone is not used: it stands for the negated log image, whose linear intensity 1/I is not an image in
+[0, 1] the network can output.
+
+The checkpoint kept as ``best.pt`` is the one with the highest validation SSIM.
 
 E2VID's perceptual LPIPS term needs an ImageNet-pretrained VGG/AlexNet, whose weights cannot be downloaded here; it is
 left out rather than imitated.
@@ -30,11 +43,13 @@ import torch
 from torch.nn import functional as F
 
 from evio_lib.events.reconstruction.data import ReconstructionDataConfig, reconstruction_dataset
+from evio_lib.events.reconstruction.training_set import load_sequence, read_training_set
 from evio_lib.events.reconstruction.nets import build_network, count_parameters
 from evio_lib.io.checkpoint import load_state, read_checkpoint
 from evio_lib.events.reconstruction.training_options import add_reconstruct_train_arguments  # no torch
 
-__all__ = ["ReconstructionTrainConfig", "ssim_torch", "warp_with_homography", "temporal_consistency_loss",
+__all__ = ["ReconstructionTrainConfig", "ssim_torch", "warp_with_homography", "warp_with_flow",
+           "flow_from_homographies", "temporal_consistency_loss",
            "sequence_loss", "train_reconstructor", "evaluate_on_samples", "add_reconstruct_train_arguments",
            "main_reconstruct_train"]
 
@@ -61,6 +76,9 @@ class ReconstructionTrainConfig:
     threads: int = 1                   # torch threads: 1 is fastest on a loaded 2-core machine (OpenMP spin-waits)
     device: str = "cpu"
     init_from: str | None = None       # a reconstruct-train checkpoint whose weights start the run (fine-tuning)
+    training_set: str | None = None    # a reconstruct-data folder; None: planar samples drawn by `data`, n_train, n_val
+    time_reversal: float = 0.0         # probability of playing a batch backwards
+    preload: bool = False              # read the whole training set into memory first (fast steps on a GPU)
 
     def __post_init__(self) -> None:
         if isinstance(self.data, dict):
@@ -78,6 +96,13 @@ class ReconstructionTrainConfig:
         build_network(self.architecture, self.data.num_bins, **self.network_options)  # fails early on a bad name
         if self.init_from is not None and not Path(self.init_from).is_file():
             raise ValueError(f"init_from must be a reconstruct-train checkpoint file; {self.init_from!r} does not exist")
+        if not (np.isfinite(self.time_reversal) and 0 <= self.time_reversal <= 1):
+            raise ValueError(f"time_reversal must be a probability in [0, 1]; got {self.time_reversal!r}")
+        if self.training_set is not None:
+            _, data = read_training_set(self.training_set, "train")   # refuses a folder that is no complete set
+            if data.num_bins != self.data.num_bins:
+                raise ValueError(f"the training set {self.training_set} has {data.num_bins} voxel bins; this run's "
+                                 f"network takes data.num_bins = {self.data.num_bins}")
 
     def to_dict(self) -> dict:
         """Return the config as plain JSON-able values."""
@@ -133,20 +158,50 @@ def warp_with_homography(image: torch.Tensor, H_cur_to_prev: torch.Tensor) -> to
     return F.grid_sample(image, grid, mode="bilinear", padding_mode="zeros", align_corners=True)
 
 
+def warp_with_flow(image: torch.Tensor, flow: torch.Tensor) -> torch.Tensor:
+    """Return ``image`` (the previous view, (N, C, H, W)) resampled into the current view: out(u) = image(u + flow(u)).
+
+    ``flow`` (N, 2, H, W) holds (dx, dy) in pixels from each current-view pixel to its place in the previous view.
+    Outside samples are zero.
+    """
+    n, _, h, w = image.shape
+    ys, xs = torch.meshgrid(torch.arange(h, dtype=image.dtype, device=image.device),
+                            torch.arange(w, dtype=image.dtype, device=image.device), indexing="ij")
+    x = xs + flow[:, 0].to(image.dtype)
+    y = ys + flow[:, 1].to(image.dtype)
+    grid = torch.stack([2 * x / (w - 1) - 1, 2 * y / (h - 1) - 1], dim=-1)
+    return F.grid_sample(image, grid, mode="bilinear", padding_mode="zeros", align_corners=True)
+
+
+def flow_from_homographies(H_cur_to_prev: np.ndarray, height: int, width: int) -> np.ndarray:
+    """Return (..., 2, H, W) float16 flows pi(H u) - u of (..., 3, 3) homographies mapping current into previous pixels."""
+    ys, xs = np.mgrid[0:height, 0:width].astype(np.float64)
+    pts = np.stack([xs, ys, np.ones_like(xs)]).reshape(3, -1)
+    mapped = np.asarray(H_cur_to_prev, np.float64) @ pts                         # (..., 3, HW)
+    xy = mapped[..., :2, :] / np.maximum(mapped[..., 2:3, :], 1e-6)
+    return (xy - pts[:2]).reshape(*np.shape(H_cur_to_prev)[:-2], 2, height, width).astype(np.float16)
+
+
 def temporal_consistency_loss(pred: torch.Tensor, pred_prev: torch.Tensor, frame: torch.Tensor, frame_prev: torch.Tensor,
-                              H_cur_to_prev: torch.Tensor, alpha: float = 50.0) -> torch.Tensor:
-    """Return mean(M . |pred - W(pred_prev)|) with M = exp(-alpha |frame - W(frame_prev)|^2) (Lai et al. 2018)."""
-    warped_pred = warp_with_homography(pred_prev, H_cur_to_prev)
+                              flow: torch.Tensor, alpha: float = 50.0) -> torch.Tensor:
+    """Return mean(M . |pred - W(pred_prev)|) with M = exp(-alpha |frame - W(frame_prev)|^2) (Lai et al. 2018).
+
+    W warps the previous view into the current one with the true ``flow`` (N, 2, H, W) (:func:`warp_with_flow`).
+    """
+    warped_pred = warp_with_flow(pred_prev, flow)
     with torch.no_grad():
-        mask = torch.exp(-alpha * (frame - warp_with_homography(frame_prev, H_cur_to_prev)) ** 2)
-        inside = warp_with_homography(torch.ones_like(frame_prev), H_cur_to_prev) > 0.999
+        mask = torch.exp(-alpha * (frame - warp_with_flow(frame_prev, flow)) ** 2)
+        inside = warp_with_flow(torch.ones_like(frame_prev), flow) > 0.999
         mask = mask * inside
     return (mask * (pred - warped_pred).abs()).sum() / mask.sum().clamp(min=1.0)
 
 
-def sequence_loss(net: torch.nn.Module, voxels: torch.Tensor, frames: torch.Tensor, H_prev: torch.Tensor,
+def sequence_loss(net: torch.nn.Module, voxels: torch.Tensor, frames: torch.Tensor, flow: torch.Tensor | None,
                   config: ReconstructionTrainConfig) -> tuple[torch.Tensor, dict[str, float]]:
-    """Return (loss, parts) of one batch: voxels (N, L, B, H, W), frames (N, L, H, W), H_prev (N, L, 3, 3)."""
+    """Return (loss, parts) of one batch: voxels (N, L, B, H, W), frames (N, L, H, W), flow (N, L, 2, H, W) or None.
+
+    ``flow=None`` leaves out the temporal-consistency term (a batch played backwards).
+    """
     state, prev, parts = None, None, {"l1": 0.0, "ssim": 0.0, "tc": 0.0}
     total = voxels.new_zeros(())
     n_windows = voxels.shape[1]
@@ -158,8 +213,8 @@ def sequence_loss(net: torch.nn.Module, voxels: torch.Tensor, frames: torch.Tens
         loss = l1 + config.lambda_ssim * (1 - ssim)
         parts["l1"] += l1.item() / n_windows
         parts["ssim"] += ssim.item() / n_windows
-        if prev is not None and config.lambda_tc > 0:
-            tc = temporal_consistency_loss(pred, prev, target, frames[:, k - 1:k], H_prev[:, k], config.tc_alpha)
+        if prev is not None and config.lambda_tc > 0 and flow is not None:
+            tc = temporal_consistency_loss(pred, prev, target, frames[:, k - 1:k], flow[:, k], config.tc_alpha)
             loss = loss + config.lambda_tc * tc
             parts["tc"] += tc.item() / n_windows
         total = total + loss / n_windows
@@ -167,50 +222,89 @@ def sequence_loss(net: torch.nn.Module, voxels: torch.Tensor, frames: torch.Tens
     return total, parts
 
 
-def _augment_batch(rng: np.random.Generator, voxels: np.ndarray, frames: np.ndarray, H_prev: np.ndarray,
-                   crop: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Return random crop x crop windows of the batch, flipped at random (homographies conjugated to match).
+def _augment_batch(rng: np.random.Generator, voxels: np.ndarray, frames: np.ndarray, flow: np.ndarray, crop: int,
+                   time_reversal: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Return random crop x crop windows of the batch, flipped at random, and played backwards with ``time_reversal``.
 
-    A crop at offset o has pixels u' = u - o = S u, so H' = S H S^-1; a flip u' = (size - 1) - u is its own inverse F,
-    so H' = F H F.
+    A crop keeps the flow (a displacement); a flip u' = (size - 1) - u negates its component along that axis. Played
+    backwards (see the module docstring) the batch has one window fewer and no flow (None).
     """
     height, width = frames.shape[-2:]
     crop_h, crop_w = min(crop, height), min(crop, width)
     out_v = np.empty(voxels.shape[:3] + (crop_h, crop_w), voxels.dtype)
     out_f = np.empty(frames.shape[:2] + (crop_h, crop_w), frames.dtype)
-    H_prev = H_prev.astype(np.float64)
+    out_w = np.empty(flow.shape[:3] + (crop_h, crop_w), flow.dtype)
     for i in range(voxels.shape[0]):
         oy, ox = int(rng.integers(0, height - crop_h + 1)), int(rng.integers(0, width - crop_w + 1))
         out_v[i] = voxels[i, ..., oy:oy + crop_h, ox:ox + crop_w]
         out_f[i] = frames[i, ..., oy:oy + crop_h, ox:ox + crop_w]
-        shift = np.array([[1.0, 0.0, -ox], [0.0, 1.0, -oy], [0.0, 0.0, 1.0]])
-        H_prev[i] = shift @ H_prev[i] @ np.linalg.inv(shift)
-    voxels, frames = out_v, out_f
-    width, height = crop_w, crop_h
+        out_w[i] = flow[i, ..., oy:oy + crop_h, ox:ox + crop_w]
+    voxels, frames, flow = out_v, out_f, out_w
     for i in range(voxels.shape[0]):
-        for axis, size in ((-1, width), (-2, height)):
+        for axis, component in ((-1, 0), (-2, 1)):
             if rng.random() < 0.5:
                 voxels[i] = np.flip(voxels[i], axis=axis)
                 frames[i] = np.flip(frames[i], axis=axis)
-                flip = np.eye(3)
-                j = 0 if axis == -1 else 1
-                flip[j, j], flip[j, 2] = -1.0, size - 1.0          # u' = (size - 1) - u, its own inverse
-                H_prev[i] = flip @ H_prev[i] @ flip
-    return voxels, frames, H_prev.astype(np.float32)
+                flow[i] = np.flip(flow[i], axis=axis)
+                flow[i, :, component] *= -1
+    if time_reversal > 0 and voxels.shape[1] > 1 and rng.random() < time_reversal:
+        reversed_voxels = -voxels[:, :0:-1, ::-1]                 # windows L-1..1, bins reversed, polarity negated
+        return np.ascontiguousarray(reversed_voxels), np.ascontiguousarray(frames[:, -2::-1]), None
+    return voxels, frames, flow
 
 
-def evaluate_on_samples(net: torch.nn.Module, data: dict[str, np.ndarray], config: ReconstructionTrainConfig,
+class _SampleSource:
+    """Training or validation sequences, from a training-set folder or an in-memory stack of planar samples.
+
+    ``len(source)`` sequences; ``source.take(indices)`` returns stacked (voxels, frames, flow) numpy arrays.
+    """
+
+    def __init__(self, paths: list[Path] | None = None, arrays: dict[str, np.ndarray] | None = None,
+                 preload: bool = False) -> None:
+        self.paths = paths
+        self.arrays = arrays
+        if arrays is not None and "flow" not in arrays:            # planar samples: homographies -> flows
+            h, w = arrays["frames"].shape[-2:]
+            self.arrays = {"voxels": arrays["voxels"], "frames": arrays["frames"],
+                           "flow": flow_from_homographies(arrays["H_prev"], h, w)}
+        if paths is not None and preload:
+            from concurrent.futures import ThreadPoolExecutor
+
+            with ThreadPoolExecutor(8) as pool:                   # zlib decompression releases the GIL
+                loaded = list(pool.map(load_sequence, paths))
+            self.arrays = {k: np.stack([x[k] for x in loaded]) for k in ("voxels", "frames", "flow")}
+
+    def __len__(self) -> int:
+        return len(self.paths) if self.arrays is None else self.arrays["voxels"].shape[0]
+
+    def take(self, indices) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        if self.arrays is not None:
+            return tuple(self.arrays[k][indices] for k in ("voxels", "frames", "flow"))
+        loaded = [load_sequence(self.paths[int(i)]) for i in indices]
+        return tuple(np.stack([x[k] for x in loaded]) for k in ("voxels", "frames", "flow"))
+
+
+def _as_source(data, preload: bool = False) -> _SampleSource:
+    return data if isinstance(data, _SampleSource) else _SampleSource(arrays=data)
+
+
+def evaluate_on_samples(net: torch.nn.Module, data, config: ReconstructionTrainConfig,
                         batch_size: int = 8) -> dict[str, float]:
-    """Return the mean loss parts (l1, ssim, tc) of ``net`` on a stack of samples, without gradients."""
+    """Return the mean loss parts (l1, ssim, tc) and loss of ``net`` on sequences, without gradients.
+
+    ``data``: a stack of planar samples (:func:`reconstruction_dataset`) or a sequence source of a training set.
+    """
+    data = _as_source(data)
     sums, count = {"l1": 0.0, "ssim": 0.0, "tc": 0.0, "loss": 0.0}, 0
     was_training = net.training
     net.eval()
     with torch.no_grad():
-        for i in range(0, data["voxels"].shape[0], batch_size):
-            v = torch.from_numpy(data["voxels"][i:i + batch_size].astype(np.float32)).to(config.device)
-            f = torch.from_numpy(data["frames"][i:i + batch_size].astype(np.float32)).to(config.device)
-            h = torch.from_numpy(data["H_prev"][i:i + batch_size]).to(config.device)
-            loss, parts = sequence_loss(net, v, f, h, config)
+        for i in range(0, len(data), batch_size):
+            voxels, frames, flow = data.take(np.arange(i, min(i + batch_size, len(data))))
+            v = torch.from_numpy(voxels.astype(np.float32)).to(config.device)
+            f = torch.from_numpy(frames.astype(np.float32)).to(config.device)
+            w = torch.from_numpy(flow.astype(np.float32)).to(config.device)
+            loss, parts = sequence_loss(net, v, f, w, config)
             n = v.shape[0]
             for k in parts:
                 sums[k] += parts[k] * n
@@ -236,7 +330,7 @@ def _save(path: Path, net, optimizer, config: ReconstructionTrainConfig, step: i
     torch.save({"format": "evio-reconstructor-v1", "config": config.to_dict(), "architecture": config.architecture,
                 "network_options": config.network_options, "num_bins": config.data.num_bins,
                 "state_dict": net.state_dict(), "optimizer": optimizer.state_dict(), "step": step,
-                "history": history, "rng": rng.bit_generator.state, "best_val_loss": best}, tmp)
+                "history": history, "rng": rng.bit_generator.state, "best_val_ssim": best}, tmp)
     tmp.replace(path)
 
 
@@ -260,7 +354,7 @@ def _load_initial_weights(net: torch.nn.Module, config: ReconstructionTrainConfi
 
 def train_reconstructor(config: ReconstructionTrainConfig, out: str | Path, resume: bool = False,
                         progress: bool = True, data: dict | None = None, val_data: dict | None = None) -> dict:
-    """Train a reconstructor; write ``last.pt``, ``best.pt`` (lowest validation loss) and ``history.json`` in ``out``.
+    """Train a reconstructor; write ``last.pt``, ``best.pt`` (highest validation SSIM) and ``history.json`` in ``out``.
 
     Returns a summary: steps done, minutes, final and best validation metrics. With ``resume`` the run continues from
     ``out/last.pt`` (same config required) and gives the same result as an uninterrupted run of the same total steps.
@@ -270,7 +364,8 @@ def train_reconstructor(config: ReconstructionTrainConfig, out: str | Path, resu
         out: the run folder (created).
         resume: continue from ``out/last.pt``.
         progress: show a tqdm progress bar.
-        data, val_data: pre-made sample stacks (tests); default: :func:`reconstruction_dataset` for train and val.
+        data, val_data: pre-made sample stacks (tests); default: the training set's train and val splits, or without
+            one :func:`reconstruction_dataset`'s planar samples.
     """
     out = Path(out)
     torch.set_num_threads(config.threads)
@@ -278,7 +373,7 @@ def train_reconstructor(config: ReconstructionTrainConfig, out: str | Path, resu
     net = build_network(config.architecture, config.data.num_bins, **config.network_options).to(config.device)
     optimizer = torch.optim.Adam(net.parameters(), lr=config.lr)
     rng = np.random.default_rng(config.seed)
-    step, history, best = 0, [], math.inf
+    step, history, best = 0, [], -math.inf
     last = out / "last.pt"
     if config.init_from is not None and not resume:
         _load_initial_weights(net, config)
@@ -289,7 +384,7 @@ def train_reconstructor(config: ReconstructionTrainConfig, out: str | Path, resu
             ckpt = read_checkpoint(last, "reconstructor", map_location=config.device, weights_only=True)
         except ValueError as error:
             raise ValueError(f"--resume: {error}") from None
-        missing = [key for key in ("config", "optimizer", "step", "history", "best_val_loss", "rng") if key not in ckpt]
+        missing = [key for key in ("config", "optimizer", "step", "history", "best_val_ssim", "rng") if key not in ckpt]
         if missing:
             raise ValueError(f"--resume: {last} lacks {missing}: not the last.pt of a reconstruct-train run "
                              f"(start a new --out folder)")
@@ -301,17 +396,22 @@ def train_reconstructor(config: ReconstructionTrainConfig, out: str | Path, resu
             load_state(optimizer, ckpt["optimizer"], last, "its optimizer state does not fit this run's optimizer")
         except ValueError as error:
             raise ValueError(f"--resume: {error}") from None
-        step, history, best = ckpt["step"], ckpt["history"], ckpt["best_val_loss"]
+        step, history, best = ckpt["step"], ckpt["history"], ckpt["best_val_ssim"]
         rng.bit_generator.state = ckpt["rng"]
     out.mkdir(parents=True, exist_ok=True)
     (out / "config.json").write_text(json.dumps(config.to_dict(), indent=2) + "\n")
+    if data is None and config.training_set is not None:
+        data = _SampleSource(read_training_set(config.training_set, "train")[0], preload=config.preload)
+    if val_data is None and config.training_set is not None:
+        val_data = _SampleSource(read_training_set(config.training_set, "val")[0], preload=config.preload)
     if data is None:
         data = reconstruction_dataset("train", config.n_train, config.seed, config.data, progress=progress,
                                       workers=max(2, config.threads))
     if val_data is None:
         val_data = reconstruction_dataset("val", config.n_val, config.seed, config.data, progress=progress,
                                           workers=max(2, config.threads))
-    n_train = data["voxels"].shape[0]
+    data, val_data = _as_source(data), _as_source(val_data)
+    n_train = len(data)
     start = time.perf_counter()
     bar = None
     if progress:
@@ -322,10 +422,11 @@ def train_reconstructor(config: ReconstructionTrainConfig, out: str | Path, resu
     try:
         while step < config.steps:
             idx = rng.integers(0, n_train, config.batch_size)
-            v, f, h = _augment_batch(rng, data["voxels"][idx], data["frames"][idx], data["H_prev"][idx], config.crop)
+            v, f, w = _augment_batch(rng, *data.take(idx), config.crop, config.time_reversal)
             loss, parts = sequence_loss(net, torch.from_numpy(v.astype(np.float32)).to(config.device),
                                         torch.from_numpy(f.astype(np.float32)).to(config.device),
-                                        torch.from_numpy(h).to(config.device), config)
+                                        None if w is None else torch.from_numpy(w.astype(np.float32)).to(config.device),
+                                        config)
             optimizer.zero_grad()
             loss.backward()
             torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)
@@ -339,8 +440,8 @@ def train_reconstructor(config: ReconstructionTrainConfig, out: str | Path, resu
             if step % config.validate_every == 0 or step == config.steps or out_of_time:
                 val = evaluate_on_samples(net, val_data, config)
                 history.append({"step": step, "train_loss": running, **{f"val_{k}": x for k, x in val.items()}})
-                if val["loss"] < best:
-                    best = val["loss"]
+                if val["ssim"] > best:
+                    best = val["ssim"]
                     _save(out / "best.pt", net, optimizer, config, step, history, rng, best)
                 _save(last, net, optimizer, config, step, history, rng, best)
                 (out / "history.json").write_text(json.dumps(history, indent=1) + "\n")
@@ -349,7 +450,7 @@ def train_reconstructor(config: ReconstructionTrainConfig, out: str | Path, resu
     finally:
         if bar is not None:
             bar.close()
-    return {"steps": step, "minutes": (time.perf_counter() - start) / 60, "best_val_loss": best,
+    return {"steps": step, "minutes": (time.perf_counter() - start) / 60, "best_val_ssim": best,
             "last": history[-1] if history else None, "parameters": count_parameters(net)}
 
 
@@ -368,6 +469,8 @@ def main_reconstruct_train(args: argparse.Namespace | Sequence[str] | None = Non
         values["device"] = args.device
     if args.init_from is not None:
         values["init_from"] = str(args.init_from)
+    if args.data is not None:
+        values["training_set"] = str(args.data)
     for item in args.set:
         key, sep, raw = item.partition("=")
         if not sep:
@@ -383,7 +486,8 @@ def main_reconstruct_train(args: argparse.Namespace | Sequence[str] | None = Non
     from evio_lib.io.output_dir import check_output_dir
 
     # not the working folder, no input nor inside one, a folder that can be created (OUT itself is --resume's input)
-    check_output_dir(out, force=True, name="--out", inputs=[("the --init-from checkpoint", args.init_from)])
+    check_output_dir(out, force=True, name="--out", inputs=[("the --init-from checkpoint", args.init_from),
+                                                            ("the --data training set", args.data)])
     if not args.resume and out.exists() and any(out.iterdir()) and not args.force:
         raise ValueError(f"--out {out} is not empty; use --resume to continue the run there or --force to start afresh")
     print(f"training {config.architecture} ({count_parameters(build_network(config.architecture, config.data.num_bins))} "

@@ -1,11 +1,30 @@
-"""Options of ``python -m evio_lib reconstruct-train``: the parser alone, without torch
-(:func:`evio_lib.events.reconstruction.training.main_reconstruct_train` runs the command)."""
+"""Options of ``python -m evio_lib reconstruct-data`` and ``reconstruct-train``: the parsers alone, without torch
+(:func:`evio_lib.events.reconstruction.training_set.main_reconstruct_data` and
+:func:`evio_lib.events.reconstruction.training.main_reconstruct_train` run the commands)."""
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
 
-__all__ = ["add_reconstruct_train_arguments"]
+__all__ = ["add_reconstruct_train_arguments", "add_reconstruct_data_arguments"]
+
+
+def add_reconstruct_data_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    """Add the options of ``python -m evio_lib reconstruct-data`` to ``parser``."""
+    from evio_lib.cli_args import output_folder
+
+    parser.add_argument("--out", type=output_folder(), required=True,
+                        help="the set's folder: training_set.json, train/, val/, test/ (run again to resume or extend)")
+    parser.add_argument("--sequences", type=int, default=2000,
+                        help="training sequences (default 2000: about 10 minutes on a 2-core CPU, 2.2 GB)")
+    parser.add_argument("--val", type=int, default=64, help="validation sequences (default 64)")
+    parser.add_argument("--test", type=int, default=64, help="test sequences (default 64)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the set (default 0)")
+    parser.add_argument("--jobs", type=int, default=2, help="worker processes (default 2); the set does not depend on it")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=JSON",
+                        help="override a setting of the set, e.g. --set height=96 --set width=96")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    return parser
 
 
 def add_reconstruct_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
@@ -14,6 +33,9 @@ def add_reconstruct_train_arguments(parser: argparse.ArgumentParser) -> argparse
 
     parser.add_argument("--out", type=output_folder(), required=True,
                         help="run folder: last.pt, best.pt, history.json, config.json")
+    parser.add_argument("--data", type=Path, default=None, metavar="SET",
+                        help="train on a reconstruct-data folder (its train split; validation on its val split); "
+                             "default: short planar samples simulated on the fly")
     parser.add_argument("--architecture", choices=["firenet", "e2vid"], default="firenet",
                         help="firenet (38k parameters, the default) or e2vid (10.7 M parameters; needs a GPU to train)")
     parser.add_argument("--steps", type=int, default=None, help="total optimisation steps (default 3000: about an hour on a 2-core CPU)")
