@@ -14,7 +14,8 @@ from evio_lib.events.reconstruction.evaluation import quality_table
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--methods", nargs="+", default=["direct", "high_pass", "firenet"])
+    parser.add_argument("--methods", nargs="+", default=["direct", "high_pass", "firenet"],
+                        help="reconstructor names or reconstruct-train checkpoint files (.pt)")
     parser.add_argument("--max-frames", type=int, default=12, help="scored windows per stretch (evenly spread)")
     args = parser.parse_args()
     rows = quality_table(args.methods, max_frames=args.max_frames)

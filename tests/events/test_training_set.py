@@ -1,0 +1,146 @@
+"""Tests of the reconstruction training set: the layered scene's flow against its renders, determinism across workers and
+set sizes, resuming, refusals, the command line, and the augmentations (time reversal against reversed events)."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from evio_lib.events.array import make_events
+from evio_lib.events.reconstruction.training import _augment_batch, warp_with_flow
+from evio_lib.events.reconstruction.training_set import (_LayeredScene, TrainingSetConfig, load_sequence,
+                                                         make_sequence, make_training_set, read_training_set)
+from evio_lib.events.representations import voxel_grid
+
+SMALL = TrainingSetConfig(height=32, width=32, windows=4, duration_min=0.3, duration_max=0.4)
+
+
+def test_sequences_are_deterministic_and_shaped():
+    a, meta_a = make_sequence(np.random.default_rng(3), "train", SMALL)
+    b, meta_b = make_sequence(np.random.default_rng(3), "train", SMALL)
+    for key in a:
+        np.testing.assert_array_equal(a[key], b[key])
+    assert meta_a == meta_b
+    assert a["voxels"].shape == (4, 5, 32, 32) and a["frames"].shape == (4, 32, 32) and a["flow"].shape == (4, 2, 32, 32)
+    assert a["voxels"].dtype == a["frames"].dtype == a["flow"].dtype == np.float16
+    assert np.all(a["flow"][0] == 0) and np.isfinite(a["flow"].astype(np.float32)).all()
+    assert meta_a["rule"] in ("count", "time") and 0 < meta_a["fraction"]
+    assert meta_a["contrast_pos"] > 0 and meta_a["events"] >= 4 * 0.05 * 32 * 32
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_flow_maps_each_pixel_to_where_it_was(seed):
+    """Warping the earlier render by the stored flow reproduces the later render (the TC loss's truth), far better than
+    no warp, on a scene with several independently moving planes."""
+    config = TrainingSetConfig(height=48, width=48, max_foreground=3, speed_min=1.0, speed_max=2.0)
+    scene = _LayeredScene(np.random.default_rng(seed), "val", config, 1.0)
+    t0, t1 = 0.30, 0.34
+    prev, cur = scene.render(t0), scene.render(t1)
+    flow = scene.flow_to(t1, t0)
+    warped = warp_with_flow(torch.from_numpy(prev)[None, None], torch.from_numpy(flow)[None])[0, 0].numpy()
+    inner = (slice(8, -8), slice(8, -8))
+    error_warped = np.median(np.abs(warped[inner] - cur[inner]))
+    error_still = np.median(np.abs(prev[inner] - cur[inner]))
+    assert np.abs(flow).max() > 0.5                      # the camera moved
+    assert error_warped < 0.3 * error_still + 1e-3
+
+
+def test_set_is_the_same_for_any_workers_and_size_and_resumes(tmp_path):
+    make_training_set(tmp_path / "a", sequences=3, val=1, test=1, seed=4, config=SMALL, workers=1, progress=False)
+    summary = make_training_set(tmp_path / "b", sequences=2, val=1, test=1, seed=4, config=SMALL, workers=2,
+                                progress=False)
+    assert summary["sequences"] == {"train": 2, "val": 1, "test": 1} and summary["events"] > 0
+    for i in range(2):
+        a = load_sequence(tmp_path / "a" / "train" / f"seq_{i:05d}.npz")
+        b = load_sequence(tmp_path / "b" / "train" / f"seq_{i:05d}.npz")
+        for key in a:
+            np.testing.assert_array_equal(a[key], b[key])
+    # resume: a lost file is made again, identical; the set grows to 3 keeping its first sequences
+    lost = tmp_path / "b" / "train" / "seq_00001.npz"
+    before = load_sequence(lost)
+    lost.unlink()
+    make_training_set(tmp_path / "b", sequences=3, val=1, test=1, seed=4, config=SMALL, workers=1, progress=False)
+    np.testing.assert_array_equal(load_sequence(lost)["voxels"], before["voxels"])
+    paths, config = read_training_set(tmp_path / "b", "train")
+    assert len(paths) == 3 and config == SMALL
+    assert not list((tmp_path / "b").rglob("*.tmp*"))   # no temporary file left behind
+
+
+def test_refusals_name_the_problem(tmp_path):
+    make_training_set(tmp_path / "s", sequences=1, val=1, test=0, seed=0, config=SMALL, workers=1, progress=False)
+    with pytest.raises(ValueError, match="other settings"):
+        make_training_set(tmp_path / "s", sequences=1, val=1, test=0, seed=1, config=SMALL, progress=False)
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "notes.txt").write_text("keep")
+    with pytest.raises(ValueError, match="not a training set"):
+        make_training_set(tmp_path / "mine", sequences=1, config=SMALL, progress=False)
+    assert (tmp_path / "mine" / "notes.txt").read_text() == "keep"
+    with pytest.raises(ValueError, match="no training_set.json"):
+        read_training_set(tmp_path / "mine", "train")
+    manifest = tmp_path / "s" / "training_set.json"
+    values = json.loads(manifest.read_text())
+    manifest.write_text(json.dumps({**values, "complete": False}))
+    with pytest.raises(ValueError, match="incomplete"):
+        read_training_set(tmp_path / "s", "train")
+    manifest.write_text(json.dumps(values))
+    (tmp_path / "s" / "val" / "seq_00000.json").unlink()
+    with pytest.raises(ValueError, match="lacks 1 of its 1 val sequences"):
+        read_training_set(tmp_path / "s", "val")
+    with pytest.raises(ValueError, match="unknown training-set settings"):
+        TrainingSetConfig.from_dict({"hieght": 32})
+    with pytest.raises(ValueError, match="duration_min"):
+        TrainingSetConfig(duration_min=2.0, duration_max=1.0)
+
+
+def test_command_line_errors_are_one_line(tmp_path, capsys):
+    from evio_lib.cli import main
+
+    for argv, expected in ((["--sequences", "0"], "--sequences must be >= 1"),
+                           (["--set", "windows=0"], "windows must be a positive integer"),
+                           (["--set", "speed"], "--set expects KEY=JSON")):
+        code = main(["reconstruct-data", "--out", str(tmp_path / "x"), *argv])
+        err = capsys.readouterr().err.strip().splitlines()
+        assert code == 2 and len(err) == 1 and err[0].startswith("error:") and expected in err[0], err
+    assert not (tmp_path / "x").exists()
+
+
+def test_time_reversal_equals_the_voxels_of_the_reversed_events():
+    """Played backwards, a window's voxel grid is the grid of the events at T - t with negated polarity."""
+    rng = np.random.default_rng(0)
+    n = 400
+    t = np.sort(rng.uniform(0.0, 1.0, n))
+    x, y, p = rng.integers(0, 16, n), rng.integers(0, 12, n), rng.choice([-1, 1], n)
+    forward = voxel_grid(make_events(t, x, y, p), 16, 12, 5)
+    order = np.argsort(1.0 - t, kind="stable")
+    backward = voxel_grid(make_events((1.0 - t)[order], x[order], y[order], -p[order]), 16, 12, 5)
+    voxels = np.stack([forward, forward])[None]                         # (1, L=2, B, H, W)
+    frames = np.zeros((1, 2, 12, 16), np.float32)
+    frames[0, 0] = 0.25
+    flow = np.zeros((1, 2, 2, 12, 16), np.float32)
+    always = np.random.default_rng(1)
+    v, f, w = _augment_batch(always, voxels, frames, flow, crop=64, time_reversal=1.0)
+    assert w is None and v.shape[1] == 1 and f.shape[1] == 1
+    # the flips are random: undo them by comparing against every flip of the truth
+    candidates = [backward, backward[..., ::-1], backward[..., ::-1, :], backward[..., ::-1, ::-1]]
+    assert any(np.allclose(v[0, 0], c, atol=1e-5) for c in candidates)
+    assert np.all(f[0, 0] == 0.25)                                       # the label is the earlier window's end
+
+
+def test_flips_keep_flow_and_images_consistent():
+    """Flipping images and flow then warping equals warping then flipping."""
+    rng = np.random.default_rng(2)
+    frames = rng.uniform(0, 1, (1, 2, 10, 14)).astype(np.float32)
+    flow = np.zeros((1, 2, 2, 10, 14), np.float32)
+    flow[0, 1, 0], flow[0, 1, 1] = 1.0, -1.0                              # x + 1, y - 1
+    voxels = np.zeros((1, 2, 5, 10, 14), np.float32)
+    for seed in range(4):
+        _, f, w = _augment_batch(np.random.default_rng(seed), voxels.copy(), frames.copy(), flow.copy(), crop=64)
+        warped = warp_with_flow(torch.from_numpy(np.ascontiguousarray(f[:, 0:1])),
+                                torch.from_numpy(np.ascontiguousarray(w[:, 1])))[0, 0].numpy()
+        plain = warp_with_flow(torch.from_numpy(frames[:, 0:1]), torch.from_numpy(flow[:, 1]))[0, 0].numpy()
+        flipped_plain = [plain, plain[:, ::-1], plain[::-1, :], plain[::-1, ::-1]]
+        flipped_frame = [frames[0, 1], frames[0, 1, :, ::-1], frames[0, 1, ::-1], frames[0, 1, ::-1, ::-1]]
+        k = next(i for i, c in enumerate(flipped_frame) if np.array_equal(c, f[0, 1]))
+        np.testing.assert_allclose(warped, flipped_plain[k], atol=1e-5)
