@@ -14,3 +14,13 @@ def test_former_module_name_is_an_alias(old, new):
     current = importlib.import_module(f"evio_lib.events.reconstruction.{new}")
     assert former is current
     assert former.__all__ and all(hasattr(current, name) for name in former.__all__)
+
+
+def test_the_real_data_folder_is_beside_the_repository():
+    """The move into the package must not change where the real recordings are looked for."""
+    from pathlib import Path
+
+    from evio_lib.events.reconstruction.evaluation import REAL_DATA
+
+    repository = Path(__file__).resolve().parents[2]
+    assert REAL_DATA == repository.parent / "shared" / "data" / "real"

@@ -197,7 +197,7 @@ def score_at_frame_times(reconstructor: Reconstructor, events: np.ndarray, frame
 #: The thesis's window fraction per scene (§4.1): 0.7 on the textured boxes, 0.2 on the sparse aerial flight.
 THESIS_FRACTION = {"boxes_like_slow": 0.7, "boxes_like_fast": 0.7, "aerial_like": 0.2}
 #: The real slider_depth slice (read-only; never copied into the repository).
-REAL_DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "real"
+REAL_DATA = Path(__file__).resolve().parents[3].parent / "shared" / "data" / "real"   # beside the repository
 
 
 def load_slider_slice(folder: str | Path | None = None) -> dict[str, np.ndarray] | None:
