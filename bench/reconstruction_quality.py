@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import argparse
 
-from evio_lib.events.reconstruction.evaluation import quality_table
+from evio_lib.events.reconstruction.evaluation import EVAL_SEED, VALIDATION_SEED, quality_table
 
 
 def main() -> None:
@@ -17,8 +17,12 @@ def main() -> None:
     parser.add_argument("--methods", nargs="+", default=["direct", "high_pass", "firenet"],
                         help="reconstructor names or reconstruct-train checkpoint files (.pt)")
     parser.add_argument("--max-frames", type=int, default=12, help="scored windows per stretch (evenly spread)")
+    parser.add_argument("--split", choices=["test", "val"], default="test",
+                        help="test: the held-out stretches (seed 101) that are reported; val: the same stretches of "
+                             "other scenes (seed 202) where networks and settings are chosen")
     args = parser.parse_args()
-    rows = quality_table(args.methods, max_frames=args.max_frames)
+    seed = VALIDATION_SEED if args.split == "val" else EVAL_SEED
+    rows = quality_table(args.methods, max_frames=args.max_frames, seed=seed, with_slider=args.split == "test")
     print(f"| {'sequence':32s} | {'method':22s} | {'MSE':>6s} | {'SSIM':>6s} | frames |")
     print(f"|{'-' * 34}|{'-' * 24}|{'-' * 8}|{'-' * 8}|--------|")
     for r in rows:

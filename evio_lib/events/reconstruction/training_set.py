@@ -18,9 +18,12 @@ every machine, for any number of worker processes, and in a set of any size.
 
   with R(t) = R_C0toCt, n_k the plane's unit normal and v_k its own velocity in C0. Layers are drawn far to near with
   their warped masks (occlusions and disocclusions).
-- **Textures** from every source the project has: crops of the bundled scikit-image photographs at a random zoom, the
-  procedural kinds (dead leaves of rectangles or ellipses, value and fractal (Perlin-style) noise, checkerboards,
-  stripes, tiles) and the aerial farmland texture; each stretched, with random contrast, gamma and brightness.
+- **Textures** from every source the project has: crops of the bundled scikit-image photographs at a zoom
+  log-uniform over 0.3-3 (wide detailed crops to smooth close-ups), the procedural kinds (dead leaves of rectangles or
+  ellipses, value and fractal (Perlin-style) noise, checkerboards, stripes, tiles) at feature sizes log-uniform over
+  3 px to a third of the canvas, and the aerial farmland texture; 30 % of them blurred (sigma 0.5-3 px: surfaces out
+  of focus or with little texture, which the held-out scenes have and a network must not fill with invented detail);
+  each stretched, with random contrast, gamma and brightness.
   Photographs and procedural seed ranges are disjoint between the ``train``, ``val`` and ``test`` splits.
 - **Motion**, slow to violent: per axis a drift plus a sinusoid for rotation and translation; the speed is
   log-uniform over 0.2-4 view widths per second; bounded so every plane stays in front of the camera.
@@ -138,11 +141,12 @@ def _texture(rng: np.random.Generator, split: str, size: tuple[int, int]) -> np.
     if source < 0.45:                                           # a photograph, cropped at a random zoom
         names = SPLIT_PHOTOS[split]
         photo = _photo(names[int(rng.integers(len(names)))])
-        scale = rng.uniform(0.3, 1.0)
-        ch = min(photo.shape[0], int(round(size[0] / scale)))
-        cw = min(photo.shape[1], int(round(size[1] / scale)))
+        scale = float(np.exp(rng.uniform(np.log(0.3), np.log(3.0))))   # < 1: a wide, detailed crop; > 1: zoomed in
+        ch = max(8, min(photo.shape[0], int(round(size[0] / scale))))
+        cw = max(8, min(photo.shape[1], int(round(size[1] / scale))))
         r0, c0 = int(rng.integers(0, photo.shape[0] - ch + 1)), int(rng.integers(0, photo.shape[1] - cw + 1))
-        tex = cv2.resize(photo[r0:r0 + ch, c0:c0 + cw], (size[1], size[0]), interpolation=cv2.INTER_AREA)
+        tex = cv2.resize(photo[r0:r0 + ch, c0:c0 + cw], (size[1], size[0]),
+                         interpolation=cv2.INTER_AREA if scale < 1 else cv2.INTER_CUBIC)
         if rng.random() < 0.5:
             tex = tex[:, ::-1]
     elif source < 0.55:                                         # the farmland, a quarter per split
@@ -157,7 +161,10 @@ def _texture(rng: np.random.Generator, split: str, size: tuple[int, int]) -> np.
     else:                                                       # procedural: dead leaves, noise, patterns
         kind = PROCEDURAL_KINDS[int(rng.integers(len(PROCEDURAL_KINDS)))]
         seed = _SPLIT_SEED_OFFSET[split] + int(rng.integers(0, 10_000_000))
-        tex = procedural_texture(kind, size, seed=seed, scale_px=float(rng.uniform(3, max(4.0, min(size) / 5))))
+        largest = max(4.0, min(size) / 3)
+        tex = procedural_texture(kind, size, seed=seed, scale_px=float(np.exp(rng.uniform(np.log(3.0), np.log(largest)))))
+    if rng.random() < 0.3:                                      # smooth content: out-of-focus or low-texture surfaces
+        tex = cv2.GaussianBlur(tex.astype(np.float32), (0, 0), float(rng.uniform(0.5, 3.0)))
     lo, hi = np.percentile(tex, [1, 99])
     tex = np.clip((tex - lo) / max(hi - lo, 1e-3), 0.0, 1.0) ** rng.uniform(0.5, 2.0)
     lo, hi = sorted(rng.uniform(0.0, 1.0, 2))
