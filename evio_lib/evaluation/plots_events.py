@@ -135,3 +135,32 @@ def plot_training_history(history: Sequence[Mapping[str, float]]) -> plt.Figure:
             ax.legend()
     fig.tight_layout()
     return fig
+
+
+def plot_training_sequences(sequences: Sequence[Mapping[str, np.ndarray]], metas: Sequence[Mapping[str, float]],
+                            windows: Sequence[int] = (0, 10, 39), size: float = 1.9) -> plt.Figure:
+    """Return one row per training sequence: its sharp frames at ``windows`` and the polarity sum of the last one's
+    voxel grid (red ON, blue OFF), the row labelled with the sequence's contrast threshold, window rule, n and speed.
+
+    ``sequences`` and ``metas`` are what :func:`evio_lib.events.reconstruction.training_set.make_sequence` returns.
+    """
+    columns = len(windows) + 1
+    fig, axes = plt.subplots(len(sequences), columns, figsize=(size * columns, size * len(sequences)), squeeze=False)
+    for row, (arrays, meta) in zip(axes, zip(sequences, metas)):
+        last = min(windows[-1], arrays["frames"].shape[0] - 1)
+        for ax, k in zip(row, windows):
+            k = min(k, arrays["frames"].shape[0] - 1)
+            ax.imshow(arrays["frames"][k].astype(np.float32), cmap="gray", vmin=0, vmax=1)
+            ax.set_title(f"truth, window {k}", fontsize=8)
+        polarity = arrays["voxels"][last].astype(np.float32).sum(axis=0)
+        lit = np.abs(polarity[polarity != 0])
+        limit = max(float(np.percentile(lit, 95)) if lit.size else 0.0, 1e-6)   # hot pixels would set the scale
+        row[-1].imshow(polarity, cmap="bwr_r", vmin=-limit, vmax=limit)
+        row[-1].set_title(f"events, window {last}", fontsize=8)
+        rule = f"n = {meta['fraction']:.2f}" if meta["rule"] == "count" else f"time windows (n ~ {meta['fraction']:.2f})"
+        row[0].set_ylabel(f"C = {meta['contrast_pos']:.2f}\n{rule}\nspeed {meta['speed']:.1f}", fontsize=8)
+        for ax in row:
+            ax.set_xticks([])
+            ax.set_yticks([])
+    fig.tight_layout()
+    return fig

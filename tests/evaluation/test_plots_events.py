@@ -40,3 +40,18 @@ def test_figures_have_their_panels():
     assert [len(ax.lines) for ax in fig5.axes] == [2, 2]       # one curve per stage on each panel
     assert [t.get_text() for t in fig5.axes[0].get_legend().get_texts()] == ["stage 1", "stage 2"]
     plt.close("all")
+
+
+def test_training_sequences_figure_labels_each_row_with_its_sensor():
+    from evio_lib.evaluation.plots_events import plot_training_sequences
+
+    rng = np.random.default_rng(0)
+    arrays = {"frames": rng.uniform(0, 1, (40, 16, 16)).astype(np.float16),
+              "voxels": rng.normal(0, 1, (40, 5, 16, 16)).astype(np.float16)}
+    metas = [{"contrast_pos": 0.18, "rule": "count", "fraction": 0.3, "speed": 1.0},
+             {"contrast_pos": 1.2, "rule": "time", "fraction": 0.05, "speed": 3.0}]
+    fig = plot_training_sequences([arrays, arrays], metas)
+    axes = np.array(fig.axes).reshape(2, 4)
+    assert axes[0, 0].get_ylabel().startswith("C = 0.18") and "n = 0.30" in axes[0, 0].get_ylabel()
+    assert "time windows" in axes[1, 0].get_ylabel() and axes[1, 3].get_title() == "events, window 39"
+    plt.close(fig)
