@@ -64,6 +64,9 @@ __all__ = ["TrainingSetConfig", "SPLITS", "make_sequence", "make_training_set", 
 SPLITS = ("train", "val", "test")
 MANIFEST_NAME = "training_set.json"
 _FORMAT = "evio-reconstruction-set-v1"
+#: Raised whenever the generator draws differently for the same settings (2: zoomed and blurred textures), so that a
+#: set is never resumed or extended with sequences of another generator.
+GENERATOR_VERSION = 2
 _SPLIT_SEED_OFFSET = {"train": 0, "val": 10_000_000, "test": 20_000_000}
 _ARRAYS = ("voxels", "frames", "flow")
 
@@ -394,7 +397,8 @@ def _write_sequence(folder: Path, split: str, i: int, seed: int, config: Trainin
 
 
 def _manifest(config: TrainingSetConfig, seed: int, counts: dict[str, int]) -> dict:
-    return {"format": _FORMAT, "seed": int(seed), "config": asdict(config), "sequences": dict(counts)}
+    return {"format": _FORMAT, "generator": GENERATOR_VERSION, "seed": int(seed), "config": asdict(config),
+            "sequences": dict(counts)}
 
 
 def make_training_set(out: str | Path, sequences: int = 600, val: int = 32, test: int = 32, seed: int = 0,
@@ -423,11 +427,11 @@ def make_training_set(out: str | Path, sequences: int = 600, val: int = 32, test
             have = json.loads(manifest_path.read_text())
         except (OSError, ValueError) as error:
             raise ValueError(f"{manifest_path} is not a readable training-set manifest ({error}); use another folder")
-        same = {k: have.get(k) for k in ("format", "seed", "config")} == {k: wanted[k] for k in ("format", "seed",
-                                                                                               "config")}
-        if not same:
+        keys = ("format", "generator", "seed", "config")
+        if {k: have.get(k) for k in keys} != {k: wanted[k] for k in keys}:
             raise ValueError(f"{out} holds a training set made with other settings (seed {have.get('seed')}, "
-                             f"config {have.get('config')}); use another folder to make this one")
+                             f"generator version {have.get('generator')}, config {have.get('config')}); use another "
+                             f"folder to make this one")
     elif out.exists() and any(out.iterdir()):
         raise ValueError(f"{out} is not empty and holds no {MANIFEST_NAME}: not a training set; use an empty folder")
     for split in SPLITS:
