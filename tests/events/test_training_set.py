@@ -144,3 +144,24 @@ def test_flips_keep_flow_and_images_consistent():
         flipped_frame = [frames[0, 1], frames[0, 1, :, ::-1], frames[0, 1, ::-1], frames[0, 1, ::-1, ::-1]]
         k = next(i for i, c in enumerate(flipped_frame) if np.array_equal(c, f[0, 1]))
         np.testing.assert_allclose(warped, flipped_plain[k], atol=1e-5)
+
+
+def test_training_on_a_set_raises_validation_ssim_and_keeps_the_best(tmp_path):
+    from evio_lib.events.reconstruction.training import (ReconstructionTrainConfig, evaluate_on_samples, open_split,
+                                                         train_reconstructor)
+    from evio_lib.events.reconstruction.nets import FireNet
+
+    make_training_set(tmp_path / "set", sequences=6, val=2, test=0, seed=0, config=SMALL, workers=1, progress=False)
+    config = ReconstructionTrainConfig(training_set=str(tmp_path / "set"), batch_size=2, crop=32, steps=40,
+                                       validate_every=10, lr=3e-3, time_reversal=0.3)
+    torch.manual_seed(config.seed)
+    untrained = evaluate_on_samples(FireNet(), open_split(tmp_path / "set", "val"), config)
+    summary = train_reconstructor(config, tmp_path / "run", progress=False)
+    history = json.loads((tmp_path / "run" / "history.json").read_text())
+    assert summary["best_val_ssim"] == max(h["val_ssim"] for h in history) > untrained["ssim"]
+    best = torch.load(tmp_path / "run" / "best.pt", weights_only=True)
+    assert best["history"][-1]["val_ssim"] == summary["best_val_ssim"]
+    with pytest.raises(ValueError, match="voxel bins"):
+        ReconstructionTrainConfig(training_set=str(tmp_path / "set"), data={"num_bins": 3})
+    with pytest.raises(ValueError, match="not a training set"):
+        ReconstructionTrainConfig(training_set=str(tmp_path / "run"))

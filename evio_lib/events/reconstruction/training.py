@@ -49,7 +49,7 @@ from evio_lib.io.checkpoint import load_state, read_checkpoint
 from evio_lib.events.reconstruction.training_options import add_reconstruct_train_arguments  # no torch
 
 __all__ = ["ReconstructionTrainConfig", "ssim_torch", "warp_with_homography", "warp_with_flow",
-           "flow_from_homographies", "temporal_consistency_loss",
+           "flow_from_homographies", "temporal_consistency_loss", "SequenceSource", "open_split",
            "sequence_loss", "train_reconstructor", "evaluate_on_samples", "add_reconstruct_train_arguments",
            "main_reconstruct_train"]
 
@@ -253,7 +253,7 @@ def _augment_batch(rng: np.random.Generator, voxels: np.ndarray, frames: np.ndar
     return voxels, frames, flow
 
 
-class _SampleSource:
+class SequenceSource:
     """Training or validation sequences, from a training-set folder or an in-memory stack of planar samples.
 
     ``len(source)`` sequences; ``source.take(indices)`` returns stacked (voxels, frames, flow) numpy arrays.
@@ -284,8 +284,13 @@ class _SampleSource:
         return tuple(np.stack([x[k] for x in loaded]) for k in ("voxels", "frames", "flow"))
 
 
-def _as_source(data, preload: bool = False) -> _SampleSource:
-    return data if isinstance(data, _SampleSource) else _SampleSource(arrays=data)
+def open_split(folder: str | Path, split: str, preload: bool = False) -> SequenceSource:
+    """Return the sequences of one split (``train``, ``val`` or ``test``) of a reconstruct-data training set."""
+    return SequenceSource(read_training_set(folder, split)[0], preload=preload)
+
+
+def _as_source(data) -> SequenceSource:
+    return data if isinstance(data, SequenceSource) else SequenceSource(arrays=data)
 
 
 def evaluate_on_samples(net: torch.nn.Module, data, config: ReconstructionTrainConfig,
@@ -401,9 +406,9 @@ def train_reconstructor(config: ReconstructionTrainConfig, out: str | Path, resu
     out.mkdir(parents=True, exist_ok=True)
     (out / "config.json").write_text(json.dumps(config.to_dict(), indent=2) + "\n")
     if data is None and config.training_set is not None:
-        data = _SampleSource(read_training_set(config.training_set, "train")[0], preload=config.preload)
+        data = open_split(config.training_set, "train", preload=config.preload)
     if val_data is None and config.training_set is not None:
-        val_data = _SampleSource(read_training_set(config.training_set, "val")[0], preload=config.preload)
+        val_data = open_split(config.training_set, "val", preload=config.preload)
     if data is None:
         data = reconstruction_dataset("train", config.n_train, config.seed, config.data, progress=progress,
                                       workers=max(2, config.threads))
