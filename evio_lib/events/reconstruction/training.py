@@ -43,7 +43,7 @@ import torch
 from torch.nn import functional as F
 
 from evio_lib.events.reconstruction.data import ReconstructionDataConfig, reconstruction_dataset
-from evio_lib.events.reconstruction.training_set import load_sequence, read_training_set
+from evio_lib.events.reconstruction.training_set import MANIFEST_NAME, load_sequence, read_training_set
 from evio_lib.events.reconstruction.nets import build_network, count_parameters
 from evio_lib.io.checkpoint import load_state, read_checkpoint
 from evio_lib.events.reconstruction.training_options import add_reconstruct_train_arguments  # no torch
@@ -330,12 +330,17 @@ def _run_defining(values: dict) -> dict:
 
 def _save(path: Path, net, optimizer, config: ReconstructionTrainConfig, step: int, history: list,
           rng: np.random.Generator, best: float) -> None:
-    """Write a checkpoint atomically (a temporary file, then rename)."""
+    """Write a checkpoint atomically (a temporary file, then rename); it records the training set's manifest (its
+    settings, seed, counts and generator version), so the data can be made again."""
     tmp = path.with_suffix(".tmp")
+    manifest = None
+    if config.training_set is not None:
+        manifest = json.loads((Path(config.training_set) / MANIFEST_NAME).read_text())
     torch.save({"format": "evio-reconstructor-v1", "config": config.to_dict(), "architecture": config.architecture,
                 "network_options": config.network_options, "num_bins": config.data.num_bins,
                 "state_dict": net.state_dict(), "optimizer": optimizer.state_dict(), "step": step,
-                "history": history, "rng": rng.bit_generator.state, "best_val_ssim": best}, tmp)
+                "history": history, "rng": rng.bit_generator.state, "best_val_ssim": best,
+                "training_set_manifest": manifest}, tmp)
     tmp.replace(path)
 
 
