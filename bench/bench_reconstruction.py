@@ -1,10 +1,21 @@
 """Print the reconstruction rate (frames/s) at 240x180, batch 1, state carried, for every method.
 
-Usage:  python bench/bench_reconstruction.py [--frames N] [--threads T]
+Usage:  python bench/bench_reconstruction.py [--frames N] [--threads T] [--variants]
 
 Each frame is one window of N_e = 0.35 * 240 * 180 events (uniform random events, seed 0); the rate includes building
 the voxel grid. The large E2VID-style network runs with random weights (none are shipped): its speed does not depend on
 them. Goal for the default network: at least 100 frames/s on a 2-core CPU. Measured figures: docs/reconstruction.md.
+
+``--variants`` also times FireNet's forward pass alone (state carried, on the same voxel grids) in the variants tried
+for issue 23, with each one's largest difference from the eager float32 network's images:
+``eager`` (FireNet as trained), ``channels_last`` (the same module in channels-last memory), ``fast`` (the
+FireNetInference the reconstructor uses: channels-last, split GRU convolutions, tanh via sigmoid, in-place steps),
+``bf16`` (autocast to bfloat16: about twice as fast on CPUs with AVX512-BF16, but 5e-3 off, over the 1e-3 allowed),
+``jit`` (torch.jit.trace + freeze) and ``compile`` (torch.compile with inductor freezing; tens of seconds to compile).
+Measured 2026-11-27 on the 2-core AMD EPYC (AVX-512, load 2-4 from another job), 1 thread, ms per frame:
+eager 50-57, channels_last 46.7, fast 42-43, bf16 25.8 (max diff 5.4e-3), compile 49.9 (+ freezing on the fast
+module: 48.0), the convolutions alone 32-33 ms (1.62 G multiply-adds per frame at about 95 % of what eager conv2d
+reaches): 100 frames/s on two cores is out of reach for this network in float32.
 """
 from __future__ import annotations
 
@@ -26,6 +37,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=50)
     parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--variants", action="store_true", help="also time the FireNet forward-pass variants")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     w, h = 240, 180
@@ -52,6 +64,75 @@ def main() -> None:
             rec.reconstruct(window)
         rate = count / (time.perf_counter() - start)
         print(f"{name:24s} {rate:8.1f} frames/s  ({1e3 / rate:.1f} ms per frame, {args.threads} threads)")
+    if args.variants:
+        grids = [torch.from_numpy(voxel_grid(window, w, h, 5))[None] for window in windows]
+        net = methods["firenet"].net
+        reference = _forward_all(net, grids)
+        for name, forward in _variants(net, grids[0]).items():
+            images = _forward_all(forward, grids)
+            diff = max(float((a.float() - b).abs().max()) for a, b in zip(images, reference))
+            start = time.perf_counter()
+            _forward_all(forward, grids)
+            rate = len(grids) / (time.perf_counter() - start)
+            print(f"firenet forward: {name:14s} {rate:8.1f} frames/s  ({1e3 / rate:.1f} ms per frame, "
+                  f"{args.threads} threads)  max |diff| from eager {diff:.1e}")
+
+
+def _forward_all(forward, grids: list) -> list:
+    """Return the images of ``forward`` over ``grids``, state carried from the first."""
+    images, state = [], None
+    with torch.inference_mode():
+        for grid in grids:
+            image, state = forward(grid, state)
+            images.append(image.float().clone())
+    return images
+
+
+def _variants(net, example) -> dict:
+    """Return name -> forward(voxels, state) for each variant of FireNet's forward pass."""
+    import copy
+
+    from evio_lib.events.reconstruction.nets import FireNetInference
+
+    last = torch.channels_last
+    cl_net = copy.deepcopy(net).to(memory_format=last)
+
+    def bf16(voxels, state):
+        with torch.autocast("cpu", dtype=torch.bfloat16):
+            return net(voxels, state)
+
+    class _Pair(torch.nn.Module):  # trace the two calls: the first frame (no state) and the later ones
+        def __init__(self, inner):
+            super().__init__()
+            self.inner = inner
+
+        def forward(self, voxels, h1, h2):
+            image, (h1, h2) = self.inner(voxels, [h1, h2])
+            return image, h1, h2
+
+    with torch.inference_mode(False), torch.no_grad():
+        _, first_state = net(example)
+        traced = torch.jit.freeze(torch.jit.trace(_Pair(copy.deepcopy(net)).eval(), (example, *first_state)))
+
+    def jit(voxels, state):
+        if state is None:
+            return net(voxels, None)
+        image, h1, h2 = traced(voxels, *state)
+        return image, [h1, h2]
+
+    variants = {"eager": net, "channels_last": lambda v, s: cl_net(v.contiguous(memory_format=last), s),
+                "fast": FireNetInference(net), "bf16": bf16, "jit": jit}
+    try:
+        import torch._inductor.config as inductor_config
+
+        inductor_config.freezing = True
+        compiled = torch.compile(copy.deepcopy(net), dynamic=False)
+        with torch.inference_mode():
+            _forward_all(compiled, [example, example])  # compile both calls before timing
+        variants["compile"] = compiled
+    except Exception as error:  # no C++ compiler, or an inductor failure: say so and go on
+        print(f"torch.compile unavailable here ({type(error).__name__}: {error})")
+    return variants
 
 
 if __name__ == "__main__":

@@ -142,7 +142,7 @@ class LearnedReconstructor(Reconstructor):
         super().__init__(width, height)
         import torch
 
-        from evio_lib.events.reconstruction.nets import build_network
+        from evio_lib.events.reconstruction.nets import build_network, inference_network
 
         from evio_lib.io.checkpoint import CheckpointError, load_state, read_checkpoint
 
@@ -163,6 +163,8 @@ class LearnedReconstructor(Reconstructor):
         load_state(self.net, ckpt["state_dict"], path,
                    f"its state_dict does not fit the {ckpt['architecture']} network its settings describe")
         self.net.to(self.device).eval()
+        # the forward pass used: FireNetInference on CPU (same outputs within ~1e-6, ~1.2-1.5x faster), else the net
+        self.forward = inference_network(self.net)
         self.checkpoint = path
         self.name = name
         self.training_steps = int(ckpt.get("step", 0))
@@ -179,7 +181,7 @@ class LearnedReconstructor(Reconstructor):
             return self.last_image.copy()
         voxels = voxel_grid(window, self.width, self.height, self.num_bins)
         with torch.inference_mode():
-            image, self.state = self.net(torch.from_numpy(voxels)[None].to(self.device), self.state)
+            image, self.state = self.forward(torch.from_numpy(voxels)[None].to(self.device), self.state)
         self.last_image = image[0, 0].float().cpu().numpy()
         return self.last_image.copy()
 

@@ -77,7 +77,7 @@ class ReconstructionTrainConfig:
     device: str = "cpu"
     init_from: str | None = None       # a reconstruct-train checkpoint whose weights start the run (fine-tuning)
     training_set: str | None = None    # a reconstruct-data folder; None: planar samples drawn by `data`, n_train, n_val
-    time_reversal: float = 0.0         # probability of playing a batch backwards
+    time_reversal: float = 0.2         # probability of playing a batch backwards
     preload: bool = False              # read the whole training set into memory first (fast steps on a GPU)
 
     def __post_init__(self) -> None:
