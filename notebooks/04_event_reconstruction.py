@@ -426,8 +426,8 @@ for name in ("boxes_like_slow", "boxes_like_fast"):
 assert 0 < scores["aerial_like", "firenet"]["ssim"] - classical["aerial_like"] < 0.03
 assert scores["aerial_like", "firenet"]["mse"] > 1.5 * scores["aerial_like", "high_pass"]["mse"]
 assert scores["aerial_like", "firenet"]["mse"] > scores["aerial_like", "direct"]["mse"]
-integrator_mse = max(scores["boxes_like_slow", m]["mse"] for m in ("direct", "high_pass"))
-assert scores["boxes_like_slow", "firenet"]["mse"] > integrator_mse
+integrator_mse = min(scores["boxes_like_fast", m]["mse"] for m in ("direct", "high_pass"))
+assert scores["boxes_like_fast", "firenet"]["mse"] < 0.6 * integrator_mse
 
 # %% [markdown]
 # On both boxes stretches the learned network scores a higher SSIM than both classical integrators, by more than 0.03.
@@ -436,8 +436,9 @@ assert scores["boxes_like_slow", "firenet"]["mse"] > integrator_mse
 # Direct integration and the high-pass filter only know where the log intensity changed, so flat regions stay at an
 # arbitrary gray and old noise lingers; the network has learned what images look like and fills them in, which pays
 # off in structure (SSIM) where many edges move and costs where it guesses a large flat field's brightness wrongly:
-# a wrong field is wrong everywhere, which MSE punishes more than SSIM (its MSE is also the highest of the three on
-# the gentle boxes).
+# a wrong field is wrong everywhere, which MSE punishes more than SSIM. Where the camera moves fast and events cover
+# the whole view (the violent boxes) its MSE is also well below both integrators', less than 0.6 times the better
+# one's.
 
 # %%
 from evio_lib.evaluation.plots_events import plot_image_grid
@@ -474,29 +475,25 @@ plot_ssim_vs_fraction(fractions, sweep, marks={"boxes_like_slow": 0.7, "aerial_l
 plt.show()
 best_n = {name: fractions[int(np.argmax(v))] for name, v in sweep.items()}
 print("best n:", best_n)
+spread = {name: max(v[1:]) - min(v[1:]) for name, v in sweep.items()}   # from n = 0.1 up
+print("spread of SSIM from n = 0.1 up:", {name: round(f, 3) for name, f in spread.items()})
 for name, values in sweep.items():
-    assert values[0] < max(values), name      # too few events per frame: an incomplete image
-assert best_n["boxes_like_slow"] == best_n["aerial_like"]
-gap = np.abs(np.subtract(sweep["boxes_like_slow"], sweep["aerial_like"]))
-flat = {name: max(v[1:]) - min(v[1:]) for name, v in sweep.items()}
-print(f"largest gap between the two curves: {gap.max():.3f}; spread above the smallest n:",
-      {name: round(f, 3) for name, f in flat.items()})
-assert gap.max() < 0.03 and max(flat.values()) < 0.05
+    assert best_n[name] <= 0.1 and values[-1] == min(values), name    # small windows best, n = 1 worst
+assert spread["boxes_like_slow"] > 0.05 and spread["aerial_like"] < 0.04
 train_data = checkpoint["training_set_manifest"]["config"]  # the shipped network's training set, in its checkpoint
 print(f"the shipped network was trained on windows of n = {train_data['fraction_min']}-{train_data['fraction_max']} "
       f"and on time windows ({train_data['time_window_probability']:.0%} of the sequences)")
 assert (train_data["fraction_min"], train_data["fraction_max"]) == (0.05, 1.0)
 
 # %% [markdown]
-# Too few events per frame (the smallest n) always scores below the best: each frame sees only part of the edges.
-# Here both scenes peak at the **same** n, so the thesis's choice of a smaller n for the sparse airfield (§4.1: 0.2
-# against 0.7 for the boxes, dotted lines) does not reproduce on our simulator with our network. Mind the scale: this
-# is one run on one stretch per scene, the two curves lie within 0.03 of each other at every n, and away from the
-# smallest n each stays within 0.05. That is weak evidence either way: it neither shows that the sparse scene needs
-# the same n nor that it needs a different one. The thesis's n were chosen by eye, on real recordings, for E2VID
-# (Rebecq et al., the network of its refs. 16 and 17); ours are measured against a truth, on simulated ones, for a
-# network trained on windows of 0.1-0.8 H W events. What carries over is the method: measure n on your own scene, or
-# let the adaptive rule of section 2 choose (exercise 3).
+# Both scenes score best with the smallest windows tried here (n = 0.05-0.1) and worst with the largest (n = 1). Over
+# the terrain the whole range from n = 0.1 up lies within 0.04 SSIM; on the gentle boxes SSIM falls by more than 0.05
+# from n = 0.1 to n = 1, and the thesis's n = 0.7 (dotted line) is not the best there. Mind the scale: one stretch per
+# scene, a few scored windows, and part of the trend may be the start-up: every stretch starts from an empty memory,
+# and with smaller windows the network has seen more of them by the time scoring begins (0.1 s in). The thesis's n
+# were chosen by eye, on real recordings, for E2VID (its refs. 16 and 17); ours are measured against a truth, on
+# simulated ones, for a network trained on windows of 0.05-1 H W events and on time windows. What carries over is the
+# method: measure n on your own scene, or let the adaptive rule of section 2 choose (exercise 3).
 
 # %% [markdown]
 # ## 7. Fast motion: blurred frames, sharper events
@@ -569,14 +566,13 @@ else:
     assert len(slider["frame_times"]) == 5 and 0.16 < np.ptp(slider["events"]["t"]) < 0.18
     assert slider["frame_times"][0] < slider["events"]["t"][0] and len(real["firenet"]["per_frame"]) == 4
     assert real["firenet"]["ssim"] > max(real["direct"]["ssim"], real["high_pass"]["ssim"]) + 0.05
-    assert real["firenet"]["mse"] > max(real["direct"]["mse"], real["high_pass"]["mse"])
+    assert abs(real["firenet"]["mse"] - real["high_pass"]["mse"]) < 0.01
 
 # %% [markdown]
 # On the real slider the network's SSIM is more than 0.05 above both integrators', on a sensor and a scene it never
-# saw in training; its MSE is the highest of the three, as on the simulated gentle boxes and the aerial stretch: it
-# gets more of the structure right and the brightness of flat regions wrong. For orientation only (other frames,
-# windows and normalisation): EVREAL reports SSIM on the ECD of 0.42 for E2VID and 0.50 for FireNet trained on far
-# more data.
+# saw in training; its MSE is within 0.01 of the high-pass filter's: it gets more of the structure right, not the
+# overall brightness. For orientation only (other frames, windows and normalisation): EVREAL reports SSIM on the ECD
+# of 0.42 for E2VID and 0.50 for FireNet trained on far more data.
 
 # %% [markdown]
 # ## 9. Training it yourself
@@ -618,15 +614,16 @@ assert summary["best_val_ssim"] > untrained["ssim"]
 # - SSIM compares local means, contrasts and correlations in a Gaussian window; the project scores it after
 #   stretching both images' 1st/99th percentiles to 0/1, because events carry no absolute brightness.
 # - A 38 k-parameter recurrent network (two ConvGRU cells, whose update gate decides how much memory to keep) trained
-#   on the project's own simulator beats both integrators on SSIM on the simulated boxes and on real events; over
-#   sparse terrain it is ahead on SSIM by less than 0.03, its MSE is higher than the integrators' there, on the gentle
-#   boxes and on the real slider, and on this simulator the APS frames still score higher.
-# - Measure the window fraction n on your own scene (here both simulated scenes peaked at the same n, one run each),
-#   or let the adaptive rule close windows at r events per active pixel.
-# - To retrain the shipped network: `python -m evio_lib reconstruct-train --out runs/firenet` (about an hour on a
-#   2-core CPU, docs/reconstruction.md; `--max-minutes` and `--resume` split it), then the fine-tuning on 24-window
-#   samples recorded in the checkpoint (`checkpoint["command"]`, and docs/reconstruction.md). To turn any ECD folder
-#   into frames: `python -m evio_lib reconstruct FOLDER --out FRAMES`.
+#   on a simulated training set of many short sequences beats both integrators on SSIM on the simulated boxes and on
+#   real events; over sparse terrain it is ahead on SSIM by less than 0.03 and its MSE is higher than the
+#   integrators' there; on this simulator the APS frames still score higher.
+# - Measure the window fraction n on your own scene (here both simulated scenes scored best with small windows, one
+#   stretch each), or let the adaptive rule close windows at r events per active pixel.
+# - To train a network like the shipped one: `python -m evio_lib reconstruct-data --out SET` (about 8 minutes on a
+#   2-core CPU), then `python -m evio_lib reconstruct-train --data SET --out runs/firenet` (about 70 minutes;
+#   `--max-minutes` and `--resume` split it); the shipped weights' own commands are in the checkpoint
+#   (`checkpoint["stages"]`) and docs/reconstruction.md. To turn any ECD folder into frames:
+#   `python -m evio_lib reconstruct FOLDER --out FRAMES`.
 #
 # Lesson 05 takes frames like these, and grayscale APS frames, to the feature detectors.
 #
@@ -649,10 +646,10 @@ assert summary["best_val_ssim"] > untrained["ssim"]
 #
 #    *Hint:* `reconstruct_windows(reconstructor, events, bounds[::-1])`; score each output against the truth and
 #    against its negative.
-# 5. Train the default 3000 steps with `--set lambda_tc=0` and compare the flicker of consecutive frames (the mean
+# 5. Train on a training set with `--set lambda_tc=0` and compare the flicker of consecutive frames (the mean
 #    absolute difference between consecutive outputs on a still stretch) with the shipped model.
 #
-#    *Hint:* `python -m evio_lib reconstruct-train --out DIR --set lambda_tc=0` (about an hour), then load
+#    *Hint:* `python -m evio_lib reconstruct-train --data SET --out DIR --set lambda_tc=0` (about 70 min), then load
 #    `DIR/best.pt` with `create_reconstructor('learned', checkpoint=...)`.
 #
 # Solutions, with the code to run (checked by `tests/test_solutions.py`):
