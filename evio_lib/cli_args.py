@@ -18,7 +18,8 @@ import math
 from pathlib import Path
 from typing import Callable, Mapping
 
-__all__ = ["integer", "real", "add_force_argument", "output_folder", "as_option_error"]
+__all__ = ["integer", "real", "add_force_argument", "output_folder", "as_option_error", "parse_set_options",
+           "settings_from_dict"]
 
 
 def _show(value: float) -> str:
@@ -108,3 +109,44 @@ def as_option_error(error: ValueError, options: Mapping[str, str]) -> ValueError
         if message.startswith(field + " ") or message.startswith(field + ":"):
             return ValueError(option + message[len(field):])
     return error
+
+
+def parse_set_options(items: list[str]) -> dict:
+    """Return the ``--set KEY=JSON`` options as a dict, refusing an item without ``=`` or with a value that is not JSON.
+
+    >>> parse_set_options(["lr=0.001", 'data={"windows": 4}'])
+    {'lr': 0.001, 'data': {'windows': 4}}
+    """
+    import json
+
+    values = {}
+    for item in items:
+        key, sep, raw = item.partition("=")
+        if not sep:
+            raise ValueError(f"--set expects KEY=JSON; got {item!r}")
+        try:
+            values[key] = json.loads(raw)
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"--set {key}: the value must be JSON ({exc.msg}); got {raw!r}") from None
+    return values
+
+
+def settings_from_dict(cls, values: Mapping, what: str):
+    """Return the dataclass ``cls(**values)``, refusing keys it does not have with one message naming ``what``.
+
+    >>> from dataclasses import dataclass
+    >>> @dataclass
+    ... class C:
+    ...     a: int = 1
+    >>> settings_from_dict(C, {"b": 2}, "example settings")
+    Traceback (most recent call last):
+    ...
+    ValueError: unknown example settings ['b']; known: ['a']
+    """
+    from dataclasses import fields
+
+    known = {f.name for f in fields(cls)}
+    unknown = sorted(set(values) - known)
+    if unknown:
+        raise ValueError(f"unknown {what} {unknown}; known: {sorted(known)}")
+    return cls(**values)

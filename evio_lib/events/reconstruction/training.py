@@ -34,7 +34,7 @@ import argparse
 import json
 import math
 import time
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Sequence
 
@@ -45,6 +45,7 @@ from torch.nn import functional as F
 from evio_lib.events.reconstruction.data import ReconstructionDataConfig, reconstruction_dataset
 from evio_lib.events.reconstruction.training_set import MANIFEST_NAME, load_sequence, read_training_set
 from evio_lib.events.reconstruction.nets import build_network, count_parameters
+from evio_lib.cli_args import parse_set_options, settings_from_dict
 from evio_lib.io.checkpoint import load_state, read_checkpoint
 from evio_lib.events.reconstruction.training_options import add_reconstruct_train_arguments  # no torch
 
@@ -111,11 +112,7 @@ class ReconstructionTrainConfig:
     @classmethod
     def from_dict(cls, values: dict) -> "ReconstructionTrainConfig":
         """Return a config from :meth:`to_dict`'s output, refusing unknown keys."""
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(values) - known)
-        if unknown:
-            raise ValueError(f"unknown reconstruction training settings {unknown}; known: {sorted(known)}")
-        return cls(**values)
+        return settings_from_dict(cls, values, "reconstruction training settings")
 
 
 def _gaussian_window(size: int = 11, sigma: float = 1.5) -> torch.Tensor:
@@ -481,14 +478,7 @@ def main_reconstruct_train(args: argparse.Namespace | Sequence[str] | None = Non
         values["init_from"] = str(args.init_from)
     if args.data is not None:
         values["training_set"] = str(args.data)
-    for item in args.set:
-        key, sep, raw = item.partition("=")
-        if not sep:
-            raise ValueError(f"--set expects KEY=JSON; got {item!r}")
-        try:
-            values[key] = json.loads(raw)
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"--set {key}: the value must be JSON ({exc.msg}); got {raw!r}") from None
+    values.update(parse_set_options(args.set))
     if values.get("seed", 0) < 0:
         raise ValueError(f"--seed must be >= 0; got {values['seed']}")
     config = ReconstructionTrainConfig.from_dict(values)

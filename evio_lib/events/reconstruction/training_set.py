@@ -45,14 +45,14 @@ from __future__ import annotations
 import json
 import os
 import time
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
 from functools import lru_cache
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from evio_lib.events.array import EVENT_DTYPE, concatenate_events
+from evio_lib.events.array import concatenate_events
 from evio_lib.events.reconstruction.data import SPLIT_PHOTOS, hot_pixel_events
 from evio_lib.events.representations import count_windows, time_windows, voxel_grid
 from evio_lib.events.simulate import EventCameraParams, simulate_events
@@ -120,11 +120,9 @@ class TrainingSetConfig:
     @classmethod
     def from_dict(cls, values: dict) -> "TrainingSetConfig":
         """Return a config from :func:`dataclasses.asdict`'s output, refusing unknown keys."""
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(values) - known)
-        if unknown:
-            raise ValueError(f"unknown training-set settings {unknown}; known: {sorted(known)}")
-        return cls(**values)
+        from evio_lib.cli_args import settings_from_dict
+
+        return settings_from_dict(cls, values, "training-set settings")
 
 
 # ------------------------------------------------------------------------------------------------------- textures
@@ -508,16 +506,9 @@ def main_reconstruct_data(args) -> int:
         from evio_lib.events.reconstruction.training_options import add_reconstruct_data_arguments
 
         args = add_reconstruct_data_arguments(argparse.ArgumentParser()).parse_args(args)
-    values = {}
-    for item in args.set:
-        key, sep, raw = item.partition("=")
-        if not sep:
-            raise ValueError(f"--set expects KEY=JSON; got {item!r}")
-        try:
-            values[key] = json.loads(raw)
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"--set {key}: the value must be JSON ({exc.msg}); got {raw!r}") from None
-    config = TrainingSetConfig.from_dict(values)
+    from evio_lib.cli_args import parse_set_options
+
+    config = TrainingSetConfig.from_dict(parse_set_options(args.set))
     for option, value, low in (("--sequences", args.sequences, 1), ("--val", args.val, 1), ("--test", args.test, 0),
                                ("--jobs", args.jobs, 1), ("--seed", args.seed, 0)):
         if value < low:
