@@ -35,7 +35,8 @@ from evio_lib.events.simulate import EventCameraParams, simulate_events
 from evio_lib.sim.textures import PROCEDURAL_KINDS, load_texture, procedural_texture
 
 __all__ = ["SPLIT_PHOTOS", "ReconstructionDataConfig", "PlanarSequence", "random_planar_sequence",
-           "make_training_sample", "reconstruction_dataset", "hot_pixel_events"]
+           "make_training_sample", "reconstruction_dataset", "hot_pixel_events", "SmoothCameraMotion",
+           "random_crop", "random_contrast"]
 
 #: Photographs (scikit-image's bundled images) per split: no texture is shared between splits.
 SPLIT_PHOTOS = {
@@ -101,26 +102,70 @@ def _photo(name: str) -> np.ndarray:
     return load_texture(name)
 
 
+def random_crop(rng: np.random.Generator, image: np.ndarray, size: tuple[int, int], scale: float) -> np.ndarray:
+    """Return a random crop of ``image`` resized to ``size`` (H, W) at zoom ``scale`` (< 1: a wider, detailed crop
+    shrunk with INTER_AREA; >= 1: a smaller crop enlarged with INTER_CUBIC); the crop is at least 8 pixels a side."""
+    ch = max(8, min(image.shape[0], int(round(size[0] / scale))))
+    cw = max(8, min(image.shape[1], int(round(size[1] / scale))))
+    r0 = int(rng.integers(0, image.shape[0] - ch + 1))
+    c0 = int(rng.integers(0, image.shape[1] - cw + 1))
+    return cv2.resize(image[r0:r0 + ch, c0:c0 + cw], (size[1], size[0]),
+                      interpolation=cv2.INTER_AREA if scale < 1 else cv2.INTER_CUBIC)
+
+
+def random_contrast(rng: np.random.Generator, texture: np.ndarray, gamma: tuple[float, float] = (0.7, 1.5),
+                    min_span: float = 0.3) -> np.ndarray:
+    """Return ``texture`` stretched (1st/99th percentile to 0/1), raised to a gamma ~ U(gamma) and mapped onto a random
+    brightness range [lo, hi] of at least ``min_span``: float32 in [0, 1]."""
+    lo, hi = np.percentile(texture, [1, 99])                 # stretch: a flat crop (a page's margin) becomes visible
+    texture = np.clip((texture - lo) / max(hi - lo, 1e-3), 0.0, 1.0) ** rng.uniform(*gamma)   # contrast variety
+    lo, hi = sorted(rng.uniform(0.0, 1.0, 2))
+    hi = max(hi, lo + min_span)
+    return np.clip(lo + (hi - lo) * texture, 0.0, 1.0).astype(np.float32)
+
+
 def _texture(rng: np.random.Generator, split: str, size: tuple[int, int], config: ReconstructionDataConfig) -> np.ndarray:
     """Return a float32 texture in [0, 1] of shape ``size`` from the split's photographs or procedural textures."""
     if rng.random() < config.photo_probability:
         name = SPLIT_PHOTOS[split][int(rng.integers(len(SPLIT_PHOTOS[split])))]
-        photo = _photo(name)
-        scale = rng.uniform(0.35, 1.0)                        # crop a random part at a random zoom
-        ch = min(photo.shape[0], int(round(size[0] / scale)))
-        cw = min(photo.shape[1], int(round(size[1] / scale)))
-        r0 = int(rng.integers(0, photo.shape[0] - ch + 1))
-        c0 = int(rng.integers(0, photo.shape[1] - cw + 1))
-        tex = cv2.resize(photo[r0:r0 + ch, c0:c0 + cw], (size[1], size[0]), interpolation=cv2.INTER_AREA)
+        tex = random_crop(rng, _photo(name), size, rng.uniform(0.35, 1.0))   # a random part at a random zoom
     else:
         kind = PROCEDURAL_KINDS[int(rng.integers(len(PROCEDURAL_KINDS)))]
         seed = _SPLIT_SEED_OFFSET[split] + int(rng.integers(0, 10_000_000))
         tex = procedural_texture(kind, size, seed=seed, scale_px=float(rng.uniform(4, min(size) / 4)))
-    lo, hi = np.percentile(tex, [1, 99])                     # stretch: a flat crop (a page's margin) becomes visible
-    tex = np.clip((tex - lo) / max(hi - lo, 1e-3), 0.0, 1.0) ** rng.uniform(0.7, 1.5)   # contrast variety
-    lo, hi = sorted(rng.uniform(0.0, 1.0, 2))
-    hi = max(hi, lo + 0.3)
-    return np.clip(lo + (hi - lo) * tex, 0.0, 1.0).astype(np.float32)
+    return random_contrast(rng, tex)
+
+
+class SmoothCameraMotion:
+    """Random smooth 6-DoF camera motion: per axis a drift plus one sinusoid, for the rotation vector theta(t) and the
+    camera centre c(t) in the reference frame C0, scaled by ``speed`` (about view widths per second).
+
+    theta(t) = d t + a (sin(2 pi f t + phi) - sin(phi)), and likewise c(t) (translations scaled by ``depth``); drift and
+    amplitude are shrunk so that, over ``duration``, each axis turns by at most 0.6 rad and moves by at most
+    ``translation_limit``: the scene stays in front of the camera. :meth:`pose` returns (R_C0toCt, p_C0inCt).
+    """
+
+    def __init__(self, rng: np.random.Generator, speed: float, view_angle: float, depth: float, duration: float,
+                 translation_limit: float) -> None:
+        self.rot = [rng.normal(0.0, 0.4, 3) * speed * view_angle * np.array([1.0, 1.0, 0.5]),
+                    rng.uniform(0.0, 0.25, 3) * speed * view_angle, rng.uniform(0.5, 3.0, 3), rng.uniform(0, 2 * np.pi, 3)]
+        self.pos = [rng.normal(0.0, 0.3, 3) * speed * depth * view_angle * np.array([1.0, 1.0, 0.5]),
+                    rng.uniform(0.0, 0.2, 3) * speed * depth * view_angle, rng.uniform(0.5, 3.0, 3),
+                    rng.uniform(0, 2 * np.pi, 3)]
+        for (drift, amp, _, _), limit in ((self.rot, 0.6), (self.pos, translation_limit)):
+            worst = np.abs(drift) * duration + 2 * amp
+            scale = np.minimum(1.0, limit / np.maximum(worst, 1e-12))
+            drift *= scale
+            amp *= scale
+
+    def pose(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Return (R_C0toCt, p_C0inCt) at time t."""
+        def curve(params):
+            drift, amp, freq, phase = params
+            return drift * t + amp * (np.sin(2 * np.pi * freq * t + phase) - np.sin(phase))
+
+        R = cv2.Rodrigues(curve(self.rot))[0].T                  # exp(theta^) = R_CttoC0, transposed
+        return R, -R @ curve(self.pos)
 
 
 def random_planar_sequence(rng: np.random.Generator, split: str = "train",
@@ -148,29 +193,11 @@ def random_planar_sequence(rng: np.random.Generator, split: str = "train",
     n_C0 /= np.linalg.norm(n_C0)
     speed = rng.uniform(config.speed_min, config.speed_max)
     view_angle = w / f                                       # radians per view width
-    # rotation vector theta(t) and camera centre c(t) (in C0): drift + one sinusoid per axis
-    rot_drift = rng.normal(0.0, 0.4, 3) * speed * view_angle * np.array([1.0, 1.0, 0.5])
-    rot_amp = rng.uniform(0.0, 0.25, 3) * speed * view_angle
-    rot_freq = rng.uniform(0.5, 3.0, 3)
-    rot_phase = rng.uniform(0, 2 * np.pi, 3)
-    pos_drift = rng.normal(0.0, 0.3, 3) * speed * depth * view_angle * np.array([1.0, 1.0, 0.5])
-    pos_amp = rng.uniform(0.0, 0.2, 3) * speed * depth * view_angle
-    pos_freq = rng.uniform(0.5, 3.0, 3)
-    pos_phase = rng.uniform(0, 2 * np.pi, 3)
     # keep the plane well in front of the camera: at most ~0.6 rad of rotation and 0.4 d of translation per axis
-    T = config.duration
-    for drift, amp, limit in ((rot_drift, rot_amp, 0.6), (pos_drift, pos_amp, 0.4 * depth)):
-        worst = np.abs(drift) * T + 2 * amp
-        scale = np.minimum(1.0, limit / np.maximum(worst, 1e-12))
-        drift *= scale
-        amp *= scale
+    motion = SmoothCameraMotion(rng, speed, view_angle, depth, config.duration, 0.4 * depth)
 
     def homography(t: float) -> np.ndarray:
-        theta = rot_drift * t + rot_amp * (np.sin(2 * np.pi * rot_freq * t + rot_phase) - np.sin(rot_phase))
-        c = pos_drift * t + pos_amp * (np.sin(2 * np.pi * pos_freq * t + pos_phase) - np.sin(pos_phase))
-        R_CttoC0 = cv2.Rodrigues(theta)[0]                  # exp(theta^), the SO(3) exponential
-        R = R_CttoC0.T                                       # R_C0toCt
-        p = -R @ c                                           # p_C0inCt
+        R, p = motion.pose(t)                                # R_C0toCt, p_C0inCt
         H = K @ (R + np.outer(p, n_C0) / depth) @ K_inv      # H_t = K (R + t n^T / d) K^-1
         return H / H[2, 2]
 

@@ -53,10 +53,11 @@ import cv2
 import numpy as np
 
 from evio_lib.events.array import concatenate_events
-from evio_lib.events.reconstruction.data import SPLIT_PHOTOS, hot_pixel_events
+from evio_lib.events.reconstruction.data import (_SPLIT_SEED_OFFSET, SPLIT_PHOTOS, SmoothCameraMotion, _photo,
+                                                 hot_pixel_events, random_contrast, random_crop)
 from evio_lib.events.representations import count_windows, time_windows, voxel_grid
 from evio_lib.events.simulate import EventCameraParams, simulate_events
-from evio_lib.sim.textures import PROCEDURAL_KINDS, aerial_terrain_texture, load_texture, procedural_texture
+from evio_lib.sim.textures import PROCEDURAL_KINDS, aerial_terrain_texture, procedural_texture
 
 __all__ = ["TrainingSetConfig", "SPLITS", "make_sequence", "make_training_set", "read_training_set",
            "load_sequence", "MANIFEST_NAME", "main_reconstruct_data"]
@@ -67,7 +68,6 @@ _FORMAT = "evio-reconstruction-set-v1"
 #: Raised whenever the generator draws differently for the same settings (2: zoomed and blurred textures), so that a
 #: set is never resumed or extended with sequences of another generator.
 GENERATOR_VERSION = 2
-_SPLIT_SEED_OFFSET = {"train": 0, "val": 10_000_000, "test": 20_000_000}
 _ARRAYS = ("voxels", "frames", "flow")
 
 
@@ -126,11 +126,6 @@ class TrainingSetConfig:
 
 
 # ------------------------------------------------------------------------------------------------------- textures
-@lru_cache(maxsize=16)
-def _photo(name: str) -> np.ndarray:
-    return load_texture(name)
-
-
 @lru_cache(maxsize=1)
 def _farmland() -> np.ndarray:
     return aerial_terrain_texture(1024, seed=12345)
@@ -143,22 +138,15 @@ def _texture(rng: np.random.Generator, split: str, size: tuple[int, int]) -> np.
         names = SPLIT_PHOTOS[split]
         photo = _photo(names[int(rng.integers(len(names)))])
         scale = float(np.exp(rng.uniform(np.log(0.3), np.log(3.0))))   # < 1: a wide, detailed crop; > 1: zoomed in
-        ch = max(8, min(photo.shape[0], int(round(size[0] / scale))))
-        cw = max(8, min(photo.shape[1], int(round(size[1] / scale))))
-        r0, c0 = int(rng.integers(0, photo.shape[0] - ch + 1)), int(rng.integers(0, photo.shape[1] - cw + 1))
-        tex = cv2.resize(photo[r0:r0 + ch, c0:c0 + cw], (size[1], size[0]),
-                         interpolation=cv2.INTER_AREA if scale < 1 else cv2.INTER_CUBIC)
+        tex = random_crop(rng, photo, size, scale)
         if rng.random() < 0.5:
             tex = tex[:, ::-1]
     elif source < 0.55:                                         # the farmland, a quarter per split
         farm = _farmland()
         quarter = farm.shape[0] // 2
         base_r, base_c = divmod(SPLITS.index(split), 2)
-        scale = rng.uniform(0.3, 1.0)
-        ch, cw = min(quarter, int(round(size[0] / scale))), min(quarter, int(round(size[1] / scale)))
-        r0 = base_r * quarter + int(rng.integers(0, quarter - ch + 1))
-        c0 = base_c * quarter + int(rng.integers(0, quarter - cw + 1))
-        tex = cv2.resize(farm[r0:r0 + ch, c0:c0 + cw], (size[1], size[0]), interpolation=cv2.INTER_AREA)
+        own = farm[base_r * quarter:(base_r + 1) * quarter, base_c * quarter:(base_c + 1) * quarter]
+        tex = random_crop(rng, own, size, rng.uniform(0.3, 1.0))
     else:                                                       # procedural: dead leaves, noise, patterns
         kind = PROCEDURAL_KINDS[int(rng.integers(len(PROCEDURAL_KINDS)))]
         seed = _SPLIT_SEED_OFFSET[split] + int(rng.integers(0, 10_000_000))
@@ -166,11 +154,7 @@ def _texture(rng: np.random.Generator, split: str, size: tuple[int, int]) -> np.
         tex = procedural_texture(kind, size, seed=seed, scale_px=float(np.exp(rng.uniform(np.log(3.0), np.log(largest)))))
     if rng.random() < 0.3:                                      # smooth content: out-of-focus or low-texture surfaces
         tex = cv2.GaussianBlur(tex.astype(np.float32), (0, 0), float(rng.uniform(0.5, 3.0)))
-    lo, hi = np.percentile(tex, [1, 99])
-    tex = np.clip((tex - lo) / max(hi - lo, 1e-3), 0.0, 1.0) ** rng.uniform(0.5, 2.0)
-    lo, hi = sorted(rng.uniform(0.0, 1.0, 2))
-    hi = max(hi, lo + 0.25)
-    return np.clip(lo + (hi - lo) * tex, 0.0, 1.0).astype(np.float32)
+    return random_contrast(rng, tex, gamma=(0.5, 2.0), min_span=0.25)
 
 
 def _shape_mask(rng: np.random.Generator, size: tuple[int, int], centre: tuple[float, float],
@@ -214,18 +198,8 @@ class _LayeredScene:
         view_angle = w / f
         speed = float(np.exp(rng.uniform(np.log(config.speed_min), np.log(config.speed_max))))
         self.speed = speed
-        # camera motion: rotation vector theta(t) and centre c(t) in C0, each a drift plus a sinusoid per axis
-        self.rot = [rng.normal(0.0, 0.4, 3) * speed * view_angle * np.array([1.0, 1.0, 0.5]),
-                    rng.uniform(0.0, 0.25, 3) * speed * view_angle, rng.uniform(0.5, 3.0, 3), rng.uniform(0, 2 * np.pi, 3)]
-        near = float(depths.min())
-        self.pos = [rng.normal(0.0, 0.3, 3) * speed * near * view_angle * np.array([1.0, 1.0, 0.5]),
-                    rng.uniform(0.0, 0.2, 3) * speed * near * view_angle, rng.uniform(0.5, 3.0, 3),
-                    rng.uniform(0, 2 * np.pi, 3)]
-        for (drift, amp, _, _), limit in ((self.rot, 0.6), (self.pos, 0.35 * near)):
-            worst = np.abs(drift) * duration + 2 * amp          # keep every plane in front of the camera
-            scale = np.minimum(1.0, limit / np.maximum(worst, 1e-12))
-            drift *= scale
-            amp *= scale
+        near = float(depths.min())                               # the camera stays in front of the nearest plane
+        self.motion = SmoothCameraMotion(rng, speed, view_angle, near, duration, 0.35 * near)
         self.layers = []                                         # (texture, mask or None, normal, depth, velocity)
         for k, depth in enumerate(depths):
             tilt = rng.normal(0.0, 0.25, 2)
@@ -242,19 +216,9 @@ class _LayeredScene:
             velocity *= min(1.0, 0.3 * depth / max(float(np.abs(velocity).max()) * duration, 1e-12))
             self.layers.append((texture, mask, normal, depth, velocity))
 
-    def _pose(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """Return (R_C0toCt, p_C0inCt) at time t."""
-        def curve(params):
-            drift, amp, freq, phase = params
-            return drift * t + amp * (np.sin(2 * np.pi * freq * t + phase) - np.sin(phase))
-
-        R_CttoC0 = cv2.Rodrigues(curve(self.rot))[0]             # exp(theta^)
-        R = R_CttoC0.T
-        return R, -R @ curve(self.pos)
-
     def homographies(self, t: float) -> list[np.ndarray]:
         """Return H_k(t) for every layer: reference-view pixels of plane k -> pixels of the view at t."""
-        R, p = self._pose(t)
+        R, p = self.motion.pose(t)
         out = []
         for _, _, normal, depth, velocity in self.layers:
             p_k = p + R @ velocity * t                           # the plane's own motion, seen from Ct
