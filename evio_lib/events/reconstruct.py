@@ -30,7 +30,7 @@ from evio_lib.events.array import EVENT_DTYPE
 from evio_lib.events.representations import check_sensor_pixels, voxel_grid
 
 __all__ = ["Reconstructor", "LogIntegrator", "LearnedReconstructor", "available_reconstructors", "create_reconstructor",
-           "shipped_checkpoint", "reconstruct_windows", "reconstruct_at_times"]
+           "reconstructor_by_name_or_file", "shipped_checkpoint", "reconstruct_windows", "reconstruct_at_times"]
 
 WEIGHTS_DIR = Path(__file__).resolve().parents[1] / "weights"
 #: Shipped learned reconstructors: name -> checkpoint file in evio_lib/weights/.
@@ -233,6 +233,16 @@ def create_reconstructor(name: str = "firenet", width: int = 240, height: int = 
                          "`python -m evio_lib reconstruct-train --architecture e2vid --out DIR`, then use "
                          "create_reconstructor('learned', checkpoint='DIR/best.pt')")
     raise ValueError(f"unknown reconstructor {name!r}; choose one of {available_reconstructors() + ['learned']}")
+
+
+def reconstructor_by_name_or_file(method: str, width: int, height: int, what: str = "method") -> Reconstructor:
+    """Return the reconstructor named ``method`` (:func:`available_reconstructors`), else the one in the
+    reconstruct-train checkpoint file ``method``; ``what`` names the setting in the error for anything else."""
+    if method in available_reconstructors():
+        return create_reconstructor(method, width, height)
+    if method.endswith(".pt") or Path(method).is_file():
+        return create_reconstructor("learned", width, height, checkpoint=method)
+    raise ValueError(f"{what} must be one of {available_reconstructors()} or a checkpoint file; got {method!r}")
 
 
 def reconstruct_windows(reconstructor: Reconstructor, events: np.ndarray, bounds: np.ndarray,

@@ -181,17 +181,6 @@ def _frame_size(folder: Path) -> tuple[int, int] | None:
     return None
 
 
-def _make_reconstructor(method: str, width: int, height: int):
-    """Return the reconstructor named ``method``, or the one in checkpoint file ``method``."""
-    from evio_lib.events.reconstruct import available_reconstructors, create_reconstructor
-
-    if method in available_reconstructors():
-        return create_reconstructor(method, width, height)
-    if method.endswith(".pt") or Path(method).is_file():
-        return create_reconstructor("learned", width, height, checkpoint=method)
-    raise ValueError(f"--method must be one of {available_reconstructors()} or a checkpoint file; got {method!r}")
-
-
 def main_reconstruct(args: argparse.Namespace | Sequence[str] | None = None) -> int:
     """Run ``reconstruct`` (see :func:`add_reconstruct_arguments`); return the exit code."""
     import cv2
@@ -224,7 +213,9 @@ def main_reconstruct(args: argparse.Namespace | Sequence[str] | None = None) -> 
     if events is None or events.size == 0:
         raise ValueError(f"{args.sequence} holds no events to reconstruct from")
     _check_frame_count(args, events, width, height, times)  # a window per event would never end
-    reconstructor = _make_reconstructor(args.method, width, height)
+    from evio_lib.events.reconstruct import reconstructor_by_name_or_file
+
+    reconstructor = reconstructor_by_name_or_file(args.method, width, height, what="--method")
     fraction = DEFAULT_FRACTION if args.window_fraction is None else args.window_fraction
     if times is not None:
         frames = reconstruct_at_times(reconstructor, events, times,

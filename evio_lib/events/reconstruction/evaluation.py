@@ -22,7 +22,8 @@ from pathlib import Path
 import numpy as np
 from skimage.metrics import structural_similarity
 
-from evio_lib.events.reconstruct import Reconstructor, reconstruct_at_times, reconstruct_windows
+from evio_lib.events.reconstruct import (Reconstructor, reconstruct_at_times, reconstruct_windows,
+                                        reconstructor_by_name_or_file)
 from evio_lib.events.representations import count_windows, window_size_from_fraction
 
 __all__ = ["normalize_for_metrics", "image_quality", "EvalSequence", "simulated_eval_sequence", "score_windows",
@@ -220,15 +221,6 @@ def load_slider_slice(folder: str | Path | None = None) -> dict[str, np.ndarray]
     return {"events": events, "frame_times": times[inside], "frames": frames}
 
 
-def _reconstructor(method: str, width: int, height: int):
-    """Return the reconstructor ``method`` names: a name of :func:`create_reconstructor` or a checkpoint file."""
-    from evio_lib.events.reconstruct import create_reconstructor
-
-    if Path(method).suffix == ".pt" or Path(method).is_file():
-        return create_reconstructor("learned", width, height, checkpoint=method)
-    return create_reconstructor(method, width, height)
-
-
 def quality_table(methods: Sequence[str], stretches: Sequence[str] = tuple(EVAL_STRETCHES), duration: float | None = None,
                   max_frames: int | None = 12, with_aps: bool = True, with_slider: bool = True,
                   seed: int = EVAL_SEED) -> list[dict]:
@@ -239,7 +231,7 @@ def quality_table(methods: Sequence[str], stretches: Sequence[str] = tuple(EVAL_
     for stretch in stretches:
         sequence = simulated_eval_sequence(stretch, duration=duration, seed=seed)
         for method in methods:
-            rec = _reconstructor(method, sequence.width, sequence.height)
+            rec = reconstructor_by_name_or_file(method, sequence.width, sequence.height)
             rows.append({"method": method, "sequence": stretch,
                          **score_windows(rec, sequence, THESIS_FRACTION[stretch], max_frames=max_frames)})
         if with_aps and len(sequence.frame_times):
@@ -247,7 +239,7 @@ def quality_table(methods: Sequence[str], stretches: Sequence[str] = tuple(EVAL_
     slider = load_slider_slice() if with_slider else None
     if slider is not None:
         for method in methods:
-            rec = _reconstructor(method, 240, 180)
+            rec = reconstructor_by_name_or_file(method, 240, 180)
             score = score_at_frame_times(rec, slider["events"], slider["frame_times"], slider["frames"],
                                          max_window_events=window_size_from_fraction(0.35, 240, 180))
             rows.append({"method": method, "sequence": "real slider_depth (APS frames)", "mse": score["mse"],
