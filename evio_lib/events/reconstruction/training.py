@@ -326,13 +326,10 @@ def _run_defining(values: dict) -> dict:
 
 
 def _save(path: Path, net, optimizer, config: ReconstructionTrainConfig, step: int, history: list,
-          rng: np.random.Generator, best: float) -> None:
-    """Write a checkpoint atomically (a temporary file, then rename); it records the training set's manifest (its
+          rng: np.random.Generator, best: float, manifest: dict | None) -> None:
+    """Write a checkpoint atomically (a temporary file, then rename); it records the training set's ``manifest`` (its
     settings, seed, counts and generator version), so the data can be made again."""
     tmp = path.with_suffix(".tmp")
-    manifest = None
-    if config.training_set is not None:
-        manifest = json.loads((Path(config.training_set) / MANIFEST_NAME).read_text())
     torch.save({"format": "evio-reconstructor-v1", "config": config.to_dict(), "architecture": config.architecture,
                 "network_options": config.network_options, "num_bins": config.data.num_bins,
                 "state_dict": net.state_dict(), "optimizer": optimizer.state_dict(), "step": step,
@@ -418,6 +415,9 @@ def train_reconstructor(config: ReconstructionTrainConfig, out: str | Path, resu
         val_data = reconstruction_dataset("val", config.n_val, config.seed, config.data, progress=progress,
                                           workers=max(2, config.threads))
     data, val_data = _as_source(data), _as_source(val_data)
+    manifest = None                                          # read once: every checkpoint records it
+    if config.training_set is not None:
+        manifest = json.loads((Path(config.training_set) / MANIFEST_NAME).read_text())
     n_train = len(data)
     start = time.perf_counter()
     bar = None
@@ -449,8 +449,8 @@ def train_reconstructor(config: ReconstructionTrainConfig, out: str | Path, resu
                 history.append({"step": step, "train_loss": running, **{f"val_{k}": x for k, x in val.items()}})
                 if val["ssim"] > best:
                     best = val["ssim"]
-                    _save(out / "best.pt", net, optimizer, config, step, history, rng, best)
-                _save(last, net, optimizer, config, step, history, rng, best)
+                    _save(out / "best.pt", net, optimizer, config, step, history, rng, best, manifest)
+                _save(last, net, optimizer, config, step, history, rng, best, manifest)
                 (out / "history.json").write_text(json.dumps(history, indent=1) + "\n")
             if out_of_time:
                 break
