@@ -12,10 +12,10 @@ for issue 23, with each one's largest difference from the eager float32 network'
 FireNetInference the reconstructor uses: channels-last, split GRU convolutions, tanh via sigmoid, in-place steps),
 ``bf16`` (autocast to bfloat16: about twice as fast on CPUs with AVX512-BF16, but 5e-3 off, over the 1e-3 allowed),
 ``jit`` (torch.jit.trace + freeze) and ``compile`` (torch.compile with inductor freezing; tens of seconds to compile).
-Measured 2026-11-27 on the 2-core AMD EPYC (AVX-512, load 2-4 from another job), 1 thread, ms per frame:
-eager 50-57, channels_last 46.7, fast 42-43, bf16 25.8 (max diff 5.4e-3), compile 49.9 (+ freezing on the fast
-module: 48.0), the convolutions alone 32-33 ms (1.62 G multiply-adds per frame at about 95 % of what eager conv2d
-reaches): 100 frames/s on two cores is out of reach for this network in float32.
+Measured 2026-11-27 on the idle 2-core AMD EPYC (AVX-512), ms per frame with 1 / 2 threads: eager 51.0 / 32.6,
+channels_last 45.5 / 26.4, fast 44.4 / 22.1, bf16 28.3 / 15.5 (max diff 3.1e-3), jit 49.9 / 27.3, compile 42.0 /
+25.4; the convolutions alone take 32-33 ms on one thread (1.62 G multiply-adds per frame): 100 frames/s on two cores
+is out of reach for this network in float32 (docs/reconstruction.md, Speed).
 """
 from __future__ import annotations
 
