@@ -55,6 +55,7 @@ from evio_lib.msckf.initialization import initial_state_from_static, initial_sta
 from evio_lib.msckf.zero_velocity import StandstillDetector, ZeroVelocityConfig
 from evio_lib.pipeline.dataset import LoadedDataset
 from evio_lib.pipeline.frames import FRAME_SOURCES, aps_frames, event_frames
+from evio_lib.threads import set_threads, single_threaded_blas  # re-exported: `from evio_lib.pipeline.run import set_threads` keeps working
 
 __all__ = ["INIT_MODES", "MIN_PERCENT_DISTANCE_M", "PipelineConfig", "PipelineResult", "run_pipeline", "set_threads"]
 
@@ -239,20 +240,6 @@ class PipelineResult:
 
 
 # ==================================================================================================== set-up
-def set_threads(threads: int) -> None:
-    """Limit torch, OpenCV and (for libraries loaded later) BLAS to ``threads`` threads (``run --threads``, each job of
-    ``table``): on a small, busy CPU more threads oversubscribe it and run several times slower."""
-    import os
-
-    import cv2
-    import torch
-
-    for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ[name] = str(threads)
-    torch.set_num_threads(threads)
-    cv2.setNumThreads(threads)
-
-
 def _groundtruth(data: LoadedDataset):
     """Return the recording's ground truth: the IMU's when it has one, else the camera's, else None."""
     seq = data.sequence
@@ -507,7 +494,8 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
         source = ((float(t), None, 0.0) for t in times)
     else:
         source = _frames(data, config, t_first, t_last)
-    with warnings.catch_warnings():
+    # one BLAS thread: the front-end's and the filter's matrices are small, and threaded BLAS spins (evio_lib.threads)
+    with warnings.catch_warnings(), single_threaded_blas():
         warnings.simplefilter("ignore", MsckfWarning)  # counted in filt.faults and reported in the summary
         for t, image, t_rec in source:
             if t <= t_first or (t_prev is not None and t <= t_prev):
