@@ -12,8 +12,8 @@ from typing import Any
 import numpy as np
 
 from evio_lib.features import create_detector
-from evio_lib.features.datasets import image_pool
-from evio_lib.features.superpoint import shipped_weights
+from evio_lib.features.network import shipped_weights
+from evio_lib.features.training.datasets import image_pool
 
 
 def similarity(shape: tuple[int, int], zoom: float, degrees: float) -> np.ndarray:

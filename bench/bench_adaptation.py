@@ -28,7 +28,7 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
-from evio_lib.features.adaptation import homographic_adaptation  # noqa: E402
+from evio_lib.features.training.adaptation import homographic_adaptation  # noqa: E402
 
 TARGET_S = 5.0
 

@@ -27,7 +27,7 @@ os.environ.setdefault("MKL_NUM_THREADS", "1")
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
-from evio_lib.features.shapes import SHAPE_KINDS, generate_shape_image  # noqa: E402
+from evio_lib.features.training.shapes import SHAPE_KINDS, generate_shape_image  # noqa: E402
 
 TARGET_MS = 60.0  # 1 000 images per minute
 

@@ -16,7 +16,7 @@ medians is printed. Issue 4 targets: >= 15 frames/s at 180x240 and >= 8 frames/s
 Also printed: the relative difference of each fast path's logits and descriptors from the fp32 eager model, and the
 share of its keypoints within 1 px of the fp32 ones (top 300, NMS 4), so speed is never bought blindly.
 
-Modes (see evio_lib.features.superpoint.inference_model): eager = the trained model as is (fp32, BN layers),
+Modes (see evio_lib.features.network.inference_model): eager = the trained model as is (fp32, BN layers),
 fused = BN folded into the convolutions + channels-last (fp32), bf16 = fused + bfloat16 autocast (final 1x1 layers
 fp32), int8 = static int8 quantisation (FX, oneDNN), narrow = the half-width network in the "auto" mode.
 """
@@ -32,7 +32,7 @@ import cv2
 import numpy as np
 import torch
 
-from evio_lib.features import superpoint as sp
+from evio_lib.features import network as sp
 
 
 def _test_image(height: int, width: int) -> np.ndarray:

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 from _val_probe import probe_parser, probe_setup, similarity
 
-from evio_lib.features.evaluate import match_descriptors
+from evio_lib.features.evaluation.evaluate import match_descriptors
 from evio_lib.geometry.homography import warp_image, warp_points
 
 WARPS = ((1.0, 0.0), (1.25, 0.0), (1.5, 0.0), (1.0, 15.0), (1.0, 30.0), (1.0, 45.0), (1.5, 30.0))  # (zoom, degrees)

@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 from _val_probe import probe_parser, probe_setup, similarity
 
-from evio_lib.features.evaluate import localisation_error, repeatability
+from evio_lib.features.evaluation.evaluate import localisation_error, repeatability
 from evio_lib.geometry.homography import warp_image
 
 

@@ -29,8 +29,8 @@ import argparse
 import numpy as np
 
 from evio_lib.features import create_detector
-from evio_lib.features.benchmark import BenchmarkSettings, diagnose_pairs, heldout_pairs
-from evio_lib.features.superpoint import shipped_weights
+from evio_lib.features.evaluation.benchmark import BenchmarkSettings, diagnose_pairs, heldout_pairs
+from evio_lib.features.network import shipped_weights
 
 
 def main() -> None:

@@ -100,9 +100,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 #: OpenCV (seconds); the options modules import none of them, so ``--help`` and a usage error start in well under a
 #: second, and :func:`main` imports the main module of the one command that runs.
 _COMMAND_MODULES = {
-    "features-benchmark": ("evio_lib.features.benchmark_options", "add_benchmark_arguments",
-                           "evio_lib.features.benchmark", "main_benchmark"),
-    "features-train": ("evio_lib.features.train_options", "add_train_arguments", "evio_lib.features.train",
+    "features-benchmark": ("evio_lib.features.evaluation.options", "add_benchmark_arguments",
+                           "evio_lib.features.evaluation.benchmark", "main_benchmark"),
+    "features-train": ("evio_lib.features.training.options", "add_train_arguments", "evio_lib.features.training.train",
                        "main_train"),
     "vio-sim": ("evio_lib.msckf.experiment_options", "add_vio_sim_arguments", "evio_lib.msckf.experiment",
                 "main_vio_sim"),

@@ -55,7 +55,7 @@ from skimage.color import rgb2gray
 
 from evio_lib.features.base import available_detectors, create_detector, to_float_image, to_uint8_image
 from evio_lib.features.classical import fast_score, harris_response
-from evio_lib.features.evaluate import repeatability
+from evio_lib.features.evaluation.evaluate import repeatability
 from evio_lib.evaluation.plots_features import (
     plot_binary_descriptors,
     plot_fast_circle,
@@ -332,7 +332,7 @@ assert border_distance(features["fast_freak"].keypoints, image_240.shape) > 2 * 
 # with both distances measured in image 2 (as SuperPoint's evaluation does; the thesis measures the second sum in
 # image 1, with $H^{-1}$). Repeatability says nothing about
 # descriptors: it only measures the detector. Here is one pair, computed in a few lines and compared with the
-# library function `evio_lib.features.evaluate.repeatability`.
+# library function `evio_lib.features.evaluation.evaluate.repeatability`.
 
 # %%
 def repeatability_by_hand(kp1, kp2, H, shape, eps):

@@ -22,8 +22,8 @@
 #
 # 1. looks at the Synthetic Shapes generator and its labels;
 # 2. builds the network of thesis Fig. 12 and explains its 65-channel "cell + dustbin" output and depth-to-space;
-# 3. writes the detector loss (Eq. 9) in a few lines and checks it against `evio_lib.features.losses`;
-# 4. trains MagicPoint for a short while with `evio_lib.features.train` and plots the loss curve;
+# 3. writes the detector loss (Eq. 9) in a few lines and checks it against `evio_lib.features.training.losses`;
+# 4. trains MagicPoint for a short while with `evio_lib.features.training.train` and plots the loss curve;
 # 5. measures precision and recall (Eqs. 13-14) of its detections on held-out synthetic images.
 
 # %% [markdown]
@@ -54,16 +54,22 @@ from evio_lib.evaluation.plots_features import (
     plot_labelled_images,
     plot_training_curve,
 )
-from evio_lib.features import train as training
-from evio_lib.features.losses import detector_loss, keypoint_map_to_labels
-from evio_lib.features.metrics import keypoints_to_map, precision_recall
-from evio_lib.features.shapes import SHAPE_COUNTS, SHAPE_KINDS, UNLABELLED_KINDS, SyntheticShapes, generate_shape_image
-from evio_lib.features.superpoint import (
+from evio_lib.features.network import (
     SuperPointDetector,
     build_model,
     count_parameters,
     logits_to_heatmap,
     shipped_weights,
+)
+from evio_lib.features.training import train as training
+from evio_lib.features.training.losses import detector_loss, keypoint_map_to_labels
+from evio_lib.features.training.metrics import keypoints_to_map, precision_recall
+from evio_lib.features.training.shapes import (
+    SHAPE_COUNTS,
+    SHAPE_KINDS,
+    UNLABELLED_KINDS,
+    SyntheticShapes,
+    generate_shape_image,
 )
 
 FAST = os.environ.get("EVIO_FAST", "0") == "1"  # CI sets EVIO_FAST=1: a few training steps on tiny images
@@ -194,7 +200,7 @@ assert torch.equal(labels, keypoint_map_to_labels(kmap, 0))
 # %% [markdown]
 # ## 4. Training MagicPoint
 #
-# `evio_lib.features.train` runs every training stage of the thesis from a config file
+# `evio_lib.features.training.train` runs every training stage of the thesis from a config file
 # (`evio_lib/features/configs/`, one per variant of thesis Table 1). `magicpoint` is the first stage: detector only,
 # Synthetic Shapes, Adam with learning rate $10^{-3}$. The shipped config trains the full network on augmented
 # images for 6 000 steps (`python -m evio_lib features-train magicpoint`, about 45 minutes on a 2-core CPU;
@@ -350,7 +356,7 @@ if not FAST:  # the full lesson's run, on its own kind of images, is the more pr
 #   classifies each 8 x 8 cell into 64 pixel positions or a "no keypoint" dustbin; softmax, dropping the dustbin
 #   and depth-to-space give a full-resolution keypoint probability map.
 # * The detector loss (Eq. 9) is a 65-way cross-entropy per cell; a few lines of torch reproduce the library's.
-# * `evio_lib.features.train` trains any variant of thesis Table 1 from its config, with validation, best-model
+# * `evio_lib.features.training.train` trains any variant of thesis Table 1 from its config, with validation, best-model
 #   selection, checkpoints and exact resume. MagicPoint is the first stage; precision and recall (Eqs. 13-14) on
 #   held-out images track its progress.
 #

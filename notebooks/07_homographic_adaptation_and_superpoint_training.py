@@ -54,14 +54,8 @@ from evio_lib.evaluation.plots_features import (
     plot_matches,
     plot_training_curve,
 )
-from evio_lib.features import train as training
-from evio_lib.features.adaptation import homographic_adaptation, heatmap_to_keypoints
-from evio_lib.features.augment import HOMOGRAPHIC_ADAPTATION, HOMOGRAPHIC_PAIR, homographic_augment
-from evio_lib.features.datasets import RealImages, image_pool
-from evio_lib.features.evaluate import match_descriptors
-from evio_lib.features.losses import cell_centres, cell_correspondences, descriptor_cell_stats, descriptor_loss
-from evio_lib.features.shapes import generate_shape_image
-from evio_lib.features.superpoint import (
+from evio_lib.features.evaluation.evaluate import match_descriptors
+from evio_lib.features.network import (
     SuperPointDetector,
     inference_model,
     load_checkpoint,
@@ -71,6 +65,12 @@ from evio_lib.features.superpoint import (
     resolve_weights,
     shipped_weights,
 )
+from evio_lib.features.training import train as training
+from evio_lib.features.training.adaptation import homographic_adaptation, heatmap_to_keypoints
+from evio_lib.features.training.augment import HOMOGRAPHIC_ADAPTATION, HOMOGRAPHIC_PAIR, homographic_augment
+from evio_lib.features.training.datasets import RealImages, image_pool
+from evio_lib.features.training.losses import cell_centres, cell_correspondences, descriptor_cell_stats, descriptor_loss
+from evio_lib.features.training.shapes import generate_shape_image
 from evio_lib.geometry.homography import valid_mask, warp_image, warp_points
 
 FAST = os.environ.get("EVIO_FAST", "0") == "1"  # CI sets EVIO_FAST=1: a few training steps on tiny images
@@ -540,7 +540,7 @@ for name in names:  # loop over shipped networks
 # * The full network learns descriptors from **warped pairs**: $\mathcal{H}$ gives the cell correspondences
 #   $S$ (Eq. 10), and a hinge loss (Eqs. 11-12) pulls corresponding cells together and pushes the rest apart;
 #   a few lines of NumPy reproduce the library's loss.
-# * `evio_lib.features.train` runs any stage from a config (labels, pairs, Eq. 8, validation, checkpoints);
+# * `evio_lib.features.training.train` runs any stage from a config (labels, pairs, Eq. 8, validation, checkpoints);
 #   the thesis's best chain is `python -m evio_lib features-train pretrained_detdesc_round2 --chain`.
 # * A short pre-trained run at a small learning rate already moves the detector onto corners (more than three times
 #   the untrained network's share of keypoints on corners, and 2.7-3 times as many corners found, on test drawings

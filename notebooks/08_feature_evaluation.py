@@ -23,8 +23,8 @@
 # 4. **qualitative matches** in the style of the thesis's Appendix B;
 # 5. the **benchmark tables** in the form of Tables 2-5 for every available detector, plus a speed table.
 #
-# Every metric is first computed by hand on one image pair and checked against `evio_lib.features.evaluate`; the
-# tables then come from `evio_lib.features.benchmark`.
+# Every metric is first computed by hand on one image pair and checked against
+# `evio_lib.features.evaluation.evaluate`; the tables then come from `evio_lib.features.evaluation.benchmark`.
 #
 # **Data.** The thesis evaluated on HPatches (§3.2.3): 116 scenes, each a reference image and 5 others of the same
 # planar scene under changed illumination (57 scenes) or viewpoint (59), with the true homography to the reference.
@@ -55,7 +55,7 @@ from evio_lib.evaluation.plots_features import (
 )
 from evio_lib.events.array import event_count_image, events_between
 from evio_lib.features.base import available_detectors, create_detector
-from evio_lib.features.benchmark import (
+from evio_lib.features.evaluation.benchmark import (
     VIEWPOINT_HOMOGRAPHY,
     BenchmarkSettings,
     diagnose_pairs,
@@ -65,7 +65,7 @@ from evio_lib.features.benchmark import (
     measure_speed,
     run_benchmark,
 )
-from evio_lib.features.evaluate import (
+from evio_lib.features.evaluation.evaluate import (
     corner_error,
     diagnose_matches,
     estimate_homography,
@@ -75,8 +75,8 @@ from evio_lib.features.evaluate import (
     mean_average_precision,
     repeatability,
 )
-from evio_lib.features.hpatches import resize_pair
-from evio_lib.features.superpoint import shipped_weights
+from evio_lib.features.evaluation.hpatches import resize_pair
+from evio_lib.features.network import shipped_weights
 from evio_lib.geometry.homography import warp_points
 from evio_lib.sim.presets import SimulationConfig, simulate_sequence
 
@@ -675,8 +675,8 @@ assert filter_config.min_track_length == 3 and filter_config.pixel_noise_sigma =
 # * **Homography estimation correctness** (Eq. 17) tests the whole chain — detector, descriptor, mutual
 #   nearest-neighbour matching, RANSAC — through the mean distance of the four warped image corners.
 # * **Matching score** and **NN mAP** look at the descriptor matches before RANSAC hides the wrong ones.
-# * Every metric was computed by hand on one pair and agrees with `evio_lib.features.evaluate`.
-# * `evio_lib.features.benchmark` turns these into tables shaped like the thesis's Tables 2-5 (held-out
+# * Every metric was computed by hand on one pair and agrees with `evio_lib.features.evaluation.evaluate`.
+# * `evio_lib.features.evaluation.benchmark` turns these into tables shaped like the thesis's Tables 2-5 (held-out
 #   viewpoint/illumination pairs and simulated event frames), plus a speed table; the full 580-pair run is
 #   `python -m evio_lib features-benchmark --out DIR`. One CNN row appears per weights file shipped in
 #   `evio_lib/weights/`.

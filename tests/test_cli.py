@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from evio_lib import cli, course
-from evio_lib.features import benchmark
+from evio_lib.features.evaluation import benchmark
 
 PROJECT_ROOT = Path(__file__).resolve().parents[1]
 
@@ -320,7 +320,7 @@ def test_simulate_from_the_shell_is_quiet_and_clean(tmp_path):
 # ---------------------------------------------------------------------------------------------- features-train
 @pytest.mark.parametrize("fails", [False, True])
 def test_train_force_replaces_a_run_only_when_training_returns(inputs, monkeypatch, capsys, fails):
-    from evio_lib.features import train
+    from evio_lib.features.training import train
 
     def run_chain(names, **kwargs):
         run_dir = inputs / "runs" / "magicpoint"

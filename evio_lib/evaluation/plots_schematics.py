@@ -14,7 +14,7 @@ One function per figure, each returning the matplotlib Figure:
 - :func:`plot_pipeline_schematic` (notebook 13): the pipeline's data flow from the sensors to a trajectory and its
   error metrics (Chapter IV §4.5).
 
-The sizes written in the boxes are those of the library (`evio_lib.features.superpoint`,
+The sizes written in the boxes are those of the library (`evio_lib.features.network`,
 `evio_lib.events.reconstruction.nets`, `evio_lib.msckf.state`); nothing here is computed from data, except the
 one-pixel curve of :func:`plot_event_pixel_schematic`, whose events follow the thesis's rule exactly.
 Matplotlib is imported when a figure is made.
@@ -282,7 +282,7 @@ def plot_superpoint_schematic(encoder_channels: Sequence[int] = (64, 64, 64, 64,
     every two of the first six, so an H x W image becomes an H/8 x W/8 grid of cells. Detector head: 3x3 conv
     (``head_channels``), 1x1 conv to cell^2 + 1 = 65 logits per cell, softmax, drop the "no point" dustbin,
     depth-to-space to an H x W heatmap. Descriptor head: 3x3 conv, 1x1 conv to ``descriptor_dim``, bicubic
-    upsampling and L2 normalisation. Defaults: `evio_lib.features.superpoint` ("full" width).
+    upsampling and L2 normalisation. Defaults: `evio_lib.features.network` ("full" width).
 
     Args:
         encoder_channels: the eight encoder depths.

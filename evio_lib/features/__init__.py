@@ -6,6 +6,19 @@
 
 Every name of ``available_detectors()`` constructs with no options; "superpoint" is the best shipped network
 (``SUPERPOINT_DEFAULT_WEIGHTS``).
+
+Layout:
+
+- :mod:`~evio_lib.features.base`: the ``Features`` record, ``FeatureDetector``, the name registry, box NMS;
+- :mod:`~evio_lib.features.classical`: the OpenCV detectors (Harris, Shi-Tomasi, FAST, SIFT, ORB, FAST + FREAK);
+- :mod:`evio_lib.features.network`: the SuperPoint-style CNN (model and checkpoints, post-processing, fast
+  inference, the detector);
+- :mod:`evio_lib.features.training`: its training data, augmentation, losses and staged training
+  (``features-train``; configs in ``evio_lib/features/configs/``);
+- :mod:`evio_lib.features.evaluation`: detector and descriptor metrics and the benchmark (``features-benchmark``).
+
+The former flat module names (``evio_lib.features.superpoint``, ``.train``, ``.benchmark``, ...) still import, as
+aliases of the modules that took their place.
 """
 from evio_lib.lazy_exports import lazy_exports
 

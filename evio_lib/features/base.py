@@ -56,7 +56,7 @@ _BUILTIN_DETECTORS: dict[str, tuple[str, str]] = {
 #: viewpoint split (0.545), so it is the best shipped network, not one that meets every target.
 SUPERPOINT_DEFAULT_WEIGHTS = "pretrained_detdesc_round1_gpu"
 # Modules that register trained variants (register_detector) when imported; loaded on a registry miss.
-_PLUGIN_MODULES: tuple[str, ...] = ("evio_lib.features.superpoint",)
+_PLUGIN_MODULES: tuple[str, ...] = ("evio_lib.features.network.detector",)
 _REGISTERED: dict[str, Callable[..., "FeatureDetector"]] = {}
 
 
@@ -444,7 +444,7 @@ def _create_superpoint(**options: Any) -> FeatureDetector:
     ``weights=PATH`` (a checkpoint) or ``weights=NAME`` (shipped weights) for another network, or ``weights=None,
     allow_random=True`` for an untrained one. Imported on demand: only this name pulls in torch.
     """
-    from evio_lib.features.superpoint import SuperPointDetector
+    from evio_lib.features.network.detector import SuperPointDetector
 
     options.setdefault("weights", SUPERPOINT_DEFAULT_WEIGHTS)
     return SuperPointDetector(**options)

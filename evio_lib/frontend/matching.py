@@ -22,7 +22,7 @@ from numbers import Real
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from evio_lib.features.evaluate import descriptor_distances
+from evio_lib.features.evaluation.evaluate import descriptor_distances
 
 __all__ = ["match_mutual_ratio"]
 

@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 
 from evio_lib.features.base import FeatureDetector, to_uint8_image
-from evio_lib.features.evaluate import descriptor_distances
+from evio_lib.features.evaluation.evaluate import descriptor_distances
 
 __all__ = ["Redetection", "redetection"]
 

@@ -184,7 +184,7 @@ def main_table(args: argparse.Namespace) -> int:
             ("the --events-cnn checkpoint", args.events_cnn), ("the recording cache", sequence_cache_dir())])
     _require_checkpoint_file("--events-cnn", args.events_cnn)
     if args.events_cnn is not None:  # a damaged or foreign checkpoint fails now, not in every run of its row
-        from evio_lib.features.superpoint import load_model
+        from evio_lib.features.network import load_model
 
         try:
             load_model(args.events_cnn)

@@ -4,8 +4,8 @@
 plus the camera-IMU extrinsics and IMU noise model the filter needs, and notes saying where each came from.
 
 - A preset name (``boxes_like``, ``aerial_like``) is simulated on first use and cached as ``.npz`` under the project's
-  cache folder (``features.datasets.default_cache_dir() / "sequences"``), keyed by preset, duration, seed and whether
-  events were simulated; the sidecar knows the extrinsics and the IMU noise exactly.
+  cache folder (``features.training.datasets.default_cache_dir() / "sequences"``), keyed by preset, duration, seed and
+  whether events were simulated; the sidecar knows the extrinsics and the IMU noise exactly.
 - An ECD folder (``events.txt`` [+ ``images.txt``, ``imu.txt``, ``calib.txt``, ``groundtruth.txt``]): extrinsics from
   the evio sidecar when present, else camera = IMU frame (the DAVIS chip's own IMU; about a centimetre off in reality),
   said in the notes. IMU noise from the sidecar, else the DAVIS's MPU-6150 model of :class:`ImuNoiseParams`.
@@ -66,7 +66,7 @@ class LoadedDataset:
 
 def sequence_cache_dir() -> Path:
     """Return the folder of cached simulated recordings (``default_cache_dir() / "sequences"``)."""
-    from evio_lib.features.datasets import default_cache_dir
+    from evio_lib.features.training.datasets import default_cache_dir
 
     return default_cache_dir() / "sequences"
 

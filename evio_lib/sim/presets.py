@@ -263,7 +263,7 @@ def simulation_cache_path(config: SimulationConfig) -> Path:
     import hashlib
     import json
 
-    from evio_lib.features.datasets import default_cache_dir  # the project's one cache folder
+    from evio_lib.features.training.datasets import default_cache_dir  # the project's one cache folder
 
     fields = json.dumps(asdict(config), sort_keys=True, default=lambda value: np.asarray(value).tolist())
     digest = hashlib.sha1(fields.encode("utf-8")).hexdigest()[:16]

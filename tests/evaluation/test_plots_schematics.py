@@ -84,7 +84,7 @@ def test_superpoint_schematic_has_the_library_sizes() -> None:
 
 
 def test_superpoint_schematic_matches_the_network() -> None:
-    from evio_lib.features.superpoint import SuperPointNet
+    from evio_lib.features.network import SuperPointNet
 
     config = SuperPointNet().config
     text = _texts(plot_superpoint_schematic(config["encoder_channels"], config["head_channels"],

@@ -1,4 +1,4 @@
-"""Tests for evio_lib.features.adaptation: equivariant detectors are reproduced, counts match an independent
+"""Tests for evio_lib.features.training.adaptation: equivariant detectors are reproduced, counts match an independent
 computation, non-equivariant responses are averaged out, NMS matches a brute-force greedy loop."""
 from __future__ import annotations
 
@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 import torch
 
-from evio_lib.features.adaptation import (
+from evio_lib.features.training.adaptation import (
     adaptation_homographies,
     heatmap_to_keypoints,
     homographic_adaptation,
     label_images,
 )
-from evio_lib.features.augment import HOMOGRAPHIC_ADAPTATION
+from evio_lib.features.training.augment import HOMOGRAPHIC_ADAPTATION
 from evio_lib.geometry.homography import valid_mask, warp_points
 
 SHAPE = (96, 128)

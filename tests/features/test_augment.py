@@ -1,4 +1,4 @@
-"""Tests for evio_lib.features.augment: photometric operations against closed forms, homographic warps against
+"""Tests for evio_lib.features.training.augment: photometric operations against closed forms, homographic warps against
 the geometry module, label maps."""
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import pytest
 import torch
 from torch.utils.data import default_collate
 
-from evio_lib.features.augment import (
+from evio_lib.features.training.augment import (
     HOMOGRAPHIC_ADAPTATION,
     HOMOGRAPHIC_REAL,
     HOMOGRAPHIC_SYNTHETIC,

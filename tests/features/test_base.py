@@ -315,7 +315,7 @@ def test_every_available_detector_constructs_and_detects(name):
 
 
 def test_superpoint_is_the_best_shipped_network():
-    from evio_lib.features.superpoint import shipped_weights
+    from evio_lib.features.network import shipped_weights
 
     assert base.SUPERPOINT_DEFAULT_WEIGHTS in shipped_weights()
     default = create_detector("superpoint", max_keypoints=100, inference="fused")

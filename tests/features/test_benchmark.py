@@ -1,4 +1,5 @@
-"""Tests for evio_lib.features.benchmark: data sets with known geometry, the run on easy cases, tables and the CLI."""
+"""Tests for evio_lib.features.evaluation.benchmark: data sets with known geometry, the run on easy cases, tables and
+the CLI."""
 from __future__ import annotations
 
 import json
@@ -10,7 +11,7 @@ import pytest
 from skimage import data as skdata
 
 from evio_lib.features.base import Features, FeatureDetector, create_detector
-from evio_lib.features.benchmark import (
+from evio_lib.features.evaluation.benchmark import (
     BenchmarkSettings,
     diagnose_pairs,
     event_frame_pairs,
@@ -23,8 +24,8 @@ from evio_lib.features.benchmark import (
     run_benchmark,
     viewpoint_pairs,
 )
-from evio_lib.features.evaluate import diagnose_matches
-from evio_lib.features.hpatches import ImagePair, resize_pair
+from evio_lib.features.evaluation.evaluate import diagnose_matches
+from evio_lib.features.evaluation.hpatches import ImagePair, resize_pair
 
 
 @pytest.fixture(scope="module")
@@ -280,7 +281,7 @@ def test_main_benchmark_on_event_frames(tmp_path, camera, capsys):
 
 
 def test_main_benchmark_passes_weights_to_the_superpoint_detector(tmp_path, camera, capsys):
-    sp = pytest.importorskip("evio_lib.features.superpoint")
+    sp = pytest.importorskip("evio_lib.features.network")
     weights = sp.save_checkpoint(sp.build_model("narrow", seed=3), tmp_path / "tiny_net.pt")
     frames = np.stack([camera[:120, :160], camera[120:, 160:]])
     np.save(tmp_path / "frames.npy", frames)
@@ -321,7 +322,7 @@ def test_main_benchmark_on_a_fake_hpatches_folder(tmp_path, camera, capsys):
 
 
 def test_heldout_pairs_from_the_test_pool():
-    datasets = pytest.importorskip("evio_lib.features.datasets")
+    datasets = pytest.importorskip("evio_lib.features.training.datasets")
     pairs = heldout_pairs(0, n_images=2, pairs_per_image=1, size=(60, 80))
     pool = datasets.image_pool("test", 0, size=(60, 80), n_images=2)
     assert [p.split for p in pairs] == ["viewpoint", "viewpoint", "illumination", "illumination"]

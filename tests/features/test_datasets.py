@@ -1,4 +1,4 @@
-"""Tests for evio_lib.features.datasets: the split by source (no source or test content in two splits), offline
+"""Tests for evio_lib.features.training.datasets: the split by source (no source or test content in two splits), offline
 loading, the pool's determinism and composition, event frames, the label cache and the RealImages dataset."""
 from __future__ import annotations
 
@@ -11,9 +11,9 @@ import torch
 from torch.utils.data import DataLoader
 
 import evio_lib.sim.scene as scene_module
-import evio_lib.features.datasets as datasets
-from evio_lib.features.augment import PairSample, Sample, keypoints_to_map
-from evio_lib.features.datasets import (
+import evio_lib.features.training.datasets as datasets
+from evio_lib.features.training.augment import PairSample, Sample, keypoints_to_map
+from evio_lib.features.training.datasets import (
     DEFAULT_POOL_SIZE,
     PHOTO_FILES,
     PHOTO_SPLITS,

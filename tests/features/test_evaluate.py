@@ -1,4 +1,5 @@
-"""Tests for evio_lib.features.evaluate: constructed cases with known answers, brute-force references and OpenCV."""
+"""Tests for evio_lib.features.evaluation.evaluate: constructed cases with known answers, brute-force references and
+OpenCV."""
 from __future__ import annotations
 
 import math
@@ -7,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from evio_lib.features.evaluate import (
+from evio_lib.features.evaluation.evaluate import (
     average_precision,
     corner_error,
     descriptor_distances,

@@ -1,4 +1,4 @@
-"""Tests for evio_lib.features.hpatches on a tiny fake HPatches folder written with OpenCV."""
+"""Tests for evio_lib.features.evaluation.hpatches on a tiny fake HPatches folder written with OpenCV."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -7,7 +7,7 @@ import cv2
 import numpy as np
 import pytest
 
-from evio_lib.features.hpatches import (
+from evio_lib.features.evaluation.hpatches import (
     ImagePair,
     hpatches_scenes,
     iter_hpatches_pairs,

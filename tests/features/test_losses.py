@@ -1,4 +1,4 @@
-"""Tests of evio_lib.features.losses: hand-made cases with known values, a loop reference, masks, randomness,
+"""Tests of evio_lib.features.training.losses: hand-made cases with known values, a loop reference, masks, randomness,
 gradients."""
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import pytest
 import torch
 from scipy.special import log_softmax
 
-from evio_lib.features import losses
-from evio_lib.features.superpoint import build_model
+from evio_lib.features.network import build_model
+from evio_lib.features.training import losses
 from evio_lib.geometry.homography import warp_points
 
 

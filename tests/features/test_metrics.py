@@ -1,4 +1,4 @@
-"""Tests of evio_lib.features.metrics: closed-form precision/recall cases, tolerance, masks, batches, and a
+"""Tests of evio_lib.features.training.metrics: closed-form precision/recall cases, tolerance, masks, batches, and a
 brute-force nearest-neighbour reference."""
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 import torch
 from scipy.spatial import cKDTree
 
-from evio_lib.features.metrics import detection_counts, keypoints_to_map, precision_recall
+from evio_lib.features.training.metrics import detection_counts, keypoints_to_map, precision_recall
 
 
 def test_exact_precision_recall_closed_form() -> None:

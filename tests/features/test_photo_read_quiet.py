@@ -10,10 +10,10 @@ import cv2
 import numpy as np
 import pytest
 
-from evio_lib.features.datasets import PHOTO_FILES, _skimage_data_dir, load_photo
+from evio_lib.features.training.datasets import PHOTO_FILES, _skimage_data_dir, load_photo
 
 _READ_ALL = """
-from evio_lib.features.datasets import PHOTO_FILES, load_photo
+from evio_lib.features.training.datasets import PHOTO_FILES, load_photo
 for name, files in PHOTO_FILES.items():
     for index in range(len(files)):
         load_photo(name, index)
@@ -31,7 +31,7 @@ def test_every_photo_loads_without_a_libpng_warning():
 
 def test_the_warning_is_real_with_cv2_imread():
     """The check above can fail: a plain cv2.imread of page.png does print the warning."""
-    code = ("import cv2, sys; from evio_lib.features.datasets import _skimage_data_dir; "
+    code = ("import cv2, sys; from evio_lib.features.training.datasets import _skimage_data_dir; "
             "cv2.imread(str(_skimage_data_dir() / 'page.png'), cv2.IMREAD_GRAYSCALE)")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr

@@ -1,5 +1,5 @@
-"""Tests for evio_lib.features.shapes: keypoints checked against OpenCV's sub-pixel corner refinement and corner
-response, proportions against the thesis, determinism and the dataset interface."""
+"""Tests for evio_lib.features.training.shapes: keypoints checked against OpenCV's sub-pixel corner refinement and
+corner response, proportions against the thesis, determinism and the dataset interface."""
 from __future__ import annotations
 
 import cv2
@@ -8,8 +8,8 @@ import pytest
 import torch
 from torch.utils.data import DataLoader
 
-from evio_lib.features.augment import Sample, keypoints_to_map
-from evio_lib.features.shapes import (
+from evio_lib.features.training.augment import Sample, keypoints_to_map
+from evio_lib.features.training.shapes import (
     SHAPE_COUNTS,
     SHAPE_KINDS,
     UNLABELLED_KINDS,

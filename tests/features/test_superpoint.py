@@ -1,4 +1,4 @@
-"""Tests of evio_lib.features.superpoint: network shapes and size, post-processing against slow references,
+"""Tests of evio_lib.features.network: network shapes and size, post-processing against slow references,
 BN folding, fast inference paths, checkpoints and the detector wrapper."""
 from __future__ import annotations
 
@@ -9,8 +9,9 @@ import pytest
 import torch
 from scipy.special import softmax
 
-from evio_lib.features import superpoint as sp
+from evio_lib.features import network as sp
 from evio_lib.features.base import Features, create_detector, nms_keypoints
+from evio_lib.features.network import model as sp_model  # where WEIGHTS_DIR is read
 
 
 # ---------------------------------------------------------------------------------------------- helpers
@@ -377,7 +378,7 @@ def test_checkpoint_errors(tmp_path) -> None:
 
 
 def test_missing_shipped_weights_message(tmp_path, monkeypatch) -> None:
-    monkeypatch.setattr(sp, "WEIGHTS_DIR", tmp_path)
+    monkeypatch.setattr(sp_model, "WEIGHTS_DIR", tmp_path)
     with pytest.raises(FileNotFoundError, match="no_such_model.pt") as info:
         sp.SuperPointDetector(weights="no_such_model")
     assert sp.TRAINING_COMMAND in str(info.value) and "allow_random=True" in str(info.value)
@@ -388,7 +389,7 @@ def test_missing_shipped_weights_message(tmp_path, monkeypatch) -> None:
 
 
 def test_shipped_name_resolves_and_registers(tmp_path, monkeypatch) -> None:
-    monkeypatch.setattr(sp, "WEIGHTS_DIR", tmp_path)
+    monkeypatch.setattr(sp_model, "WEIGHTS_DIR", tmp_path)
     sp.save_checkpoint(_model("narrow"), tmp_path / "test_variant_xyz.pt")
     assert sp.shipped_weights() == ["test_variant_xyz"]
     assert sp.resolve_weights("test_variant_xyz") == tmp_path / "test_variant_xyz.pt"

@@ -1,4 +1,4 @@
-"""Tests of evio_lib.features.train: configs, the three stage types, determinism, resume, chain log and CLI."""
+"""Tests of evio_lib.features.training.train: configs, the three stage types, determinism, resume, chain log and CLI."""
 from __future__ import annotations
 
 import json
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import torch
 
-from evio_lib.features import train as tr
-from evio_lib.features.superpoint import SuperPointDetector, load_checkpoint, load_model
+from evio_lib.features.network import SuperPointDetector, load_checkpoint, load_model
+from evio_lib.features.training import train as tr
 
 TINY = {"encoder_channels": [8, 8, 8, 8, 16, 16, 16, 16], "head_channels": 16, "descriptor_dim": 16}
 SMALL = dict(model=TINY, image_size=(32, 48), batch_size=2, n_train_images=4, n_val_images=2, device="cpu",
@@ -331,7 +331,7 @@ def test_resume_accepts_a_checkpoint_written_before_a_config_field_existed(tmp_p
 
 
 def test_label_max_keypoints_keeps_the_strongest_labels(tmp_path, label_cache, monkeypatch):
-    import evio_lib.features.datasets as datasets
+    import evio_lib.features.training.datasets as datasets
 
     tr.train(tiny_magicpoint(tmp_path, name="mp", max_steps=1), progress=False)
     strongest_first = [np.arange(20, dtype=np.float32).reshape(10, 2), np.zeros((3, 2), np.float32)]

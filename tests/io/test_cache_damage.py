@@ -2,7 +2,7 @@
 it, says so in one note on stderr and makes it again (the result equals a fresh one).
 
 Caches tried: the simulated recordings of pipeline.dataset.simulate_preset (empty, truncated, half-written zip
-member), the homographic-adaptation labels of features.datasets, the reconstruction training samples.
+member), the homographic-adaptation labels of features.training.datasets, the reconstruction training samples.
 """
 from __future__ import annotations
 
@@ -82,7 +82,7 @@ def test_load_npz_arrays_errors(tmp_path):
 
 @pytest.mark.parametrize("how", ["empty", "truncated"])
 def test_damaged_label_cache_is_relabelled_with_a_note(tmp_path, capsys, how):
-    from evio_lib.features.datasets import load_labels, save_labels
+    from evio_lib.features.training.datasets import load_labels, save_labels
 
     labels = [np.array([[1.0, 2.0], [3.0, 4.0]], np.float32), np.zeros((0, 2), np.float32)]
     path = save_labels(tmp_path / "labels_x.npz", labels, "fp")

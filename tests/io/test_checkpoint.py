@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 import torch
 
-from evio_lib.features.superpoint import WEIGHTS_DIR, build_model, load_model
+from evio_lib.features.network import WEIGHTS_DIR, build_model, load_model
 from evio_lib.io.checkpoint import CheckpointError, CheckpointNotFoundError, read_checkpoint
 
 SUPERPOINT = WEIGHTS_DIR / "pretrained_detdesc_round2_cpu.pt"

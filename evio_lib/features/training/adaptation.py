@@ -23,8 +23,8 @@ from typing import Any, Callable, NamedTuple, Sequence
 import cv2
 import numpy as np
 
-from evio_lib.features.augment import HOMOGRAPHIC_ADAPTATION, HomographicConfig, as_rng, check_image
 from evio_lib.features.base import nms_keypoints
+from evio_lib.features.training.augment import HOMOGRAPHIC_ADAPTATION, HomographicConfig, as_rng, check_image
 from evio_lib.geometry.homography import valid_mask, warp_image
 
 __all__ = [

@@ -58,7 +58,7 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset
 
-from evio_lib.features.augment import (
+from evio_lib.features.training.augment import (
     HOMOGRAPHIC_ADAPTATION,
     HOMOGRAPHIC_PAIR,
     HOMOGRAPHIC_REAL,
@@ -659,7 +659,7 @@ def image_pool(split: str, seed: int = 0, size: tuple[int, int] = (240, 320), n_
 def default_cache_dir() -> Path:
     """Return the label cache folder: ``$EVIO_CACHE_DIR`` if set, else ``<repository>/data/cache`` (git-ignored)."""
     env = os.environ.get("EVIO_CACHE_DIR")
-    return Path(env) if env else Path(__file__).resolve().parents[2] / "data" / "cache"
+    return Path(env) if env else Path(__file__).resolve().parents[3] / "data" / "cache"
 
 
 def images_fingerprint(images: Sequence[np.ndarray], extra: Any = None) -> str:
@@ -746,11 +746,11 @@ def adaptation_labels(images: Sequence[np.ndarray], heatmap_fn: Callable[[np.nda
         recompute: ignore an existing cache and overwrite it.
         progress: tqdm progress bar.
         n_homographies, config, batch_size, threshold, nms_radius, border, max_keypoints: see
-            :func:`evio_lib.features.adaptation.label_images`.
+            :func:`evio_lib.features.training.adaptation.label_images`.
 
     Reference: thesis §3.2.5.2 (exporting detections, N = 100).
     """
-    from evio_lib.features.adaptation import label_images
+    from evio_lib.features.training.adaptation import label_images
 
     if cache_name is not None and (not isinstance(cache_name, str) or not re.fullmatch(r"[A-Za-z0-9_.-]+", cache_name)):
         raise ValueError(f"cache_name must be letters, digits, '_', '.', '-' (or None); got {cache_name!r}")
@@ -776,8 +776,9 @@ def adaptation_labels(images: Sequence[np.ndarray], heatmap_fn: Callable[[np.nda
 class RealImages(Dataset):
     """Torch dataset of pool images with augmentation and (optional) homographic-adaptation labels.
 
-    ``dataset[i]`` is a :class:`~evio_lib.features.augment.Sample` (image (1, H, W), keypoint_map (H, W),
-    valid_mask (H, W), float32 tensors) or, with ``pairs=True``, a :class:`~evio_lib.features.augment.PairSample`
+    ``dataset[i]`` is a :class:`~evio_lib.features.training.augment.Sample` (image (1, H, W), keypoint_map (H, W),
+    valid_mask (H, W), float32 tensors) or, with ``pairs=True``, a
+    :class:`~evio_lib.features.training.augment.PairSample`
     (image and its warped copy, their keypoint maps and masks, and the homography) for detector+descriptor
     training (thesis Eq. 8). Augmentation (default on for train only; thesis §3.2.2 leaves validation images
     unmodified): single mode -- photometric then homographic (``HOMOGRAPHIC_REAL``); pair mode -- the image gets

@@ -24,7 +24,7 @@ interrupted. A checkpoint holds the model, the Adam state, the step, the losses 
 
 Files of a run, under ``<checkpoint_dir>/<variant>/`` (default ``runs/features/``, git-ignored): ``last.pt``
 (resume), ``best.pt`` (best validation, model only; load it with
-``evio_lib.features.superpoint.load_model`` / ``SuperPointDetector(weights=PATH)``), ``config.json`` and
+``evio_lib.features.network.load_model`` / ``SuperPointDetector(weights=PATH)``), ``config.json`` and
 ``history.json``. :func:`run_chain` appends what it ran to ``<checkpoint_dir>/chain_log.json``.
 
 Reference: thesis §3.2.1-3.2.5, Table 1; DeTone, Malisiewicz & Rabinovich, "SuperPoint", CVPRW 2018.
@@ -50,10 +50,7 @@ import numpy as np
 import torch
 from torch.utils.data import DataLoader, Dataset, Subset
 
-from evio_lib.features.augment import HOMOGRAPHIC_PAIR, HomographicConfig, PairSample
-from evio_lib.features.losses import descriptor_cell_stats, detector_loss, superpoint_loss
-from evio_lib.features.metrics import detection_counts, keypoints_to_map
-from evio_lib.features.superpoint import (
+from evio_lib.features.network import (
     MODEL_CONFIGS,
     SuperPointNet,
     build_model,
@@ -64,7 +61,10 @@ from evio_lib.features.superpoint import (
     pad_to_cells,
     save_checkpoint,
 )
-from evio_lib.features.train_options import add_train_arguments  # the command's options (no torch)
+from evio_lib.features.training.augment import HOMOGRAPHIC_PAIR, HomographicConfig, PairSample
+from evio_lib.features.training.losses import descriptor_cell_stats, detector_loss, superpoint_loss
+from evio_lib.features.training.metrics import detection_counts, keypoints_to_map
+from evio_lib.features.training.options import add_train_arguments  # the command's options (no torch)
 
 __all__ = [
     "STAGES",
@@ -91,8 +91,8 @@ __all__ = [
 STAGES = ("magicpoint", "detector", "detdesc")
 #: Validation quantities that ``TrainConfig.select_on`` may name, and whether larger is better.
 SELECTION_METRICS = {"loss": False, "desc_nn_accuracy": True}
-CONFIG_DIR = Path(__file__).resolve().parent / "configs"
-DEFAULT_CHECKPOINT_DIR = Path(__file__).resolve().parents[2] / "runs" / "features"  # git-ignored
+CONFIG_DIR = Path(__file__).resolve().parents[1] / "configs"  # evio_lib/features/configs
+DEFAULT_CHECKPOINT_DIR = Path(__file__).resolve().parents[3] / "runs" / "features"  # git-ignored
 _VAL_THRESHOLD = 1.0 / 65.0  # detection threshold of the validation metrics (thesis §3.2.4)
 _VAL_NMS = 4  # NMS radius of the validation detections
 _VAL_SEED = 9_999  # label-choice seed of the validation loss (the same draw at every validation)
@@ -471,7 +471,7 @@ _POOL_CACHE: dict[tuple, list[np.ndarray]] = {}
 
 
 def load_event_frames(spec: str | Path | Mapping[str, Any], name: str = "events") -> Any:
-    """Return :class:`evio_lib.features.datasets.EventFrames` from a file or a simulated recording.
+    """Return :class:`evio_lib.features.training.datasets.EventFrames` from a file or a simulated recording.
 
     ``spec`` is a path to an ``.npy`` (N, H, W) stack or an ``.npz`` (array ``frames``, else the first one), scaled
     to [0, 1] when it is not already; or ``{"simulate": "aerial_like", "duration": 4.0, "seed": 0,
@@ -482,7 +482,7 @@ def load_event_frames(spec: str | Path | Mapping[str, Any], name: str = "events"
     intensity frame, the recurrent state carried from block to block (the thesis's event frames, §4.1); with
     ``"window_fraction": n`` the blocks hold N_e = n H W events (Eq. 87) instead of ``events_per_frame``.
     """
-    from evio_lib.features.datasets import EventFrames
+    from evio_lib.features.training.datasets import EventFrames
 
     key = json.dumps(spec if isinstance(spec, Mapping) else str(spec), sort_keys=True) + name
     if key in _EVENT_CACHE:
@@ -545,7 +545,7 @@ def training_images(config: TrainConfig, split: str, progress: bool = False) -> 
 
     ``config.num_workers`` processes render it (the same pool as one process renders).
     """
-    from evio_lib.features.datasets import image_pool
+    from evio_lib.features.training.datasets import image_pool
 
     if split not in ("train", "val"):
         raise _bad("split", split, "'train' or 'val' (the test split is held out for the benchmark)")
@@ -588,13 +588,13 @@ def export_labels(
 ) -> dict[str, list[np.ndarray]]:
     """Return {split: per-image (N_i, 2) keypoints} from homographic adaptation with the ``labels_from`` model.
 
-    Runs :func:`evio_lib.features.datasets.adaptation_labels` (N = ``n_homographies`` warps, mean response,
+    Runs :func:`evio_lib.features.training.datasets.adaptation_labels` (N = ``n_homographies`` warps, mean response,
     threshold ``label_threshold``, NMS 4) over the config's training and validation pools; the labels are cached
     under ``data/cache/`` in a file named after the label model and the SHA-1 of its checkpoint, so retraining that
     model never reuses stale labels. Thesis §3.2.5.2 ("Exporting Detections").
     """
-    from evio_lib.features.datasets import adaptation_labels
-    from evio_lib.features.superpoint import load_model
+    from evio_lib.features.training.datasets import adaptation_labels
+    from evio_lib.features.network import load_model
 
     config = load_config(config) if not isinstance(config, TrainConfig) else config
     if config.labels_from is None:
@@ -651,14 +651,14 @@ def _check_label_density(labels: Sequence[np.ndarray], config: TrainConfig, spli
 def _datasets(config: TrainConfig, progress: bool) -> tuple[Dataset, Dataset]:
     """Return the training and validation datasets of a config."""
     if config.stage == "magicpoint":
-        from evio_lib.features.shapes import SyntheticShapes
+        from evio_lib.features.training.shapes import SyntheticShapes
 
         train = SyntheticShapes(config.n_train_images, split="train", seed=config.seed, shape=config.image_size,
                                 augment=config.augment)
         val = SyntheticShapes(config.n_val_images, split="val", seed=config.seed, shape=config.image_size,
                               augment=False)
         return train, val
-    from evio_lib.features.datasets import RealImages
+    from evio_lib.features.training.datasets import RealImages
 
     labels = export_labels(config, progress=progress)
     pairs = config.stage == "detdesc"
@@ -716,7 +716,7 @@ def _batch_loss(model: SuperPointNet, batch: Sequence[torch.Tensor], config: Tra
     """Return (total loss, its terms, the network outputs of the first images) for one collated batch.
 
     With ``descriptor_stats`` (pairs with descriptors only) the terms also hold ``desc_positive_dot``,
-    ``desc_negative_dot`` and ``desc_nn_accuracy`` (:func:`~evio_lib.features.losses.descriptor_cell_stats`).
+    ``desc_negative_dot`` and ``desc_nn_accuracy`` (:func:`~evio_lib.features.training.losses.descriptor_cell_stats`).
     """
     tensors = [t.to(device) for t in batch]
     if isinstance(batch, PairSample):
@@ -1001,7 +1001,7 @@ def benchmark_snapshots(
     """
     import shutil
 
-    from evio_lib.features.benchmark import BenchmarkSettings, heldout_pairs, run_benchmark
+    from evio_lib.features.evaluation.benchmark import BenchmarkSettings, heldout_pairs, run_benchmark
 
     run_dir = Path(run)
     if not run_dir.is_dir():

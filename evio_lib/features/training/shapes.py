@@ -33,7 +33,7 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset
 
-from evio_lib.features.augment import (
+from evio_lib.features.training.augment import (
     HOMOGRAPHIC_SYNTHETIC,
     PHOTOMETRIC_SYNTHETIC,
     HomographicConfig,
@@ -474,7 +474,7 @@ def kind_schedule(counts: dict[str, int] | None = None, seed: int = 0) -> list[s
 class SyntheticShapes(Dataset):
     """Torch dataset of Synthetic Shapes generated on the fly: item i is the same image for the same seed.
 
-    ``dataset[i]`` is a :class:`~evio_lib.features.augment.Sample` of tensors: image (1, H, W) float32,
+    ``dataset[i]`` is a :class:`~evio_lib.features.training.augment.Sample` of tensors: image (1, H, W) float32,
     keypoint_map (H, W) float32 (1 at keypoint pixels), valid_mask (H, W) float32. With augmentation (default on the
     train split, off on val/test as in thesis §3.2.2) the image is photometrically augmented, then warped by a
     random homography together with its keypoints and valid mask (thesis §3.2.5); the augmentation varies with

@@ -1,5 +1,5 @@
 """Options of ``python -m evio_lib features-benchmark``: the parser alone, without OpenCV, torch or the detectors
-(:func:`evio_lib.features.benchmark.main_benchmark` runs the command)."""
+(:func:`evio_lib.features.evaluation.benchmark.main_benchmark` runs the command)."""
 from __future__ import annotations
 
 import argparse

@@ -3,12 +3,12 @@
 Data sets (lists of ``ImagePair``, each image 1, image 2 and the homography H of image 1 -> image 2):
 
 * ``heldout_pairs``: an HPatches-style benchmark built from held-out images (the TEST split of
-  ``evio_lib.features.datasets.image_pool``, never trained on): a "viewpoint" split whose second images are warped by
-  seeded random homographies (``sample_homography``) and an "illumination" split whose second images differ only
+  ``evio_lib.features.training.datasets.image_pool``, never trained on): a "viewpoint" split whose second images are
+  warped by seeded random homographies (``sample_homography``) and an "illumination" split whose second images differ only
   photometrically (identity H). Everything follows from one seed.
 * ``event_frame_pairs``: event frames and warped copies with small random rotations and translations, like the
   thesis's aerial event-frame set (§3.2.3); split "event_frames".
-* ``evio_lib.features.hpatches.iter_hpatches_pairs``: the real HPatches folder layout, for anyone who has it.
+* ``evio_lib.features.evaluation.hpatches.iter_hpatches_pairs``: the real HPatches folder layout, for anyone who has it.
 
 ``run_benchmark(detector, pairs, settings)`` runs one detector over the pairs with the thesis's settings
 (repeatability at 240 x 320 with the best 300 points and NMS 4; homography estimation at 480 x 640 with the best 1000
@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from evio_lib.features.evaluate import (
+from evio_lib.features.evaluation.evaluate import (
     corner_error,
     diagnose_matches,
     estimate_homography,
@@ -44,7 +44,7 @@ from evio_lib.features.evaluate import (
     mean_average_precision,
     repeatability,
 )
-from evio_lib.features.hpatches import (
+from evio_lib.features.evaluation.hpatches import (
     N_IMAGES_PER_SCENE,
     SPLIT_PREFIXES,
     ImagePair,
@@ -54,7 +54,7 @@ from evio_lib.features.hpatches import (
     resize_pair,
 )
 from evio_lib.geometry.homography import crop_to_full_homography, sample_homography, warp_image
-from evio_lib.features.benchmark_options import add_benchmark_arguments  # the options alone
+from evio_lib.features.evaluation.options import add_benchmark_arguments  # the options alone
 
 __all__ = [
     "BenchmarkSettings",
@@ -344,7 +344,7 @@ def heldout_pairs(
 ) -> list[ImagePair]:
     """Return the built-in HPatches-style benchmark: viewpoint and illumination pairs of held-out images.
 
-    The images are ``evio_lib.features.datasets.image_pool("test", seed, size, n_images)`` (the held-out TEST
+    The images are ``evio_lib.features.training.datasets.image_pool("test", seed, size, n_images)`` (the held-out TEST
     split, never used in training; 60 images by default, 58 after leaving out the stripe textures, so 580 pairs with
     5 per image and split, as many as HPatches has) unless ``images`` is given, of which ``n_images`` keeps the
     first n. The viewpoint split comes first.
@@ -372,7 +372,7 @@ def heldout_pairs(
     if pool not in ("test", "val"):
         raise ValueError(f"pool must be 'test' or 'val'; got {pool!r}")
     if images is None:
-        from evio_lib.features.datasets import image_pool  # the held-out pool (TEST split, or VAL)
+        from evio_lib.features.training.datasets import image_pool  # the held-out pool (TEST split, or VAL)
 
         images, sources = image_pool(pool, int(seed), size=tuple(size), n_images=n_images, return_sources=True)
         excluded = tuple(exclude_sources)
@@ -629,7 +629,7 @@ def diagnose_pairs(
     The detector sees what ``run_benchmark``'s homography task gives it: each pair resized to
     ``settings.homography_size``, the best ``homography_keypoints`` points with NMS ``homography_nms``. The rows
     split each pair's result into its correct matches, their localisation error and the oracle homography fitted
-    to them (see :func:`evio_lib.features.evaluate.diagnose_matches`).
+    to them (see :func:`evio_lib.features.evaluation.evaluate.diagnose_matches`).
 
     Args:
         detector, settings, detector_options: as for :func:`run_benchmark`.
@@ -899,7 +899,7 @@ def main_benchmark(args: argparse.Namespace | Sequence[str] | None = None) -> in
                 ("the --weights checkpoint", weights_file)])
         shapes = [_parse_shape(text) for text in args.speed_shapes]
         if weights is not None:
-            from evio_lib.features.superpoint import load_checkpoint, resolve_weights
+            from evio_lib.features.network import load_checkpoint, resolve_weights
 
             try:
                 load_checkpoint(resolve_weights(weights))

@@ -5,7 +5,7 @@ the dustbin), D and D' (B, Dim, Hc, Wc) descriptor maps of an image and of its w
 correspondences. Cells are 8x8 pixels; cell (h, w) covers pixels x in [8w, 8w + 7], y in [8h, 8h + 7], its centre is
 the pixel (8w + 3.5, 8h + 3.5) (pixel centres at integer coordinates, as in ``evio_lib.geometry.homography``).
 Label channel k of a cell is its pixel (row k // 8, col k % 8), the order of ``F.pixel_unshuffle`` and of
-:func:`evio_lib.features.superpoint.logits_to_heatmap`.
+:func:`evio_lib.features.network.logits_to_heatmap`.
 
 - Detector loss (Eq. 9): softmax cross-entropy per cell, averaged over the valid cells. Labels come from a keypoint
   map; a cell with several labelled pixels takes one of them at random (uniformly, from a seeded torch.Generator),

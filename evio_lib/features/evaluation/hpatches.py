@@ -4,7 +4,7 @@ HPatches (Balntas et al., CVPR 2017) has one folder per scene: ``i_<name>`` (ill
 geometry) or ``v_<name>`` (viewpoint changes), each with a reference image ``1.ppm``, five more images ``2.ppm`` ..
 ``6.ppm`` and the ground-truth homographies ``H_1_2`` .. ``H_1_6`` (3 x 3 text, mapping pixels of image 1 to pixels of
 image k). The data set cannot be downloaded here; anyone who has it passes its root folder, and
-``evio_lib.features.benchmark`` runs the official benchmark from the same command as the built-in one.
+``evio_lib.features.evaluation.benchmark`` runs the official benchmark from the same command as the built-in one.
 
 Resizing (the thesis evaluates at 240 x 320 for repeatability and 480 x 640 for homography estimation) changes the
 pixel coordinates of both images, so the homography is updated: if ``S1`` and ``S2`` map original to resized pixels,

@@ -1,5 +1,5 @@
 """Options of ``python -m evio_lib features-train``: the parser alone, so that ``--help`` and a usage error need
-neither torch nor the training code (:func:`evio_lib.features.train.main_train` runs the command)."""
+neither torch nor the training code (:func:`evio_lib.features.training.train.main_train` runs the command)."""
 from __future__ import annotations
 
 import argparse

@@ -1,0 +1,13 @@
+"""Evaluation of detectors and descriptors: the metrics, image pairs with known homographies and the benchmark.
+
+- :mod:`~evio_lib.features.evaluation.evaluate`: repeatability, localisation error, homography correctness,
+  matching score, mean average precision, descriptor matching;
+- :mod:`~evio_lib.features.evaluation.hpatches`: image pairs related by a known homography and the HPatches loader;
+- :mod:`~evio_lib.features.evaluation.benchmark`: the benchmark of thesis §3.2.6 (Tables 2-5): data sets, the run,
+  the tables and the ``features-benchmark`` command;
+- :mod:`~evio_lib.features.evaluation.options`: the options of ``features-benchmark`` alone (fast ``--help``).
+
+Nothing is imported here (the options module must stay free of OpenCV and torch); import the modules. The former
+flat module names (``evio_lib.features.benchmark``, ``evio_lib.features.evaluate``, ...) still import, as aliases of
+these modules.
+"""
