@@ -62,10 +62,10 @@ def integrate_gyro(t: ArrayLike, gyro: ArrayLike, t0: float, t1: float,
     inside = times[(times > t0) & (times < t1)]
     breaks = np.concatenate([[float(t0)], inside, [float(t1)]])
     w = np.stack([np.interp(breaks, times, rates[:, i]) for i in range(3)], axis=1) - bias
+    steps = so3_exp(0.5 * (w[:-1] + w[1:]) * np.diff(breaks)[:, None])  # exp(w_k dt_k), all k at once
     R_I1toI0 = np.eye(3)
-    for k in range(breaks.shape[0] - 1):
-        dt = breaks[k + 1] - breaks[k]
-        R_I1toI0 = R_I1toI0 @ so3_exp(0.5 * (w[k] + w[k + 1]) * dt)  # prod_k exp(w_k dt_k)
+    for step in steps:  # prod_k exp(w_k dt_k), in order
+        R_I1toI0 = R_I1toI0 @ step
     return R_I1toI0.T
 
 
