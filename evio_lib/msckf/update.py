@@ -376,6 +376,9 @@ def kalman_update(
     except np.linalg.LinAlgError as exc:
         raise ValueError("P must be positive semi-definite: the innovation covariance H P H^T + σ^2 I is not") from exc
     dx = K @ r  # Δx = K r                                                                  (Eq. 57)
-    IKH = np.eye(n) - K @ H
-    P_new = IKH @ P @ IKH.T + noise_var * (K @ K.T)  # Joseph form                           (Eq. 58)
+    # Joseph form (Eq. 58) multiplied out, which holds for any gain K:
+    #   (I - K H) P (I - K H)^T + σ^2 K K^T = P - K (H P) - (K (H P))^T + K S K^T,   S = H P H^T + σ^2 I
+    # O(n^2 m) instead of the two n x n products' O(n^3): for n = 219, m = 30 (boxes_like), 0.3 against 1.6 ms.
+    KHP = K @ HP
+    P_new = P - KHP - KHP.T + (K @ S) @ K.T
     return dx, 0.5 * (P_new + P_new.T)
