@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import pickle
 import re
 import signal
@@ -78,7 +79,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         print(config)
     timings: dict[str, float] = {}  # wall-clock seconds: printed, never written (equal seeds give equal folders)
     start = time.perf_counter()
-    sequence = simulate_sequence(config, progress=not args.quiet, timings=timings)
+    jobs = min(os.cpu_count() or 1, 4)  # processes that render the APS frames (the frames do not depend on it)
+    sequence = simulate_sequence(config, progress=not args.quiet, timings=timings, jobs=jobs)
     seconds = time.perf_counter() - start
     if args.quiet:
         print(f"simulated {sequence.name} in {seconds:.1f} s: {len(sequence.events)} events, {len(sequence.frames)} "

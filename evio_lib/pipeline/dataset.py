@@ -86,12 +86,17 @@ def check_preset_duration(preset: str, duration: Any) -> float:
 
 
 def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, with_events: bool = False,
-                    cache: bool = True, progress: bool = False) -> Sequence:
+                    cache: bool = True, progress: bool = False, jobs: int | None = None) -> Sequence:
     """Return the simulated recording of a preset: the first ``duration`` s of its full motion (cached as .npz).
 
     The motion is always the preset's whole trajectory (60 s boxes_like: gentle start, violent end; 40 s
-    aerial_like), so a shorter duration is the start of the same recording, not a faster one.
+    aerial_like), so a shorter duration is the start of the same recording, not a faster one. ``jobs``: processes
+    that render the APS frames (``simulate_sequence``; the result does not depend on it); None: one per core, at
+    most 4.
     """
+    import os
+
+    jobs = min(os.cpu_count() or 1, 4) if jobs is None else jobs
     from evio_lib.io.cache import check_cache_file_writable, load_cached_sequence, store_sequence_npz
     from evio_lib.sim.presets import SimulationConfig, simulate_sequence
 
@@ -110,7 +115,7 @@ def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, w
         check_cache_file_writable(path)
     config = SimulationConfig(preset=preset, duration=duration, trajectory_duration=full, seed=seed,
                               with_events=with_events)
-    sequence = simulate_sequence(config, progress=progress)
+    sequence = simulate_sequence(config, progress=progress, jobs=jobs)
     if cache:
         store_sequence_npz(sequence, path)
     return sequence

@@ -79,7 +79,7 @@ def table_rows(keys: Sequence[str] | None = None, events_cnn: str | None = None)
 def _simulate(preset: str, duration: float, seed: int, with_events: bool) -> None:
     from evio_lib.pipeline.dataset import simulate_preset
 
-    simulate_preset(preset, duration, seed, with_events=with_events)
+    simulate_preset(preset, duration, seed, with_events=with_events, jobs=1)  # the jobs of the table run in parallel
 
 
 def table_job(preset: str, duration: float, seed: int, row: TableRow, threads: int = 1) -> dict[str, Any]:

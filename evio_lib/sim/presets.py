@@ -25,7 +25,7 @@ from evio_lib.events.simulate import EventCameraParams, simulate_events
 from evio_lib.geometry.camera import PinholeRadtan
 from evio_lib.geometry.rotation import rot_to_quat, so3_exp, so3_log
 from evio_lib.sequence import GroundTruth, ImuSamples, Sequence
-from evio_lib.sim.aps import ApsParams, render_aps_frames
+from evio_lib.sim.aps import ApsParams, aps_exposure, aps_sensor_response, render_aps_frames
 from evio_lib.sim.imu import GRAVITY_G, ImuNoiseParams, synthesize_imu
 from evio_lib.sim.rig import CameraImuExtrinsics
 from evio_lib.sim.scene import scene_from_preset
@@ -160,7 +160,7 @@ class CameraPoseTable:
 
 
 def simulate_sequence(config: SimulationConfig, progress: bool = False,
-                      timings: dict[str, float] | None = None) -> Sequence:
+                      timings: dict[str, float] | None = None, jobs: int = 1) -> Sequence:
     """Return a simulated recording (events, APS frames, IMU, ground truth, calibration) for ``config``.
 
     Args:
@@ -169,12 +169,16 @@ def simulate_sequence(config: SimulationConfig, progress: bool = False,
         timings: when given, filled with the wall-clock seconds of each sensor (``imu_s``, ``events_s``,
             ``frames_s``). They are kept out of the recording's metadata, so that equal configs (seeds) give equal
             recordings, byte for byte once written.
+        jobs: worker processes that render the APS exposures (the sensor noise is then drawn here, frame after
+            frame, so the frames do not depend on ``jobs``); 1 renders them in this process.
 
     The random streams of the IMU, the event camera and the APS frames are independent children of ``config.seed``
     (``numpy.random.SeedSequence.spawn``), so switching one sensor off does not change the others.
     ``metadata["timings"]`` holds only what does not depend on the machine: ``event_renders``, the number of scene
     renders of the adaptive event sampling.
     """
+    if isinstance(jobs, bool) or not isinstance(jobs, (int, np.integer)) or jobs < 1:
+        raise ValueError(f"jobs must be an integer >= 1 (worker processes); got {jobs!r}")
     seed_imu, seed_events, seed_aps = np.random.SeedSequence(config.seed).spawn(3)  # the scene and trajectory use the seed too
     trajectory = trajectory_from_preset(config.preset, duration=config.motion_duration(), seed=config.seed)
     scene = scene_from_preset(config.preset, seed=config.seed)
@@ -222,8 +226,11 @@ def simulate_sequence(config: SimulationConfig, progress: bool = False,
         half_exposure = 0.5 * config.aps.exposure_s
         frame_times = np.arange(config.start_time + half_exposure, config.t_end - half_exposure + 1e-12,
                                 1.0 / config.frame_rate_hz)
-        frames = render_aps_frames(scene, camera, pose_at, frame_times, config.aps, np.random.default_rng(seed_aps),
-                                   progress=progress)
+        if jobs > 1 and frame_times.shape[0] >= 4 * jobs:
+            frames = _render_frames_in_parallel(config, frame_times, np.random.default_rng(seed_aps), jobs, progress)
+        else:
+            frames = render_aps_frames(scene, camera, pose_at, frame_times, config.aps,
+                                       np.random.default_rng(seed_aps), progress=progress)
         timings["frames_s"] = time.perf_counter() - start
 
     metadata = {
@@ -250,6 +257,47 @@ def simulate_sequence(config: SimulationConfig, progress: bool = False,
         p_CinI=np.array(config.extrinsics.p_CinI),
         metadata=metadata,
     )
+
+
+def _exposure_chunk(config: SimulationConfig, times: np.ndarray) -> np.ndarray:
+    """Return (K, H, W) float32 APS exposures at ``times``: the worker of :func:`_render_frames_in_parallel`.
+
+    The scene and the motion are made again from the config (0.3 s; the scene pickles to 80 MB, too much to send).
+    """
+    trajectory = trajectory_from_preset(config.preset, duration=config.motion_duration(), seed=config.seed)
+    scene = scene_from_preset(config.preset, seed=config.seed)
+    pose_at = _pose_function(trajectory, config.extrinsics)
+    return np.stack([aps_exposure(scene, config.camera, pose_at, float(t), config.aps) for t in times])
+
+
+def _render_frames_in_parallel(config: SimulationConfig, times: np.ndarray, rng: np.random.Generator, jobs: int,
+                               progress: bool) -> np.ndarray:
+    """Return the (F, H, W) uint8 APS frames of :func:`render_aps_frames`, their exposures rendered by ``jobs`` processes.
+
+    The exposures (the costly, noise-free part: one scene render per sub-frame of the motion blur) come back in
+    order, chunk by chunk (at most 240 frames, 40 MB, per chunk), and the sensor noise is drawn here from ``rng``
+    frame after frame, as :func:`render_aps_frames` draws it: the frames are bit-identical to the serial ones.
+    """
+    from joblib import Parallel, delayed
+
+    n_chunks = min(times.shape[0], max(2 * jobs, -(-times.shape[0] // 240)))
+    chunks = np.array_split(times, n_chunks)
+    frames = np.empty((times.shape[0], config.camera.height, config.camera.width), dtype=np.uint8)
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=times.shape[0], desc=f"APS frames ({jobs} processes)", unit="frame")
+    i = 0
+    for exposures in Parallel(n_jobs=jobs, return_as="generator")(delayed(_exposure_chunk)(config, c) for c in chunks):
+        for exposure in exposures:
+            frames[i] = aps_sensor_response(exposure, config.aps, rng)
+            i += 1
+        if bar is not None:
+            bar.update(exposures.shape[0])
+    if bar is not None:
+        bar.close()
+    return frames
 
 
 def simulation_cache_path(config: SimulationConfig) -> Path:
