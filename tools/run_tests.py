@@ -5,6 +5,11 @@ Usage:  python tools/run_tests.py [--full] [extra pytest arguments]
 The notebooks are jupytext .py files; nbval only collects .ipynb, so they are first converted into build/notebooks/.
 Notebooks run in fast mode (EVIO_FAST=1) unless --full is given. Exits with pytest's code, except that "no tests collected"
 (pytest's 5) is turned into a failure: a test command that ran nothing must not pass.
+
+The tests run in one worker process per core (pytest-xdist, at most 4; ``-n 0`` among the extra arguments runs them
+in this process). ``--dist loadscope`` keeps each test module, and each notebook, in one worker, so the cells of a
+notebook run in order in one kernel. Each worker, and each notebook kernel, uses one thread for torch, OpenCV and
+BLAS: two workers with two threads each would oversubscribe two cores.
 """
 from __future__ import annotations
 
@@ -27,10 +32,14 @@ def main(argv: list[str]) -> int:
     env = dict(os.environ)
     env[course.FAST_MODE_ENV] = "0" if full else "1"
     env.setdefault("MPLBACKEND", "Agg")
+    for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        env.setdefault(name, "1")  # read by NumPy, torch and OpenCV at import, in every worker and kernel
     # the notebook kernels import this working tree, whatever copy of evio_lib pip last installed in editable mode
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH", "")]))
+    workers = ["--numprocesses", str(min(os.cpu_count() or 1, 4)), "--dist", "loadscope"]
     command = [sys.executable, "-m", "pytest", "tests", "evio_lib", "--doctest-modules",
-               *[str(p.relative_to(ROOT)) for p in notebooks], "--nbval-lax", "-p", "no:cacheprovider", *extra]
+               *[str(p.relative_to(ROOT)) for p in notebooks], "--nbval-lax", "-p", "no:cacheprovider", *workers,
+               *extra]
     print(f"notebooks: {len(notebooks)} ({'full' if full else 'fast'} mode)\n$ {' '.join(command)}", flush=True)
     code = subprocess.call(command, cwd=ROOT, env=env)
     if code == 5:
