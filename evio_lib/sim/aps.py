@@ -156,7 +156,7 @@ def choose_n_subframes(scene: Scene, camera: Any, pose_at: PoseFunction, t_mid: 
         return params.n_subframes
     times = exposure_sample_times(t_mid, params.exposure_s, 1)
     R_mid, p_mid = _poses(pose_at, times)
-    points = scene.render(camera, R_mid[0], p_mid[0]).points_G[::4, ::4].reshape(-1, 3)
+    points = scene.hit_points(camera, R_mid[0], p_mid[0])[::4, ::4].reshape(-1, 3)  # geometry only, no texture
     points = points[np.isfinite(points).all(axis=1)]
     if points.shape[0] == 0:
         return 1

@@ -318,11 +318,19 @@ def simulation_cache_path(config: SimulationConfig) -> Path:
     return default_cache_dir() / "sequences" / f"{config.preset}_{digest}.npz"
 
 
-def simulate_sequence_cached(config: SimulationConfig, progress: bool = False) -> Sequence:
+def default_jobs() -> int:
+    """Return the processes that render APS frames when none are asked for: one per core, at most 4."""
+    import os
+
+    return min(os.cpu_count() or 1, 4)
+
+
+def simulate_sequence_cached(config: SimulationConfig, progress: bool = False, jobs: int | None = None) -> Sequence:
     """Return :func:`simulate_sequence` of ``config``, read from :func:`simulation_cache_path` when it was made before.
 
     The first call simulates and stores the recording whole (a temporary file renamed into place); a damaged cache
     file is said, deleted and simulated again. ``metadata["timings"]`` (deterministic counts) comes back as stored.
+    ``jobs``: as in :func:`simulate_sequence` (None: :func:`default_jobs`; the recording does not depend on it).
     """
     from evio_lib.io.cache import check_cache_file_writable, load_cached_sequence, store_sequence_npz
 
@@ -331,6 +339,6 @@ def simulate_sequence_cached(config: SimulationConfig, progress: bool = False) -
     if cached is not None:
         return cached
     check_cache_file_writable(path)
-    sequence = simulate_sequence(config, progress=progress)
+    sequence = simulate_sequence(config, progress=progress, jobs=default_jobs() if jobs is None else jobs)
     store_sequence_npz(sequence, path)
     return sequence

@@ -132,6 +132,16 @@ def test_points_reproject_onto_their_pixels(camera, room, rng):
     assert s.min() > -1e-6 and s.max() < 1 + 1e-6 and t.min() > -1e-6 and t.max() < 1 + 1e-6
 
 
+def test_hit_points_are_the_render_points_without_the_texture_lookup(camera, room, rng):
+    """hit_points (the motion-blur planner's geometry) gives render's points_G bit for bit, NaN where nothing is hit."""
+    R = _random_rotation(rng, 0.3) @ R_LOOK_PLUS_Y
+    p = np.array([0.3, -0.1, 1.1])
+    expected = room.render(camera, R, p).points_G
+    np.testing.assert_array_equal(room.hit_points(camera, R, p), expected)
+    outside = np.array([0.0, -50.0, 1.0])  # far outside the room, looking away: some rays hit nothing
+    np.testing.assert_array_equal(room.hit_points(camera, R, outside), room.render(camera, R, outside).points_G)
+
+
 def test_intersect_matches_brute_force(room, rng):
     origins = rng.uniform([-3, -3, 0.2], [3, 3, 2.8], size=(150, 3))
     directions = rng.normal(size=(150, 3))
