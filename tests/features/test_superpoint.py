@@ -10,6 +10,7 @@ import torch
 from scipy.special import softmax
 
 from evio_lib.features import network as sp
+from evio_lib.features import base as features_base
 from evio_lib.features.base import Features, create_detector, nms_keypoints
 from evio_lib.features.network import model as sp_model  # where WEIGHTS_DIR is read
 
@@ -390,6 +391,8 @@ def test_missing_shipped_weights_message(tmp_path, monkeypatch) -> None:
 
 def test_shipped_name_resolves_and_registers(tmp_path, monkeypatch) -> None:
     monkeypatch.setattr(sp_model, "WEIGHTS_DIR", tmp_path)
+    # a registry of its own: the made-up variant must not outlive the test (other tests list every detector)
+    monkeypatch.setattr(features_base, "_REGISTERED", dict(features_base._REGISTERED))
     sp.save_checkpoint(_model("narrow"), tmp_path / "test_variant_xyz.pt")
     assert sp.shipped_weights() == ["test_variant_xyz"]
     assert sp.resolve_weights("test_variant_xyz") == tmp_path / "test_variant_xyz.pt"
