@@ -187,7 +187,7 @@ def test_event_frames_split_in_time_with_gaps():
 
 # ------------------------------------------------------------------------------------------------ label cache
 def test_labels_roundtrip(tmp_path: Path, rng, monkeypatch):
-    monkeypatch.delenv("EVIO_CACHE_DIR", raising=False)  # a session fixture of another module may have set it
+    monkeypatch.delenv("EVIO_CACHE_DIR", raising=False)  # the project's folder, whatever the environment says
     labels = [rng.uniform(0, 50, (n, 2)).astype(np.float32) for n in (3, 0, 7)]
     path = save_labels(tmp_path / "sub" / "labels.npz", labels, "abc", {"model": "x"})
     back = load_labels(path, "abc")
