@@ -15,7 +15,7 @@ For each mode of ``SuperPointDetector(inference=...)`` (the shipped network, ``c
 
 Usage: python bench/cnn_inference_modes.py [--modes fused bf16 int8] [--n-images 20] [--pairs-per-image 2]
                                            [--pool val] [--stretches boxes_like:0:20 boxes_like:1:20 ...]
-Measured figures: docs/features_speed.md.
+Measured figures: docs/speed.md#the-cnns-inference-modes.
 """
 from __future__ import annotations
 

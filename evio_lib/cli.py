@@ -69,7 +69,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     """Simulate a preset recording and write it in the ECD text layout (plus the simulator's sidecar files)."""
     from evio_lib.io.ecd import write_ecd
     from evio_lib.io.output_dir import atomic_output_dir, check_output_dir
-    from evio_lib.sim.presets import SimulationConfig, default_jobs, simulate_sequence
+    from evio_lib.sim.presets import SimulationConfig, simulate_sequence
 
     out = check_output_dir(args.out, args.force, name="--out")  # before the simulation: a refused folder costs nothing
     config = SimulationConfig(preset=args.preset, duration=args.duration, seed=args.seed,
@@ -78,8 +78,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         print(config)
     timings: dict[str, float] = {}  # wall-clock seconds: printed, never written (equal seeds give equal folders)
     start = time.perf_counter()
-    # the APS frames rendered by one process per core (the frames do not depend on it)
-    sequence = simulate_sequence(config, progress=not args.quiet, timings=timings, jobs=default_jobs())
+    # the APS frames rendered by one process per core or EVIO_JOBS (the frames do not depend on it)
+    sequence = simulate_sequence(config, progress=not args.quiet, timings=timings, jobs=None)
     seconds = time.perf_counter() - start
     if args.quiet:
         print(f"simulated {sequence.name} in {seconds:.1f} s: {len(sequence.events)} events, {len(sequence.frames)} "

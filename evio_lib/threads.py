@@ -21,6 +21,7 @@ from __future__ import annotations
 import os
 import sys
 from contextlib import AbstractContextManager
+from numbers import Integral
 from typing import Any
 
 __all__ = ["set_threads", "single_threaded_blas"]
@@ -50,6 +51,9 @@ def _blas_controller() -> Any:
 def single_threaded_blas() -> AbstractContextManager:
     """Return a context manager under which every loaded BLAS library uses one thread (counts restored after).
 
+    The thread counts are process-wide: two threads of one process that enter and leave such blocks out of order
+    may leave BLAS at one thread.
+
     >>> import numpy as np
     >>> with single_threaded_blas():
     ...     float((np.eye(3) @ np.ones(3)).sum())
@@ -63,8 +67,9 @@ def set_threads(threads: int) -> None:
 
     On a small, busy CPU more threads oversubscribe it and run several times slower (module docstring).
     """
-    if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
+    if isinstance(threads, bool) or not isinstance(threads, Integral) or threads < 1:
         raise ValueError(f"threads must be an integer >= 1; got {threads!r}")
+    threads = int(threads)
     import cv2
     import torch
 

@@ -183,16 +183,15 @@ def test_run_checks_come_before_loading(work, capsys, monkeypatch):
 
 
 # ------------------------------------------------------------------------------------------------------ signals
-def _default_signals() -> None:
-    """In the child, before exec: SIGINT back to its default action. A pytest-xdist worker ignores SIGINT, a child
-    inherits an ignored signal, and Python then never raises KeyboardInterrupt: the test would wait in vain."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
+# First line of every child: Python's own SIGINT handler. A pytest-xdist worker ignores SIGINT, a child inherits an
+# ignored signal, and Python then never raises KeyboardInterrupt: the test would wait in vain.
+_SIGINT_AS_AT_A_SHELL = "import signal; signal.signal(signal.SIGINT, signal.default_int_handler)\n"
 
 
 def _start(code: str, cwd: Path) -> subprocess.Popen:
     env = {**os.environ, "PYTHONPATH": str(PROJECT_ROOT)}
-    return subprocess.Popen([sys.executable, "-c", textwrap.dedent(code)], cwd=cwd, env=env, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, preexec_fn=_default_signals)
+    return subprocess.Popen([sys.executable, "-c", _SIGINT_AS_AT_A_SHELL + textwrap.dedent(code)], cwd=cwd, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
 def _wait_for(predicate, process: subprocess.Popen, seconds: float = 240.0) -> None:  # generous: a busy 2-core CPU

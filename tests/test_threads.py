@@ -1,4 +1,6 @@
 """evio_lib.threads: BLAS thread limits set after NumPy is loaded, checked with threadpoolctl's own report."""
+import os
+
 import numpy as np
 import pytest
 from threadpoolctl import threadpool_info
@@ -21,25 +23,30 @@ def test_single_threaded_blas_limits_every_loaded_blas_and_restores_the_counts()
     assert _blas_threads() == before
 
 
-def test_set_threads_limits_torch_opencv_and_blas_then_restore():
+def test_set_threads_limits_torch_opencv_and_blas_then_restore(monkeypatch):
     import cv2
     import torch
 
-    saved = (torch.get_num_threads(), cv2.getNumThreads(), _blas_threads())
+    from evio_lib.threads import _ENV_NAMES, _blas_controller
+
+    for name in _ENV_NAMES:  # set_threads writes them: monkeypatch puts the old values back after the test
+        monkeypatch.setenv(name, os.environ.get(name, "1"))
+    controller = _blas_controller()
+    saved_blas = [(lib, lib.num_threads) for lib in controller.lib_controllers]
+    saved = (torch.get_num_threads(), cv2.getNumThreads())
     try:
-        set_threads(1)
+        set_threads(np.int64(1))
         assert torch.get_num_threads() == 1 and cv2.getNumThreads() == 1
         assert set(_blas_threads()) == {1}
+        assert os.environ["OPENBLAS_NUM_THREADS"] == "1"
     finally:
         torch.set_num_threads(saved[0])
         cv2.setNumThreads(saved[1])
-        from evio_lib.threads import _blas_controller
-
-        for lib, n in zip(_blas_controller().lib_controllers, saved[2]):
+        for lib, n in saved_blas:  # every library the controller changed, BLAS or OpenMP, gets its own count back
             lib.set_num_threads(n)
 
 
-@pytest.mark.parametrize("bad", [0, -1, 1.5, True, "2"])
+@pytest.mark.parametrize("bad", [0, -1, 1.5, True, "2", np.float64(2.0)])
 def test_set_threads_refuses_what_is_not_a_positive_count(bad):
     with pytest.raises(ValueError, match="threads must be an integer >= 1"):
         set_threads(bad)

@@ -9,7 +9,8 @@ Notebooks run in fast mode (EVIO_FAST=1) unless --full is given. Exits with pyte
 The tests run in one worker process per core (pytest-xdist, at most 4; ``-n 0`` among the extra arguments runs them
 in this process). ``--dist loadscope`` keeps each test module, and each notebook, in one worker, so the cells of a
 notebook run in order in one kernel. Each worker, and each notebook kernel, uses one thread for torch, OpenCV and
-BLAS: two workers with two threads each would oversubscribe two cores.
+BLAS, and the simulator renders frames in the worker itself (EVIO_JOBS=1): two workers with two threads or
+processes each would oversubscribe two cores.
 """
 from __future__ import annotations
 
@@ -22,6 +23,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from evio_lib import course  # noqa: E402
+from evio_lib.sim.jobs import JOBS_ENV  # noqa: E402
 
 
 def main(argv: list[str]) -> int:
@@ -32,11 +34,12 @@ def main(argv: list[str]) -> int:
     env = dict(os.environ)
     env[course.FAST_MODE_ENV] = "0" if full else "1"
     env.setdefault("MPLBACKEND", "Agg")
-    for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OPENCV_FOR_THREADS_NUM"):
         env.setdefault(name, "1")  # read by NumPy, torch and OpenCV at import, in every worker and kernel
+    env.setdefault(JOBS_ENV, "1")  # the simulator's frame workers: the test workers already use every core
     # the notebook kernels import this working tree, whatever copy of evio_lib pip last installed in editable mode
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH", "")]))
-    workers = ["--numprocesses", str(min(os.cpu_count() or 1, 4)), "--dist", "loadscope"]
+    workers = ["--numprocesses", str(min(os.cpu_count() or 1, 4)), "--dist", "loadscope"]  # as sim.jobs.default_jobs
     command = [sys.executable, "-m", "pytest", "tests", "evio_lib", "--doctest-modules",
                *[str(p.relative_to(ROOT)) for p in notebooks], "--nbval-lax", "-p", "no:cacheprovider", *workers,
                *extra]

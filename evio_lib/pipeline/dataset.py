@@ -91,11 +91,14 @@ def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, w
 
     The motion is always the preset's whole trajectory (60 s boxes_like: gentle start, violent end; 40 s
     aerial_like), so a shorter duration is the start of the same recording, not a faster one. ``jobs``: processes
-    that render the APS frames (``simulate_sequence``; the result does not depend on it); None: ``default_jobs()``,
-    one per core, at most 4.
+    that render the APS frames (``simulate_sequence``; the result does not depend on it); None:
+    ``evio_lib.sim.jobs.default_jobs()``, ``EVIO_JOBS`` or one per core, at most 4.
     """
+    from evio_lib.sim.jobs import check_jobs
+
+    jobs = None if jobs is None else check_jobs(jobs)  # refused even when the recording is in the cache
     from evio_lib.io.cache import check_cache_file_writable, load_cached_sequence, store_sequence_npz
-    from evio_lib.sim.presets import SimulationConfig, default_jobs, simulate_sequence
+    from evio_lib.sim.presets import SimulationConfig, simulate_sequence
 
     full = PRESET_DURATIONS[preset] if preset in PRESETS else None
     duration = check_preset_duration(preset, full if duration is None else duration)
@@ -112,7 +115,7 @@ def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, w
         check_cache_file_writable(path)
     config = SimulationConfig(preset=preset, duration=duration, trajectory_duration=full, seed=seed,
                               with_events=with_events)
-    sequence = simulate_sequence(config, progress=progress, jobs=default_jobs() if jobs is None else jobs)
+    sequence = simulate_sequence(config, progress=progress, jobs=jobs)
     if cache:
         store_sequence_npz(sequence, path)
     return sequence

@@ -27,6 +27,7 @@ from evio_lib.geometry.rotation import rot_to_quat, so3_exp, so3_log
 from evio_lib.sequence import GroundTruth, ImuSamples, Sequence
 from evio_lib.sim.aps import ApsParams, aps_exposure, aps_sensor_response, render_aps_frames
 from evio_lib.sim.imu import GRAVITY_G, ImuNoiseParams, synthesize_imu
+from evio_lib.sim.jobs import check_jobs, default_jobs  # default_jobs: re-exported
 from evio_lib.sim.rig import CameraImuExtrinsics
 from evio_lib.sim.scene import scene_from_preset
 from evio_lib.sim.trajectory import trajectory_from_preset
@@ -159,8 +160,13 @@ class CameraPoseTable:
         return R, p
 
 
+#: Fewer frames per process than this are rendered in this process: starting the workers (and making the scene in
+#: each) would cost more than it saves (72 frames: 1.59 s serial against 2.25 s with 2 processes).
+MIN_FRAMES_PER_JOB = 100
+
+
 def simulate_sequence(config: SimulationConfig, progress: bool = False,
-                      timings: dict[str, float] | None = None, jobs: int = 1) -> Sequence:
+                      timings: dict[str, float] | None = None, jobs: int | None = 1) -> Sequence:
     """Return a simulated recording (events, APS frames, IMU, ground truth, calibration) for ``config``.
 
     Args:
@@ -170,20 +176,18 @@ def simulate_sequence(config: SimulationConfig, progress: bool = False,
             ``frames_s``). They are kept out of the recording's metadata, so that equal configs (seeds) give equal
             recordings, byte for byte once written.
         jobs: worker processes that render the APS exposures (the sensor noise is then drawn here, frame after
-            frame, so the frames do not depend on ``jobs``); 1 renders them in this process.
+            frame, so the frames do not depend on ``jobs``); 1 renders them in this process, None asks
+            :func:`evio_lib.sim.jobs.default_jobs`. Under ``MIN_FRAMES_PER_JOB`` frames per process they are rendered here.
 
     The random streams of the IMU, the event camera and the APS frames are independent children of ``config.seed``
     (``numpy.random.SeedSequence.spawn``), so switching one sensor off does not change the others.
     ``metadata["timings"]`` holds only what does not depend on the machine: ``event_renders``, the number of scene
     renders of the adaptive event sampling.
     """
-    if isinstance(jobs, bool) or not isinstance(jobs, (int, np.integer)) or jobs < 1:
-        raise ValueError(f"jobs must be an integer >= 1 (worker processes); got {jobs!r}")
+    jobs = default_jobs() if jobs is None else check_jobs(jobs)
     seed_imu, seed_events, seed_aps = np.random.SeedSequence(config.seed).spawn(3)  # the scene and trajectory use the seed too
-    trajectory = trajectory_from_preset(config.preset, duration=config.motion_duration(), seed=config.seed)
-    scene = scene_from_preset(config.preset, seed=config.seed)
+    trajectory, scene, pose_at = _world(config)
     camera = config.camera
-    pose_at = _pose_function(trajectory, config.extrinsics)
     timings = {} if timings is None else timings
     counts: dict[str, float] = {}
 
@@ -226,7 +230,7 @@ def simulate_sequence(config: SimulationConfig, progress: bool = False,
         half_exposure = 0.5 * config.aps.exposure_s
         frame_times = np.arange(config.start_time + half_exposure, config.t_end - half_exposure + 1e-12,
                                 1.0 / config.frame_rate_hz)
-        if jobs > 1 and frame_times.shape[0] >= 4 * jobs:
+        if jobs > 1 and frame_times.shape[0] >= MIN_FRAMES_PER_JOB * jobs:
             frames = _render_frames_in_parallel(config, frame_times, np.random.default_rng(seed_aps), jobs, progress)
         else:
             frames = render_aps_frames(scene, camera, pose_at, frame_times, config.aps,
@@ -264,10 +268,15 @@ def _exposure_chunk(config: SimulationConfig, times: np.ndarray) -> np.ndarray:
 
     The scene and the motion are made again from the config (0.3 s; the scene pickles to 80 MB, too much to send).
     """
+    _, scene, pose_at = _world(config)
+    return np.stack([aps_exposure(scene, config.camera, pose_at, float(t), config.aps) for t in times])
+
+
+def _world(config: SimulationConfig):  # type: ignore[no-untyped-def]
+    """Return (trajectory, scene, pose_at) of ``config``: made the same way here and in the frame workers."""
     trajectory = trajectory_from_preset(config.preset, duration=config.motion_duration(), seed=config.seed)
     scene = scene_from_preset(config.preset, seed=config.seed)
-    pose_at = _pose_function(trajectory, config.extrinsics)
-    return np.stack([aps_exposure(scene, config.camera, pose_at, float(t), config.aps) for t in times])
+    return trajectory, scene, _pose_function(trajectory, config.extrinsics)
 
 
 def _render_frames_in_parallel(config: SimulationConfig, times: np.ndarray, rng: np.random.Generator, jobs: int,
@@ -318,13 +327,6 @@ def simulation_cache_path(config: SimulationConfig) -> Path:
     return default_cache_dir() / "sequences" / f"{config.preset}_{digest}.npz"
 
 
-def default_jobs() -> int:
-    """Return the processes that render APS frames when none are asked for: one per core, at most 4."""
-    import os
-
-    return min(os.cpu_count() or 1, 4)
-
-
 def simulate_sequence_cached(config: SimulationConfig, progress: bool = False, jobs: int | None = None) -> Sequence:
     """Return :func:`simulate_sequence` of ``config``, read from :func:`simulation_cache_path` when it was made before.
 
@@ -334,11 +336,13 @@ def simulate_sequence_cached(config: SimulationConfig, progress: bool = False, j
     """
     from evio_lib.io.cache import check_cache_file_writable, load_cached_sequence, store_sequence_npz
 
+    jobs = None if jobs is None else check_jobs(jobs)  # refused even when the recording is in the cache
+
     path = simulation_cache_path(config)
     cached = load_cached_sequence(path)  # None: not there, or damaged (said, deleted, simulated again)
     if cached is not None:
         return cached
     check_cache_file_writable(path)
-    sequence = simulate_sequence(config, progress=progress, jobs=default_jobs() if jobs is None else jobs)
+    sequence = simulate_sequence(config, progress=progress, jobs=jobs)
     store_sequence_npz(sequence, path)
     return sequence

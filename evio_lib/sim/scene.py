@@ -642,8 +642,8 @@ class Scene:
     def hit_points(self, camera: Any, R_CtoG: np.ndarray, p_CinG: np.ndarray) -> np.ndarray:
         """Return the (H, W, 3) float64 hit points in G of :meth:`render` (NaN where nothing is hit), same numbers.
 
-        The textures are not sampled, so it costs about a fifth of :meth:`render` (the motion-blur planner of the
-        APS frames needs only the geometry).
+        The textures are not sampled, so it costs about half of :meth:`render` (2.4 against 5.2 ms at 240 x 180);
+        the motion-blur planner of the APS frames needs only the geometry.
 
         Args:
             camera, R_CtoG, p_CinG: as in :meth:`render`.

@@ -158,18 +158,41 @@ def test_cached_simulation_is_the_simulation_and_is_keyed_by_every_field(tmp_pat
     np.testing.assert_array_equal(healed.events, direct.events)
 
 
-def test_frames_rendered_by_worker_processes_are_the_serial_frames():
+def test_frames_rendered_by_worker_processes_are_the_serial_frames(monkeypatch):
     """jobs > 1 renders the exposures in other processes and draws the noise here, in frame order: same bytes."""
-    config = SimulationConfig(preset="boxes_like", duration=0.5, seed=4, with_events=False,
+    from evio_lib.sim import presets
+
+    monkeypatch.setattr(presets, "MIN_FRAMES_PER_JOB", 4)  # a short recording takes the parallel path
+    config = SimulationConfig(preset="boxes_like", duration=0.6, start_time=0.5, seed=4, with_events=False,
                               camera=PinholeRadtan(fx=40.0, fy=40.0, cx=23.5, cy=17.5, width=48, height=36))
     serial = simulate_sequence(config)
-    parallel = simulate_sequence(config, jobs=2)
+    parallel = simulate_sequence(config, jobs=np.int64(2))
     assert serial.frames.shape[0] >= 8  # enough frames for the parallel path (>= 4 per job)
     assert np.array_equal(serial.frames, parallel.frames)
     assert np.array_equal(serial.imu.gyro, parallel.imu.gyro)
 
 
 @pytest.mark.parametrize("jobs", [0, -1, 1.5, True])
-def test_jobs_must_be_a_positive_count(jobs):
+def test_jobs_must_be_a_positive_count(jobs, tmp_path, monkeypatch):
+    from evio_lib.pipeline.dataset import simulate_preset
+    from evio_lib.sim.presets import simulate_sequence_cached
+
     with pytest.raises(ValueError, match="jobs must be an integer >= 1"):
         simulate_sequence(SimulationConfig(duration=0.1, with_events=False), jobs=jobs)
+    monkeypatch.setenv("EVIO_CACHE_DIR", str(tmp_path))
+    for call in (lambda: simulate_preset("boxes_like", 0.1, jobs=jobs),
+                 lambda: simulate_sequence_cached(SimulationConfig(duration=0.1, with_events=False), jobs=jobs)):
+        with pytest.raises(ValueError, match="jobs must be an integer >= 1"):  # before the cache is looked at
+            call()
+
+
+def test_evio_jobs_sets_the_default_and_is_checked(monkeypatch):
+    from evio_lib.sim.jobs import default_jobs
+
+    monkeypatch.setenv("EVIO_JOBS", "3")
+    assert default_jobs() == 3
+    monkeypatch.setenv("EVIO_JOBS", "two")
+    with pytest.raises(ValueError, match="EVIO_JOBS must be a whole number >= 1"):
+        default_jobs()
+    monkeypatch.delenv("EVIO_JOBS")
+    assert 1 <= default_jobs() <= 4
