@@ -207,35 +207,46 @@ def simulate_sequence(config: SimulationConfig, progress: bool = False,
     groundtruth_imu = GroundTruth(t=t_gt, p_BinG=truth.p_IinG, q_GtoB=rot_to_quat(np.swapaxes(truth.R_ItoG, -1, -2)),
                                   body="imu", v_BinG=truth.v_IinG, bias_gyro=bias_gyro, bias_accel=bias_accel)
 
-    events = None
-    if config.with_events:
-        start = time.perf_counter()
-
-        pose_table = CameraPoseTable(trajectory, config.extrinsics, config.start_time, config.t_end)
-
-        def render(t: float) -> np.ndarray:
-            R, p = pose_table(np.array([t]))
-            return scene.render_intensity(camera, R[0], p[0])
-
-        events, sample_times = simulate_events(render, config.start_time, config.t_end, camera.width, camera.height,
-                                               params=config.events, rng=np.random.default_rng(seed_events),
-                                               progress=progress, change_quantile=config.event_change_quantile)
-        timings["events_s"] = time.perf_counter() - start
-        counts["event_renders"] = float(len(sample_times))
-
     frame_times = np.zeros(0)
-    frames = np.zeros((0, camera.height, camera.width), dtype=np.uint8)
     if config.with_frames:
-        start = time.perf_counter()
         half_exposure = 0.5 * config.aps.exposure_s
         frame_times = np.arange(config.start_time + half_exposure, config.t_end - half_exposure + 1e-12,
                                 1.0 / config.frame_rate_hz)
-        if jobs > 1 and frame_times.shape[0] >= MIN_FRAMES_PER_JOB * jobs:
-            frames = _render_frames_in_parallel(config, frame_times, np.random.default_rng(seed_aps), jobs, progress)
-        else:
-            frames = render_aps_frames(scene, camera, pose_at, frame_times, config.aps,
-                                       np.random.default_rng(seed_aps), progress=progress)
-        timings["frames_s"] = time.perf_counter() - start
+    # The APS exposures go to worker processes when there are enough of them; while events are simulated here, one
+    # core is left to this process and the workers render meanwhile.
+    workers = max(jobs - 1, 1) if config.with_events else jobs
+    pending = None
+    if config.with_frames and jobs > 1 and frame_times.shape[0] >= MIN_FRAMES_PER_JOB * workers:
+        pending = _submit_exposures(config, frame_times, workers)
+    try:
+        events = None
+        if config.with_events:
+            start_events = time.perf_counter()
+            pose_table = CameraPoseTable(trajectory, config.extrinsics, config.start_time, config.t_end)
+
+            def render(t: float) -> np.ndarray:
+                R, p = pose_table(np.array([t]))
+                return scene.render_intensity(camera, R[0], p[0])
+
+            events, sample_times = simulate_events(render, config.start_time, config.t_end, camera.width,
+                                                   camera.height, params=config.events,
+                                                   rng=np.random.default_rng(seed_events), progress=progress,
+                                                   change_quantile=config.event_change_quantile)
+            timings["events_s"] = time.perf_counter() - start_events
+            counts["event_renders"] = float(len(sample_times))
+
+        frames = np.zeros((0, camera.height, camera.width), dtype=np.uint8)
+        if config.with_frames:
+            rng_aps = np.random.default_rng(seed_aps)
+            start = time.perf_counter()
+            if pending is not None:
+                frames = _collect_frames(pending, config, frame_times, rng_aps, progress)
+            else:
+                frames = render_aps_frames(scene, camera, pose_at, frame_times, config.aps, rng_aps, progress=progress)
+            timings["frames_s"] = time.perf_counter() - start  # with workers: what is left after the events
+    finally:
+        for future in pending or ():
+            future.cancel()  # after an error: the chunks not started are dropped
 
     metadata = {
         "source": "evio simulator",
@@ -266,10 +277,21 @@ def simulate_sequence(config: SimulationConfig, progress: bool = False,
 def _exposure_chunk(config: SimulationConfig, times: np.ndarray) -> np.ndarray:
     """Return (K, H, W) float32 APS exposures at ``times``: the worker of :func:`_render_frames_in_parallel`.
 
-    The scene and the motion are made again from the config (0.3 s; the scene pickles to 80 MB, too much to send).
+    The scene and the motion are made again from the config (0.3 s; the scene pickles to 80 MB, too much to send),
+    once per recording in each worker.
     """
-    _, scene, pose_at = _world(config)
+    import json
+
+    key = json.dumps([config.preset, config.seed, config.motion_duration(), asdict(config.extrinsics)],
+                     default=lambda value: np.asarray(value).tolist())
+    if key not in _WORKER_WORLD:  # a worker renders several chunks of one recording: the world is made once
+        _WORKER_WORLD.clear()
+        _WORKER_WORLD[key] = _world(config)
+    _, scene, pose_at = _WORKER_WORLD[key]
     return np.stack([aps_exposure(scene, config.camera, pose_at, float(t), config.aps) for t in times])
+
+
+_WORKER_WORLD: dict[str, tuple] = {}  # in a frame worker: the (trajectory, scene, pose_at) of the last recording
 
 
 def _world(config: SimulationConfig):  # type: ignore[no-untyped-def]
@@ -279,26 +301,38 @@ def _world(config: SimulationConfig):  # type: ignore[no-untyped-def]
     return trajectory, scene, _pose_function(trajectory, config.extrinsics)
 
 
-def _render_frames_in_parallel(config: SimulationConfig, times: np.ndarray, rng: np.random.Generator, jobs: int,
-                               progress: bool) -> np.ndarray:
-    """Return the (F, H, W) uint8 APS frames of :func:`render_aps_frames`, their exposures rendered by ``jobs`` processes.
+def _submit_exposures(config: SimulationConfig, times: np.ndarray, workers: int) -> list:
+    """Start rendering the APS exposures at ``times`` in ``workers`` processes; return the futures, in time order.
 
-    The exposures (the costly, noise-free part: one scene render per sub-frame of the motion blur) come back in
-    order, chunk by chunk (at most 240 frames, 40 MB, per chunk), and the sensor noise is drawn here from ``rng``
-    frame after frame, as :func:`render_aps_frames` draws it: the frames are bit-identical to the serial ones.
+    Chunks of at most 240 frames (40 MB of exposures), at least two per worker; each worker makes the scene and
+    the motion again from the config (:func:`_exposure_chunk`).
     """
-    from joblib import Parallel, delayed
+    from joblib.externals.loky import get_reusable_executor
 
-    n_chunks = min(times.shape[0], max(2 * jobs, -(-times.shape[0] // 240)))
-    chunks = np.array_split(times, n_chunks)
+    n_chunks = min(times.shape[0], max(2 * workers, -(-times.shape[0] // 240)))
+    # one BLAS thread per worker, as joblib gives its workers: threaded BLAS on the renderer's small matrices spins
+    one_thread = {name: "1" for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
+    executor = get_reusable_executor(max_workers=workers, env=one_thread)
+    return [executor.submit(_exposure_chunk, config, chunk) for chunk in np.array_split(times, n_chunks)]
+
+
+def _collect_frames(pending: list, config: SimulationConfig, times: np.ndarray, rng: np.random.Generator,
+                    progress: bool) -> np.ndarray:
+    """Return the (F, H, W) uint8 APS frames of :func:`render_aps_frames` from the workers' exposures.
+
+    The exposures (the costly, noise-free part: one scene render per sub-frame of the motion blur) are taken in
+    order, and the sensor noise is drawn here from ``rng`` frame after frame, as :func:`render_aps_frames` draws
+    it: the frames are bit-identical to the serial ones.
+    """
     frames = np.empty((times.shape[0], config.camera.height, config.camera.width), dtype=np.uint8)
     bar = None
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=times.shape[0], desc=f"APS frames ({jobs} processes)", unit="frame")
+        bar = tqdm(total=times.shape[0], desc="APS frames (worker processes)", unit="frame")
     i = 0
-    for exposures in Parallel(n_jobs=jobs, return_as="generator")(delayed(_exposure_chunk)(config, c) for c in chunks):
+    for future in pending:
+        exposures = future.result()
         for exposure in exposures:
             frames[i] = aps_sensor_response(exposure, config.aps, rng)
             i += 1

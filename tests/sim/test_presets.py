@@ -172,6 +172,20 @@ def test_frames_rendered_by_worker_processes_are_the_serial_frames(monkeypatch):
     assert np.array_equal(serial.imu.gyro, parallel.imu.gyro)
 
 
+def test_frames_rendered_while_the_events_are_simulated_are_the_serial_frames(monkeypatch):
+    """With events, one worker renders the exposures while this process simulates the events: same bytes."""
+    from evio_lib.sim import presets
+
+    monkeypatch.setattr(presets, "MIN_FRAMES_PER_JOB", 4)
+    config = SimulationConfig(preset="boxes_like", duration=0.5, seed=5, with_events=True,
+                              camera=PinholeRadtan(fx=40.0, fy=40.0, cx=23.5, cy=17.5, width=48, height=36))
+    serial = simulate_sequence(config)
+    parallel = simulate_sequence(config, jobs=2)
+    assert serial.frames.shape[0] >= 4 and len(serial.events) > 0
+    assert np.array_equal(serial.frames, parallel.frames)
+    assert np.array_equal(serial.events, parallel.events)
+
+
 @pytest.mark.parametrize("jobs", [0, -1, 1.5, True])
 def test_jobs_must_be_a_positive_count(jobs, tmp_path, monkeypatch):
     from evio_lib.pipeline.dataset import simulate_preset
