@@ -22,6 +22,10 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="feature detector: sift (default), superpoint (the shipped CNN), orb, fast, ...")
     p.add_argument("--weights", type=Path, default=None,
                    help="a CNN checkpoint for --features superpoint (default: the shipped network)")
+    p.add_argument("--cnn-inference", choices=["auto", "fused", "bf16", "int8"], default=None,
+                   help="the CNN's arithmetic (--features superpoint): auto (default: bf16 where the CPU has it, else "
+                        "int8), fused (fp32), bf16, or int8 (about 1.7x faster than bf16 on one core, less accurate "
+                        "in the pipeline; docs/speed.md)")
     p.add_argument("--tracker", choices=["descriptor", "klt"], default="descriptor",
                    help="descriptor: detect + match + two-point RANSAC (thesis); klt: optical flow (msckf_vio)")
     p.add_argument("--max-features", type=integer(minimum=20), default=60, help="N, features per frame (default 60)")
@@ -98,6 +102,19 @@ def _check_detector(name: str, options: tuple) -> None:
         raise ValueError(f"--features {name}{given}: {detail}") from None
 
 
+def _has_inference_modes(name: str, options: tuple) -> bool:
+    """Return whether the detector ``name`` takes an ``inference`` option (the SuperPoint-style CNN)."""
+    from evio_lib.features.base import create_detector
+
+    try:
+        create_detector(name, **dict(options), inference="fused")
+    except ValueError as error:
+        if "unknown option" in str(error):
+            return False
+        raise
+    return True
+
+
 def main_run(args: argparse.Namespace) -> int:
     """Run the pipeline on one recording; print the summary; write the output folder when --out is given."""
     from evio_lib.io.output_dir import check_output_dir
@@ -115,6 +132,12 @@ def main_run(args: argparse.Namespace) -> int:
     options = (("weights", str(args.weights)),) if args.weights is not None else ()
     _require_checkpoint_file("--weights", args.weights)
     _check_detector(args.features, options)  # an unknown name fails now, not after loading the recording
+    cnn_inference = getattr(args, "cnn_inference", None)
+    if cnn_inference is not None:
+        if not _has_inference_modes(args.features, options):
+            raise ValueError(f"--cnn-inference applies to a CNN detector (--features superpoint or a shipped network); "
+                             f"--features {args.features} has no inference modes")
+        options = options + (("inference", cnn_inference),)
     try:
         config = PipelineConfig(frames=args.frames, features=args.features, detector_options=options,
                                 tracker=args.tracker, max_features=args.max_features, reconstructor=args.reconstructor,

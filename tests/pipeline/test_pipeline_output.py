@@ -70,11 +70,27 @@ def test_run_command(pipeline_cache, boxes_aps, tmp_path, capsys):
     assert err.startswith("error: ") and err.count("\n") == 1 and "--force" in err
 
 
+def test_cnn_inference_reaches_the_detector(pipeline_cache, boxes_aps, monkeypatch, capsys):
+    from evio_lib.pipeline import run as run_module
+
+    configs = []
+    real = run_module.run_pipeline
+    monkeypatch.setattr(run_module, "run_pipeline", lambda data, config, **kw: configs.append(config) or real(
+        data, config, **kw))
+    args = ["run", "boxes_like", "--duration", "3", "--max-duration", "0.5", "--features", "superpoint",
+            "--cnn-inference", "fused", "--quiet", "--no-figures"]
+    assert main(args) == 0
+    assert dict(configs[0].detector_options)["inference"] == "fused"
+    assert "RMSE" in capsys.readouterr().out
+
+
 @pytest.mark.parametrize("args, message", [
     (["run", "nowhere_at_all"], "neither a preset"),
     (["run", "boxes_like", "--bias-init", "1,2"], "--bias-init must be"),
     (["run", "boxes_like", "--weights", "missing.pt", "--features", "superpoint"], "no such checkpoint"),
     (["run", "boxes_like", "--frames", "video"], "--frames"),
+    (["run", "boxes_like", "--cnn-inference", "int8"], "--cnn-inference applies to a CNN detector"),
+    (["run", "boxes_like", "--features", "superpoint", "--cnn-inference", "int4"], "--cnn-inference"),
     (["table", "--rows", "nonsense"], "unknown table row"),
 ])
 def test_command_errors_are_one_line(args, message, capsys, pipeline_cache):
