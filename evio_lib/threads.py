@@ -24,9 +24,10 @@ from contextlib import AbstractContextManager
 from numbers import Integral
 from typing import Any
 
-__all__ = ["set_threads", "single_threaded_blas"]
+__all__ = ["THREAD_ENV_NAMES", "set_threads", "single_threaded_blas"]
 
-_ENV_NAMES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+#: The variables that NumPy's BLAS, OpenMP and MKL read when they are loaded (a child process sees them at its start).
+THREAD_ENV_NAMES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 _controller: Any = None
 _modules_seen = 0  # len(sys.modules) when the controller was made: an import since may have loaded another BLAS
 
@@ -73,7 +74,7 @@ def set_threads(threads: int) -> None:
     import cv2
     import torch
 
-    for name in _ENV_NAMES:
+    for name in THREAD_ENV_NAMES:
         os.environ[name] = str(threads)
     torch.set_num_threads(threads)
     cv2.setNumThreads(threads)

@@ -27,9 +27,9 @@ def test_set_threads_limits_torch_opencv_and_blas_then_restore(monkeypatch):
     import cv2
     import torch
 
-    from evio_lib.threads import _ENV_NAMES, _blas_controller
+    from evio_lib.threads import THREAD_ENV_NAMES, _blas_controller
 
-    for name in _ENV_NAMES:  # set_threads writes them: monkeypatch puts the old values back after the test
+    for name in THREAD_ENV_NAMES:  # set_threads writes them: monkeypatch puts the old values back after the test
         monkeypatch.setenv(name, os.environ.get(name, "1"))
     controller = _blas_controller()
     saved_blas = [(lib, lib.num_threads) for lib in controller.lib_controllers]

@@ -24,6 +24,7 @@ sys.path.insert(0, str(ROOT))
 
 from evio_lib import course  # noqa: E402
 from evio_lib.sim.jobs import JOBS_ENV  # noqa: E402
+from evio_lib.threads import THREAD_ENV_NAMES  # noqa: E402
 
 
 def main(argv: list[str]) -> int:
@@ -34,12 +35,13 @@ def main(argv: list[str]) -> int:
     env = dict(os.environ)
     env[course.FAST_MODE_ENV] = "0" if full else "1"
     env.setdefault("MPLBACKEND", "Agg")
-    for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OPENCV_FOR_THREADS_NUM"):
+    for name in (*THREAD_ENV_NAMES, "OPENCV_FOR_THREADS_NUM"):
         env.setdefault(name, "1")  # read by NumPy, torch and OpenCV at import, in every worker and kernel
     env.setdefault(JOBS_ENV, "1")  # the simulator's frame workers: the test workers already use every core
     # the notebook kernels import this working tree, whatever copy of evio_lib pip last installed in editable mode
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH", "")]))
-    workers = ["--numprocesses", str(min(os.cpu_count() or 1, 4)), "--dist", "loadscope"]  # as sim.jobs.default_jobs
+    # one worker per core, at most 4 (as sim.jobs.default_jobs, without its EVIO_JOBS)
+    workers = ["--numprocesses", str(min(os.cpu_count() or 1, 4)), "--dist", "loadscope"]
     command = [sys.executable, "-m", "pytest", "tests", "evio_lib", "--doctest-modules",
                *[str(p.relative_to(ROOT)) for p in notebooks], "--nbval-lax", "-p", "no:cacheprovider", *workers,
                *extra]

@@ -85,14 +85,15 @@ def _bias(text: str):
     return check_bias_values(values, "--bias-init")  # finite, |b_g| <= 0.5 rad/s, |b_a| <= 3 m/s^2 per axis
 
 
-def _check_detector(name: str, options: tuple) -> None:
-    """Raise ValueError naming ``--features`` when the detector ``name`` (with ``options``) cannot be created."""
+def _check_detector(name: str, options: tuple) -> object:
+    """Return the detector ``name`` made with ``options``, or raise ValueError naming ``--features`` when it cannot be
+    created."""
     import pickle
 
     from evio_lib.features.base import create_detector
 
     try:
-        create_detector(name, **dict(options))
+        return create_detector(name, **dict(options))
     except (ValueError, OSError, RuntimeError, EOFError, pickle.UnpicklingError) as error:  # torch.load's too
         detail = (str(error).strip().splitlines() or [type(error).__name__])[0]
         weights = dict(options).get("weights")
@@ -100,19 +101,6 @@ def _check_detector(name: str, options: tuple) -> None:
             detail = detail[len(f"{weights}: "):]
         given = f" with --weights {weights}" if weights is not None else ""
         raise ValueError(f"--features {name}{given}: {detail}") from None
-
-
-def _has_inference_modes(name: str, options: tuple) -> bool:
-    """Return whether the detector ``name`` takes an ``inference`` option (the SuperPoint-style CNN)."""
-    from evio_lib.features.base import create_detector
-
-    try:
-        create_detector(name, **dict(options), inference="fused")
-    except ValueError as error:
-        if "unknown option" in str(error):
-            return False
-        raise
-    return True
 
 
 def main_run(args: argparse.Namespace) -> int:
@@ -131,10 +119,10 @@ def main_run(args: argparse.Namespace) -> int:
     set_threads(args.threads)
     options = (("weights", str(args.weights)),) if args.weights is not None else ()
     _require_checkpoint_file("--weights", args.weights)
-    _check_detector(args.features, options)  # an unknown name fails now, not after loading the recording
+    detector = _check_detector(args.features, options)  # an unknown name fails now, not after loading the recording
     cnn_inference = getattr(args, "cnn_inference", None)
     if cnn_inference is not None:
-        if not _has_inference_modes(args.features, options):
+        if not hasattr(detector, "inference"):  # the SuperPoint-style CNN's mode; classical detectors have none
             raise ValueError(f"--cnn-inference applies to a CNN detector (--features superpoint or a shipped network); "
                              f"--features {args.features} has no inference modes")
         options = options + (("inference", cnn_inference),)

@@ -177,7 +177,8 @@ def simulate_sequence(config: SimulationConfig, progress: bool = False,
             recordings, byte for byte once written.
         jobs: worker processes that render the APS exposures (the sensor noise is then drawn here, frame after
             frame, so the frames do not depend on ``jobs``); 1 renders them in this process, None asks
-            :func:`evio_lib.sim.jobs.default_jobs`. Under ``MIN_FRAMES_PER_JOB`` frames per process they are rendered here.
+            :func:`evio_lib.sim.jobs.default_jobs`. Under ``MIN_FRAMES_PER_JOB`` frames per process they are
+            rendered here.
 
     The random streams of the IMU, the event camera and the APS frames are independent children of ``config.seed``
     (``numpy.random.SeedSequence.spawn``), so switching one sensor off does not change the others.
@@ -275,7 +276,7 @@ def simulate_sequence(config: SimulationConfig, progress: bool = False,
 
 
 def _exposure_chunk(config: SimulationConfig, times: np.ndarray) -> np.ndarray:
-    """Return (K, H, W) float32 APS exposures at ``times``: the worker of :func:`_render_frames_in_parallel`.
+    """Return (K, H, W) float32 APS exposures at ``times``: the task of the workers of :func:`_submit_exposures`.
 
     The scene and the motion are made again from the config (0.3 s; the scene pickles to 80 MB, too much to send),
     once per recording in each worker.
@@ -311,7 +312,9 @@ def _submit_exposures(config: SimulationConfig, times: np.ndarray, workers: int)
 
     n_chunks = min(times.shape[0], max(2 * workers, -(-times.shape[0] // 240)))
     # one BLAS thread per worker, as joblib gives its workers: threaded BLAS on the renderer's small matrices spins
-    one_thread = {name: "1" for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
+    from evio_lib.threads import THREAD_ENV_NAMES
+
+    one_thread = {name: "1" for name in THREAD_ENV_NAMES}
     executor = get_reusable_executor(max_workers=workers, env=one_thread)
     return [executor.submit(_exposure_chunk, config, chunk) for chunk in np.array_split(times, n_chunks)]
 
