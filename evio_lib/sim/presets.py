@@ -16,8 +16,10 @@ growing violent) and ``aerial_like`` (a downward camera over sparse terrain at ~
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 
@@ -246,8 +248,10 @@ def simulate_sequence(config: SimulationConfig, progress: bool = False,
                 frames = render_aps_frames(scene, camera, pose_at, frame_times, config.aps, rng_aps, progress=progress)
             timings["frames_s"] = time.perf_counter() - start  # with workers: what is left after the events
     finally:
-        for future in pending or ():
-            future.cancel()  # after an error: the chunks not started are dropped
+        if pending is not None:  # after an error: the chunks not rendered yet are dropped (no-op once consumed)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # joblib's note that it cancelled tasks
+                pending.close()
 
     metadata = {
         "source": "evio simulator",
@@ -302,24 +306,23 @@ def _world(config: SimulationConfig):  # type: ignore[no-untyped-def]
     return trajectory, scene, _pose_function(trajectory, config.extrinsics)
 
 
-def _submit_exposures(config: SimulationConfig, times: np.ndarray, workers: int) -> list:
-    """Start rendering the APS exposures at ``times`` in ``workers`` processes; return the futures, in time order.
+def _submit_exposures(config: SimulationConfig, times: np.ndarray, workers: int):  # type: ignore[no-untyped-def]
+    """Start rendering the APS exposures at ``times`` in ``workers`` processes; return joblib's generator of them.
 
-    Chunks of at most 240 frames (40 MB of exposures), at least two per worker; each worker makes the scene and
-    the motion again from the config (:func:`_exposure_chunk`).
+    joblib dispatches the chunks at once and goes on in the background, so the workers render while this process
+    simulates the events; the generator gives the chunks in time order. Chunks of at most 240 frames (40 MB of
+    exposures), at least two per worker, one BLAS thread per worker (threaded BLAS on the renderer's small matrices
+    spins); each worker makes the scene and the motion once per recording (:func:`_exposure_chunk`).
     """
-    from joblib.externals.loky import get_reusable_executor
+    from joblib import Parallel, delayed, parallel_config
 
     n_chunks = min(times.shape[0], max(2 * workers, -(-times.shape[0] // 240)))
-    # one BLAS thread per worker, as joblib gives its workers: threaded BLAS on the renderer's small matrices spins
-    from evio_lib.threads import THREAD_ENV_NAMES
-
-    one_thread = {name: "1" for name in THREAD_ENV_NAMES}
-    executor = get_reusable_executor(max_workers=workers, env=one_thread)
-    return [executor.submit(_exposure_chunk, config, chunk) for chunk in np.array_split(times, n_chunks)]
+    with parallel_config(backend="loky", inner_max_num_threads=1):
+        return Parallel(n_jobs=workers, return_as="generator")(
+            delayed(_exposure_chunk)(config, chunk) for chunk in np.array_split(times, n_chunks))
 
 
-def _collect_frames(pending: list, config: SimulationConfig, times: np.ndarray, rng: np.random.Generator,
+def _collect_frames(pending: Iterator[np.ndarray], config: SimulationConfig, times: np.ndarray, rng: np.random.Generator,
                     progress: bool) -> np.ndarray:
     """Return the (F, H, W) uint8 APS frames of :func:`render_aps_frames` from the workers' exposures.
 
@@ -334,8 +337,7 @@ def _collect_frames(pending: list, config: SimulationConfig, times: np.ndarray, 
 
         bar = tqdm(total=times.shape[0], desc="APS frames (worker processes)", unit="frame")
     i = 0
-    for future in pending:
-        exposures = future.result()
+    for exposures in pending:
         for exposure in exposures:
             frames[i] = aps_sensor_response(exposure, config.aps, rng)
             i += 1
