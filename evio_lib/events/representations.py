@@ -5,6 +5,9 @@ Windows (thesis §4.1, Eq. 87). A reconstruction step consumes one window of eve
 - by count: N_e = n * H * W events per window, with the fraction n in (0, 1] (the thesis's choice: n = 0.7 for the textured
   boxes, n = 0.2 for the sparse aerial flight),
 - by time: a fixed duration per window,
+- by count within time bounds (:func:`bounded_count_windows`): N_e events, but never shorter than a least duration
+  (at most so many frames per second in fast motion) nor longer than a greatest one (at least so many frames per
+  second when the scene is nearly still),
 - adaptive (the thesis's future-work item): a window closes once its events reach ``events_per_active_pixel`` per pixel
   that fired in it. A textured scene lights up many pixels for a given motion, a sparse one few, so the same rule gives a
   large N_e on the boxes and a small one over the airfield, i.e. n follows the scene's texture instead of being tuned by
@@ -35,6 +38,7 @@ __all__ = [
     "window_size_from_fraction",
     "count_windows",
     "time_windows",
+    "bounded_count_windows",
     "adaptive_windows",
     "polarity_frame",
     "time_surface",
@@ -176,6 +180,77 @@ def time_windows(events: np.ndarray, duration: float, t_start: float | None = No
     edges = t0 + duration * np.arange(n + 1)
     idx = np.searchsorted(events["t"], edges, side="left").astype(np.int64)
     return np.stack([idx[:-1], idx[1:]], axis=1), edges[1:]
+
+
+def bounded_count_windows(events: np.ndarray, n_events: int, min_duration: float = 0.0,
+                          max_duration: float | None = None, t_start: float | None = None,
+                          t_end: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Return (bounds (K, 2) index [start, stop), end_times (K,)) of count windows held within time bounds.
+
+    Window k starts where window k - 1 ended (the first at ``t_start``) and closes at the earliest time T with
+
+    - at least ``n_events`` events in it and T - start >= ``min_duration`` (T is then the later of the N_e-th
+      event's time and start + ``min_duration``), or
+    - T - start = ``max_duration`` (a time cap: the window may hold fewer events, even none, in a still stretch).
+
+    So fast motion gives at most 1 / ``min_duration`` frames per second, slow motion at least 1 / ``max_duration``,
+    and in between the windows hold N_e events as :func:`count_windows` cuts them. A window never ends after
+    ``t_end``: the last, unfinished one is dropped.
+
+    Args:
+        events: (N,) event array sorted by time.
+        n_events: N_e >= 1.
+        min_duration: least window length [s] (0: none).
+        max_duration: greatest window length [s] (None: none), > ``min_duration``.
+        t_start, t_end: the span cut into windows [s] (default: the first and the last event's time).
+
+    >>> from evio_lib.events.array import make_events
+    >>> ev = make_events([0.0, 0.01, 0.02, 0.03, 0.5, 0.51], [0] * 6, [0] * 6, [1] * 6)
+    >>> b, t = bounded_count_windows(ev, 2, max_duration=0.2)
+    >>> b.tolist(), t.round(2).tolist()     # two windows of 2 events, two empty ones closed by the cap, 2 events
+    ([[0, 2], [2, 4], [4, 4], [4, 4], [4, 6]], [0.01, 0.03, 0.23, 0.43, 0.51])
+    >>> bounded_count_windows(ev, 2, min_duration=0.025)[0].tolist()   # the first window must last 25 ms: 3 events
+    [[0, 3], [3, 5]]
+    """
+    _check_events(events)
+    if isinstance(n_events, bool) or int(n_events) != n_events or n_events < 1:
+        raise ValueError(f"n_events must be a positive integer; got {n_events!r}")
+    n_events = int(n_events)
+    if not (np.isfinite(min_duration) and min_duration >= 0):
+        raise ValueError(f"min_duration must be a number of seconds >= 0; got {min_duration!r}")
+    if max_duration is not None and not (np.isfinite(max_duration) and max_duration > min_duration):
+        raise ValueError(f"max_duration must be None or a number of seconds > min_duration ({min_duration:g}); got "
+                         f"{max_duration!r}")
+    t = events["t"]
+    if events.size == 0 and (t_start is None or t_end is None):
+        return np.zeros((0, 2), np.int64), np.zeros(0)
+    t0 = float(t[0]) if t_start is None else float(t_start)
+    t1 = float(t[-1]) if t_end is None else float(t_end)
+    span = max(0.0, t1 - t0)
+    most = events.size / n_events + (span / max_duration if max_duration else 0.0)
+    if min_duration > 0:
+        most = min(most, span / min_duration + 1)
+    if most > MAX_WINDOWS:
+        raise _too_many_windows(most, f"n_events={n_events} with windows of {min_duration:g}-{max_duration} s over "
+                                      f"{events.size} events and {span:g} s", " (use more events or longer windows)")
+    a = int(np.searchsorted(t, t0, side="left"))
+    start = t0
+    bounds, ends = [], []
+    while True:
+        b = a + n_events
+        close = float(t[b - 1]) if b <= events.size else np.inf     # when the N_e-th event arrives
+        if close < start + min_duration:                            # too soon: wait for the least duration
+            close = start + min_duration
+            b = int(np.searchsorted(t, close, side="right"))
+        if max_duration is not None and close > start + max_duration:
+            close = start + max_duration                            # the time cap
+            b = int(np.searchsorted(t, close, side="right"))
+        if not close <= t1:
+            break
+        bounds.append((a, b))
+        ends.append(close)
+        a, start = b, close
+    return np.asarray(bounds, dtype=np.int64).reshape(-1, 2), np.asarray(ends, dtype=np.float64)
 
 
 def adaptive_windows(events: np.ndarray, width: int, height: int, events_per_active_pixel: float = 2.0,

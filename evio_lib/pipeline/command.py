@@ -16,8 +16,9 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="a preset (boxes_like [default], aerial_like; simulated on first use and cached), an ECD folder "
                         "(events.txt, images.txt + images/, imu.txt, calib.txt, optional groundtruth.txt), a EuRoC "
                         "ASL folder (mav0/) or an AEDAT4 file (.aedat4, with --calib)")
-    p.add_argument("--frames", choices=["aps", "events"], default="aps",
-                   help="aps: the recorded frames (default); events: frames reconstructed from event windows")
+    p.add_argument("--frames", choices=["aps", "events", "mc-events"], default="aps",
+                   help="aps: the recorded frames (default); events: frames reconstructed from event windows; "
+                        "mc-events: event windows warped with the gyroscope's rotation and counted (no network)")
     p.add_argument("--features", default="sift",
                    help="feature detector: sift (default), superpoint (the shipped CNN), orb, fast, ...")
     p.add_argument("--weights", type=Path, default=None,
@@ -36,6 +37,11 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="event frames: n of N_e = n H W events per window (default: 0.7 boxes_like, 0.2 aerial_like, "
                         "0.5 otherwise)")
     p.add_argument("--adaptive", action="store_true", help="event frames: adaptive windows instead of a fixed n")
+    p.add_argument("--min-window", type=real(at_least=0.0), default=None, metavar="SECONDS",
+                   help="event frames: the shortest window, s (default: none for events, 1/60 s for mc-events)")
+    p.add_argument("--max-window", type=real(above=0.0), default=None, metavar="SECONDS",
+                   help="event frames: the longest window, s; a slow stretch still gives a frame this often "
+                        "(default: none for events, 0.1 s for mc-events)")
     p.add_argument("--duration", type=real(above=0.0), default=None,
                    help="presets: seconds to simulate (default: the whole preset, 60 s boxes_like, 40 s aerial_like)")
     p.add_argument("--max-duration", type=real(above=0.0), default=None,
@@ -129,14 +135,15 @@ def main_run(args: argparse.Namespace) -> int:
     try:
         config = PipelineConfig(frames=args.frames, features=args.features, detector_options=options,
                                 tracker=args.tracker, max_features=args.max_features, reconstructor=args.reconstructor,
-                                window_fraction=args.window_fraction, adaptive_windows=args.adaptive, init=args.init,
+                                window_fraction=args.window_fraction, adaptive_windows=args.adaptive,
+                                min_window_s=args.min_window, max_window_s=args.max_window, init=args.init,
                                 bias_init=_bias(args.bias_init), imu_only=args.imu_only, oc=not args.no_oc,
                                 zupt=not args.no_zupt, max_duration=args.max_duration, seed=args.seed)
     except ValueError as error:  # the message names the config field; the user typed the option
         raise as_option_error(error, _OPTIONS) from None
     start = time.perf_counter()
     data = load_dataset(args.dataset, duration=args.duration, seed=args.seed,
-                        need_events=args.frames == "events" and not args.imu_only, need_frames=args.frames == "aps"
+                        need_events=args.frames != "aps" and not args.imu_only, need_frames=args.frames == "aps"
                         or args.imu_only, extrinsics=args.extrinsics, progress=not args.quiet, calib=args.calib)
     print(f"loaded {data.sequence.name} ({data.kind}) in {time.perf_counter() - start:.1f} s")
     for note in data.notes:
@@ -161,8 +168,9 @@ def _require_checkpoint_file(option: str, path: Path | None) -> None:
 
 #: PipelineConfig fields and the ``run`` options that set them (for messages).
 _OPTIONS = {"reconstructor": "--reconstructor", "bias_init": "--bias-init", "max_duration": "--max-duration",
-            "window_fraction": "--window-fraction", "max_features": "--max-features", "init": "--init",
-            "frames": "--frames", "seed": "--seed", "method": "--tracker"}
+            "window_fraction": "--window-fraction", "min_window_s": "--min-window", "max_window_s": "--max-window",
+            "max_features": "--max-features", "init": "--init", "frames": "--frames", "seed": "--seed",
+            "method": "--tracker"}
 
 
 def add_table_arguments(p: argparse.ArgumentParser) -> None:
@@ -174,7 +182,7 @@ def add_table_arguments(p: argparse.ArgumentParser) -> None:
                    help="seconds of each preset (default: the whole preset, 60 s boxes_like, 40 s aerial_like)")
     p.add_argument("--rows", nargs="+", default=None,
                    help="only these rows: imu imu_bias sift_aps cnn_aps sift_events cnn_events klt_aps "
-                        "cnn_events_trained")
+                        "klt_events sift_mc_events cnn_mc_events klt_mc_events cnn_events_trained")
     p.add_argument("--events-cnn", type=Path, default=None,
                    help="checkpoint of a CNN trained with event frames (the 'CNN trained with event frames' row)")
     p.add_argument("--jobs", type=integer(minimum=1), default=1, help="parallel joblib workers (default 1)")

@@ -1,4 +1,5 @@
-"""The pipeline's frame source: APS frames as recorded, or frames reconstructed from events (thesis §4.1).
+"""The pipeline's frame sources: APS frames as recorded, frames reconstructed from events (thesis §4.1), or
+motion-compensated event frames (Rebecq et al. 2017).
 
 Event frames follow the thesis: the stream is cut into windows of N_e = n H W events (Eq. 87; n = 0.7 for the
 textured boxes, 0.2 for the sparse aerial scene) or into adaptive windows (a window closes when it holds
@@ -6,21 +7,32 @@ textured boxes, 0.2 for the sparse aerial scene) or into adaptive windows (a win
 (:func:`evio_lib.events.create_reconstructor`: the shipped FireNet by default) with its recurrent state carried, and
 the frame's time is the window's last event. The frames come one at a time (a generator), so a long recording
 never holds all its frames in memory. A stretch without events yields no frame: the filter then propagates the IMU
-alone across it.
+alone across it. Windows may also be held between a least and a greatest duration (``min_window_s``,
+``max_window_s``), so that fast motion does not flood the front-end and a slow stretch still gives frames.
+
+Motion-compensated event frames (``mc-events``, :func:`mc_event_frames`) need no network: each window's events are
+warped to its middle time with the gyroscope's rotation and counted (:mod:`evio_lib.events.motion_compensation`),
+which keeps edges sharp at any rotation speed for a few milliseconds per frame.
 """
 from __future__ import annotations
 
 import time
-from typing import Iterator
+from typing import Callable, Iterator
 
 import numpy as np
 
 from evio_lib.events.representations import MAX_EVENT_FRAME_RATE_HZ  # re-exported here
 from evio_lib.sequence import Sequence
 
-__all__ = ["FRAME_SOURCES", "MAX_EVENT_FRAME_RATE_HZ", "THESIS_WINDOW_FRACTION", "aps_frames", "event_frames", "default_window_fraction"]
+__all__ = ["FRAME_SOURCES", "MAX_EVENT_FRAME_RATE_HZ", "MC_MAX_WINDOW_S", "MC_MIN_EVENTS", "MC_MIN_WINDOW_S",
+           "THESIS_WINDOW_FRACTION", "aps_frames", "event_frames", "mc_event_frames", "default_window_fraction"]
 
-FRAME_SOURCES = ("aps", "events")
+FRAME_SOURCES = ("aps", "events", "mc-events")
+#: mc-events: the shortest and the longest window, s (at most 1 / MC_MIN_WINDOW_S frames per second in fast motion,
+#: at least 1 / MC_MAX_WINDOW_S while the camera moves slowly), and the fewest events that make a frame.
+MC_MIN_WINDOW_S = 1.0 / 60.0
+MC_MAX_WINDOW_S = 0.1
+MC_MIN_EVENTS = 500
 #: The thesis's n (§4.1, Figs. 16/18): 0.7 for boxes_like, 0.2 for aerial_like.
 THESIS_WINDOW_FRACTION = {"boxes_like": 0.7, "aerial_like": 0.2}
 
@@ -41,8 +53,58 @@ def aps_frames(sequence: Sequence, t_start: float = -np.inf, t_end: float = np.i
             yield float(t), image, 0.0
 
 
+def _event_windows(sequence: Sequence, window_fraction: float | None, adaptive: bool, min_window_s: float,
+                   max_window_s: float | None, t_start: float, t_end: float
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Return (events in [t_start, t_end), bounds (K, 2), start_times (K,), end_times (K,)): an event source's windows.
+
+    Fixed windows hold N_e = n H W events (held between ``min_window_s`` and ``max_window_s`` when given:
+    :func:`~evio_lib.events.representations.bounded_count_windows`); adaptive ones follow the texture. A count window
+    starts at its first event and ends at its last; bounded windows start where the previous one ended."""
+    from evio_lib.events.representations import (MAX_WINDOWS, adaptive_windows, bounded_count_windows,
+                                                 count_windows, window_size_from_fraction)
+
+    if sequence.camera is None:
+        raise ValueError("event frames need the camera's size: the recording has no calibration")
+    width, height = sequence.camera.width, sequence.camera.height
+    events = sequence.events
+    lo, hi = np.searchsorted(events["t"], [t_start, t_end], side="left")
+    events = events[lo:hi]
+    n = default_window_fraction(sequence.name) if window_fraction is None else float(window_fraction)
+    if not np.isfinite(n) or n <= 0:
+        raise ValueError(f"window_fraction must be a number > 0 (thesis: 0.2-0.7); got {window_fraction!r}")
+    if adaptive:
+        bounds = np.asarray(adaptive_windows(events, width, height), dtype=np.int64).reshape(-1, 2)
+        return events, bounds, events["t"][bounds[:, 0]], events["t"][bounds[:, 1] - 1]
+    per_window = window_size_from_fraction(n, width, height)
+    span = float(events["t"][-1] - events["t"][0]) if events.size > 1 else 0.0
+    if min_window_s > 0 or max_window_s is not None:
+        first = float(t_start) if np.isfinite(t_start) else (float(events["t"][0]) if events.size else 0.0)
+        last = float(t_end) if np.isfinite(t_end) else (float(events["t"][-1]) if events.size else first)
+        bounds, ends = bounded_count_windows(events, per_window, min_window_s, max_window_s, t_start=first,
+                                             t_end=last)
+        return events, bounds, np.concatenate([[first], ends[:-1]]), ends
+    # estimated before the reconstructor loads: a window per event would never end
+    if 0 < events.size < per_window:  # not one frame: say why, not "no events"
+        raise ValueError(f"the {events.size:,} events in [{events['t'][0]:.3f}, {events['t'][-1]:.3f}] s are fewer "
+                         f"than one window of N_e = n H W = {per_window:,} events (window_fraction "
+                         f"(--window-fraction) n = {n:g}, {width} x {height} px); use n <= "
+                         f"{events.size / (width * height):.3g}, adaptive windows (--adaptive), a time cap "
+                         f"(--max-window) or APS frames")
+    most = min(MAX_WINDOWS, max(1.0, MAX_EVENT_FRAME_RATE_HZ * span))
+    if events.size / per_window > most:
+        raise ValueError(f"window_fraction (--window-fraction) {n:g} gives about {events.size / per_window:.3g} "
+                         f"windows of {per_window:,} event(s) (n H W = {n * width * height:.3g}) for "
+                         f"{events.size:,} events over {span:.3g} s; the most is {most:,.0f} (MAX_WINDOWS "
+                         f"{MAX_WINDOWS:,}, MAX_EVENT_FRAME_RATE_HZ {MAX_EVENT_FRAME_RATE_HZ:g} per second; use n >= "
+                         f"{events.size / (most * width * height):.3g})")
+    bounds = count_windows(events, per_window)
+    return events, bounds, events["t"][bounds[:, 0]], events["t"][bounds[:, 1] - 1]
+
+
 def event_frames(sequence: Sequence, reconstructor: str = "firenet", window_fraction: float | None = None,
                  adaptive: bool = False, t_start: float = -np.inf, t_end: float = np.inf, threads: int | None = 1,
+                 min_window_s: float = 0.0, max_window_s: float | None = None,
                  **reconstructor_options) -> Iterator[tuple[float, np.ndarray, float]]:
     """Yield (t, float32 image in [0, 1], seconds spent reconstructing it) for each event window in [t_start, t_end].
 
@@ -54,48 +116,58 @@ def event_frames(sequence: Sequence, reconstructor: str = "firenet", window_frac
         adaptive: adaptive windows (2 events per active pixel) instead of fixed N_e.
         t_start, t_end: only events in this span are used; the recurrent state starts empty at t_start.
         threads: torch threads of a learned reconstructor (None: torch's default).
+        min_window_s, max_window_s: time bounds of the fixed windows (0 and None: none); a window capped at
+            ``max_window_s`` may hold few events (a frame at least every ``max_window_s`` in a still stretch).
     """
     from evio_lib.events.reconstruct import create_reconstructor
-    from evio_lib.events.representations import adaptive_windows, count_windows, window_size_from_fraction
 
-    if sequence.camera is None:
-        raise ValueError("event frames need the camera's size: the recording has no calibration")
+    events, bounds, _, ends = _event_windows(sequence, window_fraction, adaptive, min_window_s, max_window_s, t_start,
+                                             t_end)
     width, height = sequence.camera.width, sequence.camera.height
-    events = sequence.events
-    lo, hi = np.searchsorted(events["t"], [t_start, t_end], side="left")
-    events = events[lo:hi]
-    n = default_window_fraction(sequence.name) if window_fraction is None else float(window_fraction)
-    if not np.isfinite(n) or n <= 0:
-        raise ValueError(f"window_fraction must be a number > 0 (thesis: 0.2-0.7); got {window_fraction!r}")
-    if not adaptive:  # estimated before the reconstructor loads: a window per event would never end
-        from evio_lib.events.representations import MAX_WINDOWS
-
-        per_window = window_size_from_fraction(n, width, height)
-        if 0 < events.size < per_window:  # not one frame: say why, not "no events"
-            raise ValueError(f"the {events.size:,} events in [{events['t'][0]:.3f}, {events['t'][-1]:.3f}] s are fewer "
-                             f"than one window of N_e = n H W = {per_window:,} events (window_fraction "
-                             f"(--window-fraction) n = {n:g}, {width} x {height} px); use n <= "
-                             f"{events.size / (width * height):.3g}, adaptive windows (--adaptive) or APS frames")
-        span = float(events["t"][-1] - events["t"][0]) if events.size > 1 else 0.0
-        most = min(MAX_WINDOWS, max(1.0, MAX_EVENT_FRAME_RATE_HZ * span))
-        if events.size / per_window > most:
-            raise ValueError(f"window_fraction (--window-fraction) {n:g} gives about {events.size / per_window:.3g} "
-                             f"windows of {per_window:,} event(s) (n H W = {n * width * height:.3g}) for "
-                             f"{events.size:,} events over {span:.3g} s; the most is {most:,.0f} (MAX_WINDOWS "
-                             f"{MAX_WINDOWS:,}, MAX_EVENT_FRAME_RATE_HZ {MAX_EVENT_FRAME_RATE_HZ:g} per second; use n >= "
-                             f"{events.size / (most * width * height):.3g})")
     options = dict(reconstructor_options)
     if reconstructor not in ("direct", "high_pass") and threads is not None:
         options.setdefault("threads", threads)
     rec = create_reconstructor(reconstructor, width, height, **options)
     rec.reset()
-    if adaptive:
-        bounds = adaptive_windows(events, width, height)
-    else:
-        bounds = count_windows(events, window_size_from_fraction(n, width, height))
-    for a, b in np.asarray(bounds, dtype=np.int64).reshape(-1, 2):
+    for (a, b), t in zip(bounds, ends):
         if b <= a:
             continue
         start = time.perf_counter()
         image = rec.reconstruct(events[a:b])
-        yield float(events["t"][b - 1]), image, time.perf_counter() - start
+        yield float(t), image, time.perf_counter() - start
+
+
+def mc_event_frames(sequence: Sequence, R_CtoI: np.ndarray, window_fraction: float | None = None,
+                    adaptive: bool = False, t_start: float = -np.inf, t_end: float = np.inf,
+                    min_window_s: float = MC_MIN_WINDOW_S, max_window_s: float | None = MC_MAX_WINDOW_S,
+                    gyro_bias: Callable[[], np.ndarray] | None = None, blur_sigma_px: float = 0.75
+                    ) -> Iterator[tuple[float, np.ndarray, float]]:
+    """Yield (t, float32 image in [0, 1], seconds spent making it): motion-compensated event frames.
+
+    Each window's events are warped to the window's middle time with the gyroscope's rotation and counted
+    (:func:`evio_lib.events.motion_compensation.motion_compensated_frame`); that middle time is the frame's time.
+    The windows hold N_e = n H W events, held between ``min_window_s`` and ``max_window_s`` (defaults
+    :data:`MC_MIN_WINDOW_S`, :data:`MC_MAX_WINDOW_S`). A window with fewer than :data:`MC_MIN_EVENTS` events (a
+    still stretch) gives no frame.
+
+    Args:
+        sequence: a recording with events, an IMU and a camera.
+        R_CtoI: (3, 3) camera-to-IMU rotation.
+        gyro_bias: called before each frame for the gyro bias to remove (the filter's current estimate); None: 0.
+        window_fraction, adaptive, t_start, t_end, min_window_s, max_window_s: as :func:`event_frames`.
+        blur_sigma_px: the Gaussian blur of the counted frame.
+    """
+    from evio_lib.events.motion_compensation import motion_compensated_frame
+
+    events, bounds, starts, ends = _event_windows(sequence, window_fraction, adaptive, min_window_s, max_window_s,
+                                                  t_start, t_end)
+    imu = sequence.imu
+    for (a, b), t0, t1 in zip(bounds, starts, ends):
+        if b - a < MC_MIN_EVENTS:
+            continue
+        start = time.perf_counter()
+        t_ref = 0.5 * (float(t0) + float(t1))
+        bias = None if gyro_bias is None else gyro_bias()
+        image = motion_compensated_frame(events[a:b], sequence.camera, t_ref, imu.t, imu.gyro, R_CtoI, bias,
+                                         blur_sigma_px=blur_sigma_px)
+        yield t_ref, image, time.perf_counter() - start

@@ -54,7 +54,7 @@ from evio_lib.msckf.filter import Msckf, MsckfWarning
 from evio_lib.msckf.initialization import initial_state_from_static, initial_state_from_truth
 from evio_lib.msckf.zero_velocity import StandstillDetector, ZeroVelocityConfig
 from evio_lib.pipeline.dataset import LoadedDataset
-from evio_lib.pipeline.frames import FRAME_SOURCES, aps_frames, event_frames
+from evio_lib.pipeline.frames import FRAME_SOURCES, aps_frames, event_frames, mc_event_frames
 from evio_lib.threads import set_threads, single_threaded_blas  # re-exported: `from evio_lib.pipeline.run import set_threads` keeps working
 
 __all__ = ["INIT_MODES", "MIN_PERCENT_DISTANCE_M", "PipelineConfig", "PipelineResult", "run_pipeline", "set_threads"]
@@ -72,7 +72,8 @@ class PipelineConfig:
     """Every choice of one pipeline run (frozen, validated).
 
     Attributes:
-        frames: 'aps' (the recorded frames) or 'events' (reconstructed from event windows).
+        frames: 'aps' (the recorded frames), 'events' (reconstructed from event windows) or 'mc-events' (event
+            windows warped with the gyroscope's rotation and counted: :func:`~evio_lib.pipeline.frames.mc_event_frames`).
         features: detector name of ``evio_lib.features`` ('sift', 'superpoint' = the shipped CNN, 'orb', ...).
         detector_options: extra options of the detector as (name, value) pairs (e.g. ('weights', PATH)).
         tracker: 'descriptor' (the thesis's front-end) or 'klt' (optical flow; ``features`` then detects new ones).
@@ -84,6 +85,8 @@ class PipelineConfig:
         reconstructor: event frames only: a reconstructor name ('firenet', 'high_pass', 'direct').
         window_fraction: event frames only: n of N_e = n H W; None: the thesis's n for the preset (0.7 / 0.2).
         adaptive_windows: event frames only: adaptive windows instead of fixed N_e.
+        min_window_s, max_window_s: event frames only: the least and the greatest window duration, s (None: the
+            source's default; 'events': none, 'mc-events': 1/60 s and 0.1 s).
         init: one of :data:`INIT_MODES`.
         bias_init: 'zero', 'groundtruth', or six numbers (b_g [rad/s], b_a [m/s^2]).
         imu_only: propagate the IMU only (no frames are processed: the IMU-only rows of Table 6).
@@ -103,6 +106,8 @@ class PipelineConfig:
     reconstructor: str = "firenet"
     window_fraction: float | None = None
     adaptive_windows: bool = False
+    min_window_s: float | None = None
+    max_window_s: float | None = None
     init: str = "auto"
     bias_init: Any = "zero"
     imu_only: bool = False
@@ -128,7 +133,16 @@ class PipelineConfig:
             from evio_lib.io.imu_checks import check_bias_values  # |b_g| <= 0.5 rad/s, |b_a| <= 3 m/s^2 per axis
 
             object.__setattr__(self, "bias_init", check_bias_values(values, "bias_init"))
-        if self.frames != "aps":  # before the recording loads: a name or a checkpoint file
+        for name in ("min_window_s", "max_window_s"):
+            value = getattr(self, name)
+            if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))
+                                      or not math.isfinite(value) or value < 0 or (name == "max_window_s" and value == 0)):
+                raise ValueError(f"{name} must be None or a number of seconds {'>' if name == 'max_window_s' else '>='} "
+                                 f"0; got {value!r}")
+        low, high = self.window_bounds()
+        if high is not None and high <= low:
+            raise ValueError(f"max_window_s ({high:g}) must be greater than min_window_s ({low:g})")
+        if self.frames == "events":  # before the recording loads: a name or a checkpoint file
             from evio_lib.events.reconstruct import available_reconstructors
 
             names = available_reconstructors()
@@ -147,6 +161,15 @@ class PipelineConfig:
         FrontendConfig(method=self.tracker, max_features=self.max_features, ratio=self.match_ratio,
                        seed=self.seed)  # validates those
 
+    def window_bounds(self) -> tuple[float, float | None]:
+        """Return (least, greatest) window duration in s of the event source (the source's defaults for None)."""
+        from evio_lib.pipeline.frames import MC_MAX_WINDOW_S, MC_MIN_WINDOW_S
+
+        mc = self.frames == "mc-events"
+        low = self.min_window_s if self.min_window_s is not None else (MC_MIN_WINDOW_S if mc else 0.0)
+        high = self.max_window_s if self.max_window_s is not None else (MC_MAX_WINDOW_S if mc else None)
+        return float(low), (None if high is None else float(high))
+
     def frontend_config(self) -> FrontendConfig:
         """Return the front-end's configuration."""
         detector = self.features if self.tracker == "descriptor" or self.features != "sift" else None
@@ -161,7 +184,8 @@ class PipelineConfig:
         name = {"sift": "SIFT", "superpoint": "CNN", "fast": "FAST"}.get(detector, detector)
         if self.tracker == "klt":
             name = f"KLT + {name}"
-        source = "APS frames" if self.frames == "aps" else f"event frames ({self.reconstructor})"
+        source = {"aps": "APS frames", "mc-events": "motion-compensated event frames"}.get(
+            self.frames, f"event frames ({self.reconstructor})")
         return f"{name} on {source}"
 
 
@@ -367,16 +391,22 @@ def msckf_config_for(config: PipelineConfig, data: LoadedDataset) -> MsckfConfig
     return dataclasses.replace(cfg, **changes)
 
 
-def _frames(data: LoadedDataset, config: PipelineConfig, t_start: float, t_end: float
-            ) -> Iterator[tuple[float, np.ndarray, float]]:
+def _frames(data: LoadedDataset, config: PipelineConfig, t_start: float, t_end: float,
+            gyro_bias: Any = None) -> Iterator[tuple[float, np.ndarray, float]]:
+    """Return the run's frame source; ``gyro_bias`` (a callable) gives mc-events the filter's current gyro bias."""
     if config.frames == "aps":
         return aps_frames(data.sequence, t_start, t_end)
+    low, high = config.window_bounds()
+    if config.frames == "mc-events":
+        return mc_event_frames(data.sequence, data.R_CtoI, config.window_fraction, config.adaptive_windows, t_start,
+                               t_end, min_window_s=low, max_window_s=high, gyro_bias=gyro_bias)
     from evio_lib.events.reconstruct import available_reconstructors
 
     if config.reconstructor in available_reconstructors():
         return event_frames(data.sequence, config.reconstructor, config.window_fraction, config.adaptive_windows,
-                            t_start, t_end)
+                            t_start, t_end, min_window_s=low, max_window_s=high)
     return event_frames(data.sequence, "learned", config.window_fraction, config.adaptive_windows, t_start, t_end,
+                        min_window_s=low, max_window_s=high,
                         checkpoint=config.reconstructor)  # a reconstruct-train checkpoint file
 
 
@@ -493,7 +523,7 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
         times = seq.frame_times[(seq.frame_times > t_first) & (seq.frame_times <= t_last)]
         source = ((float(t), None, 0.0) for t in times)
     else:
-        source = _frames(data, config, t_first, t_last)
+        source = _frames(data, config, t_first, t_last, gyro_bias=lambda: filt.state.imu.b_g)
     # one BLAS thread: the front-end's and the filter's matrices are small, and threaded BLAS spins (evio_lib.threads)
     with warnings.catch_warnings(), single_threaded_blas():
         warnings.simplefilter("ignore", MsckfWarning)  # counted in filt.faults and reported in the summary

@@ -8,7 +8,9 @@ Rows (thesis Table 6, plus the KLT front-end of msckf_vio / OpenVINS as a baseli
 - SIFT on event frames and the CNN on event frames (FireNet reconstructions of windows of n H W events, the
   thesis's n per preset);
 - the CNN trained with event frames, when a checkpoint is given (``events_cnn``); none is shipped yet, and the
-  row then says so instead of a number.
+  row then says so instead of a number;
+- KLT + FAST on the FireNet event frames, and SIFT, the CNN and KLT + FAST on motion-compensated event frames
+  (``mc-events``: each window's events warped with the gyroscope's rotation and counted, Rebecq et al. 2017).
 
 Each (preset, row, seed) job is a pure function of its arguments (:func:`table_job`: it loads the simulated
 recording from the cache, or simulates it, runs the pipeline and returns a dict of numbers), run through joblib
@@ -41,7 +43,7 @@ class TableRow:
 
     @property
     def needs_events(self) -> bool:
-        return dict(self.options).get("frames") == "events"
+        return dict(self.options).get("frames", "aps") != "aps"
 
 
 TABLE_ROWS = (
@@ -54,6 +56,12 @@ TABLE_ROWS = (
     TableRow("cnn_events_trained", "CNN trained with event frames, event frames",
              (("features", "superpoint"), ("frames", "events"))),
     TableRow("klt_aps", "KLT + FAST, APS frames (baseline)", (("tracker", "klt"), ("features", "fast"))),
+    TableRow("klt_events", "KLT + FAST, event frames", (("tracker", "klt"), ("features", "fast"), ("frames", "events"))),
+    TableRow("sift_mc_events", "SIFT, motion-compensated event frames", (("features", "sift"), ("frames", "mc-events"))),
+    TableRow("cnn_mc_events", "CNN, motion-compensated event frames",
+             (("features", "superpoint"), ("frames", "mc-events"))),
+    TableRow("klt_mc_events", "KLT + FAST, motion-compensated event frames",
+             (("tracker", "klt"), ("features", "fast"), ("frames", "mc-events"))),
 )
 
 

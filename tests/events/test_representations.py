@@ -114,3 +114,60 @@ def test_adaptive_windows_follow_the_texture():
     assert np.all(b_dense[1:, 0] == b_dense[:-1, 1])  # consecutive, no gaps
     with pytest.raises(ValueError, match="events_per_active_pixel"):
         adaptive_windows(dense, width, height, events_per_active_pixel=1.0)
+
+
+# ---------------------------------------------------------------------------------------------- bounded windows
+def _stream(seed: int = 0):
+    """A stream with a fast burst, a still gap and a slow stretch (event times in s)."""
+    from evio_lib.events.array import make_events
+
+    rng = np.random.default_rng(seed)
+    t = np.sort(np.concatenate([rng.uniform(0.0, 0.1, 5000), rng.uniform(0.5, 1.0, 300)]))
+    return make_events(t, rng.integers(0, 20, t.size), rng.integers(0, 10, t.size), np.ones(t.size))
+
+
+def test_bounded_count_windows_without_bounds_match_count_windows():
+    from evio_lib.events.representations import bounded_count_windows, count_windows
+
+    ev = _stream()
+    bounds, ends = bounded_count_windows(ev, 700)
+    np.testing.assert_array_equal(bounds, count_windows(ev, 700))
+    np.testing.assert_array_equal(ends, ev["t"][bounds[:, 1] - 1])
+
+
+@pytest.mark.parametrize("n_events, low, high", [(700, 0.0, 0.05), (200, 0.02, None), (100, 0.01, 0.03)])
+def test_bounded_count_windows_keep_their_bounds(n_events, low, high):
+    from evio_lib.events.representations import bounded_count_windows
+
+    ev = _stream(1)
+    t = ev["t"]
+    bounds, ends = bounded_count_windows(ev, n_events, low, high, t_start=0.0, t_end=1.0)
+    starts = np.concatenate([[0.0], ends[:-1]])
+    assert np.all(bounds[1:, 0] == bounds[:-1, 1]) and bounds[0, 0] == 0  # consecutive, nothing skipped
+    assert np.all(ends <= 1.0) and np.all(np.diff(ends) > 0)
+    counts = bounds[:, 1] - bounds[:, 0]
+    length = ends - starts
+    assert np.all(length >= low - 1e-12)
+    if high is not None:
+        assert np.all(length <= high + 1e-12)
+    capped = np.isclose(length, high) if high is not None else np.zeros(len(ends), bool)
+    # a window that was not capped closed on its N_e-th event or at the least duration, whichever came later
+    assert np.all(counts[~capped] >= n_events)
+    for (a, b), t0, t1 in zip(bounds, starts, ends):  # every event of the window lies inside it
+        assert np.all((t[a:b] >= t0 - 1e-12) & (t[a:b] <= t1 + 1e-12))
+    if high is not None:  # the still gap [0.1, 0.5] s still gets frames
+        assert np.count_nonzero((ends > 0.12) & (ends < 0.5)) >= int(0.35 / high)
+
+
+def test_bounded_count_windows_refuse_bad_bounds():
+    from evio_lib.events.representations import bounded_count_windows
+
+    ev = _stream()
+    with pytest.raises(ValueError, match="max_duration"):
+        bounded_count_windows(ev, 100, 0.05, 0.05)
+    with pytest.raises(ValueError, match="min_duration"):
+        bounded_count_windows(ev, 100, -1.0)
+    with pytest.raises(ValueError, match="n_events"):
+        bounded_count_windows(ev, 0)
+    with pytest.raises(ValueError, match="windows"):
+        bounded_count_windows(ev, 1, 0.0, 1e-9)

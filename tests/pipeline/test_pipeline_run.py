@@ -160,3 +160,67 @@ def test_euroc_runs_with_static_initialisation(real_data_dir):
     # yaw and position come from the ground truth at the end of the still window, so the errors need no alignment
     assert np.isfinite(result.metrics["ate_se3_m"]) and np.isfinite(result.metrics["rmse_m"])
     assert result.metrics["ate_se3_m"] < 0.5  # the MAV barely moves in these 4.7 s
+
+
+def test_mc_event_frames_follow_their_bounded_windows(boxes_events):
+    """mc-events: one frame per bounded window of N_e events, at the window's middle time, the filter's gyro bias
+    asked before each frame, and the frames sharper than the plain count of the same events."""
+    from evio_lib.events.representations import bounded_count_windows, polarity_frame, window_size_from_fraction
+    from evio_lib.pipeline.frames import mc_event_frames
+
+    seq = boxes_events.sequence
+    asked = []
+
+    def bias():
+        asked.append(1)
+        return np.zeros(3)
+
+    frames = list(mc_event_frames(seq, boxes_events.R_CtoI, window_fraction=0.3, t_start=0.0, t_end=1.5,
+                                  min_window_s=0.01, max_window_s=0.05, gyro_bias=bias))
+    bounds, ends = bounded_count_windows(seq.events, window_size_from_fraction(0.3, 240, 180), 0.01, 0.05,
+                                         t_start=0.0, t_end=1.5)
+    starts = np.concatenate([[0.0], ends[:-1]])
+    keep = (bounds[:, 1] - bounds[:, 0]) >= 500
+    np.testing.assert_allclose([t for t, _, _ in frames], (0.5 * (starts + ends))[keep])
+    assert len(asked) == len(frames) >= 10
+    for _, image, seconds in frames:
+        assert image.shape == (180, 240) and image.dtype == np.float32 and 0.0 <= image.min() <= image.max() <= 1.0
+        assert seconds > 0
+    # sharper than the uncompensated count (contrast of the image of events)
+    (a, b), image = bounds[keep][-1], frames[-1][1]
+    plain = polarity_frame(seq.events[a:b], 240, 180, signed=False)
+    plain = np.minimum(plain / np.quantile(plain[plain > 0], 0.98), 1.0)
+    assert image.var() > plain.var()
+
+
+def test_mc_events_run_and_window_options_are_checked(boxes_events):
+    result = run_pipeline(boxes_events, PipelineConfig(frames="mc-events", tracker="klt", features="fast"))
+    assert result.config.label() == "KLT + FAST on motion-compensated event frames"
+    assert len(result.t) > 20 and np.all(np.isfinite(result.p_IinG))
+    assert result.metrics["rmse_m"] < 0.2  # 1.5 s of the gentle start
+    assert np.mean(result.track_lengths) > 3
+    assert PipelineConfig(frames="mc-events").window_bounds() == (pytest.approx(1 / 60), 0.1)
+    assert PipelineConfig(frames="events").window_bounds() == (0.0, None)
+    assert PipelineConfig(frames="events", max_window_s=0.2).window_bounds() == (0.0, 0.2)
+    for changes, match in (({"max_window_s": 0.0}, "max_window_s"), ({"min_window_s": -1.0}, "min_window_s"),
+                           ({"min_window_s": 0.2, "max_window_s": 0.1}, "greater than"),
+                           ({"frames": "mc"}, "frames must be one of")):
+        with pytest.raises(ValueError, match=match):
+            PipelineConfig(**changes)
+
+
+def test_event_frames_with_a_time_cap_give_frames_in_a_still_stretch(boxes_events):
+    """A time cap (--max-window) makes the reconstructed source give a frame at least that often even where few
+    events come; without one, the windows wait for N_e events."""
+    from evio_lib.pipeline.frames import event_frames
+
+    seq = boxes_events.sequence
+    ev = seq.events
+    sparse = ev[(ev["t"] < 0.6) | (ev["t"] > 0.9) | (np.arange(ev.size) % 50 == 0)]
+    data = _with_sequence(boxes_events, events=sparse)
+    capped = [t for t, _, _ in event_frames(data.sequence, "direct", window_fraction=0.5, t_start=0.0, t_end=1.5,
+                                            max_window_s=0.05)]
+    plain = [t for t, _, _ in event_frames(data.sequence, "direct", window_fraction=0.5, t_start=0.0, t_end=1.5)]
+    inside = lambda times: np.count_nonzero((np.asarray(times) > 0.62) & (np.asarray(times) < 0.88))  # noqa: E731
+    assert inside(capped) >= 4 and inside(plain) <= 1
+    assert np.all(np.diff(capped) <= 0.05 + 1e-9)
