@@ -1,7 +1,7 @@
 """Benchmark: the pipeline's real-time factor per configuration and where the time goes.
 
 For each configuration the whole chain runs on the same stretch of a simulated preset (the simulation is done, or
-read from the cache, first and not timed): frames (APS, or FireNet reconstructions of event windows), the front-end
+read from the cache, first and not timed): frames (APS, FireNet reconstructions of event windows, or motion-compensated event frames), the front-end
 (detection with undistortion of the keypoints, matching or optical flow, two-point RANSAC) and the MSCKF (with the
 per-observation covariances). Printed per configuration: milliseconds per frame in each stage, the frame rate, and
 the real-time factor = seconds of recording processed per wall-clock second (> 1: faster than real time). One
@@ -34,6 +34,9 @@ CONFIGS = {
     "sift_events": PipelineConfig(frames="events", features="sift"),
     "klt_events": PipelineConfig(frames="events", tracker="klt", features="fast"),
     "cnn_events": PipelineConfig(frames="events", features="superpoint"),
+    "sift_mc": PipelineConfig(frames="mc-events", features="sift"),
+    "cnn_mc": PipelineConfig(frames="mc-events", features="superpoint"),
+    "klt_mc": PipelineConfig(frames="mc-events", tracker="klt", features="fast"),
 }
 
 
@@ -48,7 +51,7 @@ def main() -> None:
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     cv2.setNumThreads(args.threads)
-    need_events = any(CONFIGS[c].frames == "events" for c in args.configs)
+    need_events = any(CONFIGS[c].frames != "aps" for c in args.configs)
     data = load_dataset(args.preset, duration=args.duration, seed=args.seed, need_events=need_events)
     print(f"{args.preset}, seed {args.seed}: {args.process:g} s processed of {args.duration:g} s simulated, "
           f"{args.threads} thread(s)")

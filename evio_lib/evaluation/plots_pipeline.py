@@ -331,7 +331,8 @@ def plot_tracking_statistics(stats: Mapping[str, ArrayLike], *, track_lengths: A
 
 def plot_error_comparison(t_by_name: Mapping[str, ArrayLike], error_norm_by_name: Mapping[str, ArrayLike], *,
                           split_time: float | None = None, log: bool = False, ylabel: str = "position error [m]",
-                          styles: Mapping[str, str] | None = None, title: str = "") -> "Figure":
+                          styles: Mapping[str, str] | None = None, title: str = "",
+                          motion: tuple[ArrayLike, ArrayLike, ArrayLike] | None = None) -> "Figure":
     """Return a figure of error norms against time, one line per configuration, on one axis.
 
     Args:
@@ -343,6 +344,8 @@ def plot_error_comparison(t_by_name: Mapping[str, ArrayLike], error_norm_by_name
         ylabel: y-axis label; title: figure title.
         styles: optional label -> matplotlib line style ("-", "--", ":", "-."), e.g. dashed for event frames; each
             line keeps its own colour and its legend entry shows the style. Default: solid.
+        motion: optional (t, speed [m/s], angular rate [rad/s]) of the camera, drawn in a panel below on the same
+            time axis, so the reader sees where each configuration gains or loses against how fast the camera moves.
 
     Reference: the configurations of thesis Table 6 (IMU only, grayscale/APS frames, event frames).
 
@@ -382,7 +385,19 @@ def plot_error_comparison(t_by_name: Mapping[str, ArrayLike], error_norm_by_name
             any(style not in ("-", "--", ":", "-.") for style in styles.values()):
         raise ValueError(f"styles must map some of the labels {sorted(map(str, curves))} to one of '-', '--', ':', "
                          f"'-.'; got {styles!r}")
-    fig, ax = plt.subplots(figsize=(8, 4))
+    if motion is not None:
+        if not isinstance(motion, (tuple, list)) or len(motion) != 3:
+            raise ValueError("motion must be (t, speed, angular_rate), three (N,) arrays; got "
+                             f"{type(motion).__name__}")
+        t_m = _times(motion[0], "motion[0] (t)")
+        v_m = _array(motion[1], "motion[1] (speed)", f"(N,) = {t_m.shape}")
+        w_m = _array(motion[2], "motion[2] (angular rate)", f"(N,) = {t_m.shape}")
+        if v_m.shape != t_m.shape or w_m.shape != t_m.shape:
+            raise ValueError(f"motion's speed and angular rate must have the shape of its times {t_m.shape}; got "
+                             f"{v_m.shape} and {w_m.shape}")
+        fig, (ax, ax_m) = plt.subplots(2, 1, figsize=(8, 5.5), sharex=True, height_ratios=(2.2, 1))
+    else:
+        fig, ax = plt.subplots(figsize=(8, 4))
     for k, (label, (t, e)) in enumerate(curves.items()):
         keep = e > 0 if log else np.ones_like(e, dtype=bool)  # log axes cannot show 0
         ax.plot(t[keep], e[keep], color=f"C{k}", ls=styles.get(label, "-"), lw=1.4, label=str(label))
@@ -390,12 +405,20 @@ def plot_error_comparison(t_by_name: Mapping[str, ArrayLike], error_norm_by_name
         ax.axvline(split, color="k", ls="--", lw=1.0, label=f"split at t = {split:g} s")
     if log:
         ax.set_yscale("log")
-    ax.set_xlabel("time [s]")
     ax.set_ylabel(ylabel)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
     if title:
         ax.set_title(title)
+    if motion is not None:
+        ax_m.plot(t_m, v_m, color="k", lw=1.2, label="speed [m/s]")
+        ax_m.plot(t_m, w_m, color="0.5", lw=1.2, ls="--", label="angular rate [rad/s]")
+        ax_m.set_ylabel("camera motion")
+        ax_m.grid(True, alpha=0.3)
+        ax_m.legend(fontsize=8)
+        ax_m.set_xlabel("time [s]")
+    else:
+        ax.set_xlabel("time [s]")
     fig.tight_layout()
     return fig
 

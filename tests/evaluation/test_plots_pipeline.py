@@ -319,6 +319,20 @@ def test_plot_error_comparison_line_styles_reach_the_legend():
     _render(fig)
 
 
+def test_plot_error_comparison_with_the_camera_motion_below():
+    t = np.linspace(0.0, 60.0, 61)
+    fig = plot_error_comparison({"APS": t}, {"APS": 0.01 * t}, motion=(t, 0.05 * t, 0.1 * t))
+    ax, ax_m = fig.axes
+    assert ax.get_xlabel() == "" and ax_m.get_xlabel() == "time [s]"
+    assert [line.get_label() for line in ax_m.lines] == ["speed [m/s]", "angular rate [rad/s]"]
+    np.testing.assert_allclose(ax_m.lines[1].get_ydata(), 0.1 * t)
+    with pytest.raises(ValueError, match="motion's speed and angular rate must have the shape"):
+        plot_error_comparison({"APS": t}, {"APS": t}, motion=(t, t[:-1], t))
+    with pytest.raises(ValueError, match=r"motion must be \(t, speed, angular_rate\)"):
+        plot_error_comparison({"APS": t}, {"APS": t}, motion=(t, t))
+    _render(fig)
+
+
 def test_plot_state_errors_without_a_quantity_names_the_axis_only():
     fig = plot_state_errors([0.0, 1.0], np.zeros((2, 3)), np.ones((2, 3)), quantity="", unit="deg",
                             axis_labels=("about x_I", "about y_I (yaw)", "about z_I"))
