@@ -8,7 +8,10 @@ and thesis §3.3.6.1:
 3. ``_add_observations``: append (camera id, xy, W) to each feature's track (a dict id -> observations); W (2, 2)
    is the whitening matrix L^-1 of the observation's noise covariance Σ = L L^T (``xy_cov``; default σ² I).
 4. ``_collect_lost_features``: tracks not observed in this image have ended; those with >= ``min_track_length``
-   observations are used with all their observations, shorter ones are dropped.
+   observations are used with all their observations, shorter ones are dropped. With several frame streams (e.g.
+   APS frames and event frames of one camera, as Ultimate SLAM fuses them; ``process_image(..., stream=k)``) each
+   track belongs to the stream that started it, and an image ends only the tracks of its own stream: every image
+   still adds a clone to the one window, so the tracks of both streams constrain the same trajectory.
 5. ``_select_cameras_to_remove`` / ``_collect_pruned_features``: when the window exceeds N_max, the oldest third
    goes (``marginalize_third``, the default, as in Mourikis & Roumeliotis 2007) or two states chosen by S-MSCKF's
    two-way keyframe rule; the features
@@ -284,6 +287,7 @@ class Msckf:
         self._state = state
         self.rejections: Counter[str] = Counter()
         self.tracks: dict[int, list[tuple[int, NDArray[np.float64], NDArray[np.float64]]]] = {}
+        self._track_stream: dict[int, int] = {}  # the frame stream of each track (one stream: all 0)
         self._next_camera_id = max(state.camera_ids, default=-1) + 1
         self._tracking_rate = 1.0
         self._imu_t = np.zeros(0)
@@ -471,7 +475,8 @@ class Msckf:
         return t, ids_arr.astype(np.int64), xy_arr
 
     # ------------------------------------------------------------------------------------------------ main steps
-    def process_image(self, t: float, ids: ArrayLike, xy: ArrayLike, xy_cov: ArrayLike | None = None) -> FilterOutput:
+    def process_image(self, t: float, ids: ArrayLike, xy: ArrayLike, xy_cov: ArrayLike | None = None,
+                      stream: int = 0) -> FilterOutput:
         """Return the estimate after processing one image's feature observations (steps in the module docstring).
 
         Args:
@@ -482,16 +487,25 @@ class Msckf:
             xy_cov: (K, 2, 2) noise covariance of each observation in normalised coordinates (e.g. σ_px² J J^T with
                 J = d(xy)/d(pixel), ``experiment.observation_covariance``), or None for the isotropic
                 ``config.feature_noise_sigma``² I. The update whitens each observation by its own covariance.
+            stream: which frame stream the image comes from (0 when there is one). An image ends only the tracks
+                of its stream; the ids of different streams must differ (an id seen in another stream is refused).
 
         The step runs with one BLAS thread (:func:`evio_lib.threads.single_threaded_blas`): its matrices are small,
         and threaded BLAS made it 6x slower in CPU time on a 2-core machine.
         """
+        if isinstance(stream, bool) or not isinstance(stream, (int, np.integer)) or stream < 0:
+            raise ValueError(f"stream must be an integer >= 0; got {stream!r}")
         with single_threaded_blas():
-            return self._process_image(t, ids, xy, xy_cov)
+            return self._process_image(t, ids, xy, xy_cov, int(stream))
 
-    def _process_image(self, t: float, ids: ArrayLike, xy: ArrayLike, xy_cov: ArrayLike | None) -> FilterOutput:
+    def _process_image(self, t: float, ids: ArrayLike, xy: ArrayLike, xy_cov: ArrayLike | None,
+                       stream: int = 0) -> FilterOutput:
         """The body of :meth:`process_image`."""
         t, ids, xy = self._check_image(t, ids, xy)
+        other = [fid for fid in ids.tolist() if self._track_stream.get(fid, stream) != stream]
+        if other:
+            raise ValueError(f"process_image(stream={stream}) got feature id {other[0]}, a track of stream "
+                             f"{self._track_stream[other[0]]}; each stream needs its own ids")
         if xy_cov is None:
             whiten = None
         else:
@@ -518,9 +532,10 @@ class Msckf:
         used = 0
         if self.config.imu_only:
             self.tracks.clear()
+            self._track_stream.clear()
         else:
-            self._add_observations(camera_id, ids, xy, whiten)
-            lost = self._collect_lost_features(ids)
+            self._add_observations(camera_id, ids, xy, whiten, stream)
+            lost = self._collect_lost_features(ids, stream)
             pruned = self._collect_pruned_features(remove)
             self._frame_counters["lost_tried"] += len(lost)
             self._frame_counters["prune_tried"] += len(pruned)
@@ -645,7 +660,7 @@ class Msckf:
         return camera_id
 
     def _add_observations(self, camera_id: int, ids: NDArray[np.int64], xy: NDArray[np.float64],
-                          whiten: NDArray[np.float64] | None) -> None:
+                          whiten: NDArray[np.float64] | None, stream: int = 0) -> None:
         """Append this image's observations (with their whitening matrices) to the tracks; record the tracking
         rate (share of known ids)."""
         tracked = 0
@@ -655,21 +670,25 @@ class Msckf:
             track = tracks.get(fid)
             if track is None:
                 tracks[fid] = [(camera_id, z, W)]
+                self._track_stream[fid] = stream
             else:
                 track.append((camera_id, z, W))
                 tracked += 1
         self._tracking_rate = tracked / ids.shape[0] if ids.shape[0] else 0.0
 
-    def _collect_lost_features(self, ids: NDArray[np.int64]) -> list[_FeatureUse]:
-        """Remove the tracks that ended (not in ``ids``); return those long enough to be used (all observations)."""
+    def _collect_lost_features(self, ids: NDArray[np.int64], stream: int = 0) -> list[_FeatureUse]:
+        """Remove the tracks of ``stream`` that ended (not in ``ids``); return those long enough to be used (all
+        their observations)."""
         current = set(ids.tolist())
-        lost = [fid for fid in self.tracks if fid not in current]
+        streams = self._track_stream
+        lost = [fid for fid in self.tracks if fid not in current and streams[fid] == stream]
         if not lost:
             return []
         pos = self._window_positions()
         uses = []
         for fid in lost:
             track = self.tracks.pop(fid)
+            del streams[fid]
             if len(track) < self.config.min_track_length:
                 self.rejections["too_few_observations"] += 1
                 continue
@@ -749,6 +768,7 @@ class Msckf:
         """Drop tracks left without observations in the window."""
         for fid in [fid for fid, track in self.tracks.items() if not track]:
             del self.tracks[fid]
+            del self._track_stream[fid]
 
     # ------------------------------------------------------------------------------------------------ the update
     def _window_positions(self) -> dict[int, int]:

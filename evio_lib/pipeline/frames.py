@@ -24,10 +24,13 @@ import numpy as np
 from evio_lib.events.representations import MAX_EVENT_FRAME_RATE_HZ  # re-exported here
 from evio_lib.sequence import Sequence
 
-__all__ = ["FRAME_SOURCES", "MAX_EVENT_FRAME_RATE_HZ", "MC_MAX_WINDOW_S", "MC_MIN_EVENTS", "MC_MIN_WINDOW_S",
+__all__ = ["FRAME_SOURCES", "STREAM_ID_OFFSET", "frame_streams", "MAX_EVENT_FRAME_RATE_HZ", "MC_MAX_WINDOW_S", "MC_MIN_EVENTS", "MC_MIN_WINDOW_S",
            "THESIS_WINDOW_FRACTION", "aps_frames", "event_frames", "mc_event_frames", "default_window_fraction"]
 
-FRAME_SOURCES = ("aps", "events", "mc-events")
+FRAME_SOURCES = ("aps", "events", "mc-events", "aps+events", "aps+mc-events")
+#: A source "a+b" feeds two frame streams into one run (:func:`frame_streams` splits it): each has its own tracker,
+#: and the filter fuses their tracks, as Ultimate SLAM fuses standard frames and event frames.
+STREAM_ID_OFFSET = 1 << 40
 #: mc-events: the shortest and the longest window, s (at most 1 / MC_MIN_WINDOW_S frames per second in fast motion,
 #: at least 1 / MC_MAX_WINDOW_S while the camera moves slowly), and the fewest events that make a frame.
 MC_MIN_WINDOW_S = 1.0 / 60.0
@@ -35,6 +38,17 @@ MC_MAX_WINDOW_S = 0.1
 MC_MIN_EVENTS = 500
 #: The thesis's n (§4.1, Figs. 16/18): 0.7 for boxes_like, 0.2 for aerial_like.
 THESIS_WINDOW_FRACTION = {"boxes_like": 0.7, "aerial_like": 0.2}
+
+
+def frame_streams(frames: str) -> tuple[str, ...]:
+    """Return the single sources of a frame source: ('aps',) for 'aps', ('aps', 'mc-events') for 'aps+mc-events'.
+
+    >>> frame_streams("aps+mc-events")
+    ('aps', 'mc-events')
+    """
+    if frames not in FRAME_SOURCES:
+        raise ValueError(f"frames must be one of {FRAME_SOURCES}; got {frames!r}")
+    return tuple(frames.split("+"))
 
 
 def default_window_fraction(sequence_name: str) -> float:

@@ -36,6 +36,7 @@ Every per-frame figure is kept (:class:`PipelineResult`); nothing is written her
 from __future__ import annotations
 
 import dataclasses
+import heapq
 import math
 import time
 import warnings
@@ -54,7 +55,8 @@ from evio_lib.msckf.filter import Msckf, MsckfWarning
 from evio_lib.msckf.initialization import initial_state_from_static, initial_state_from_truth
 from evio_lib.msckf.zero_velocity import StandstillDetector, ZeroVelocityConfig
 from evio_lib.pipeline.dataset import LoadedDataset
-from evio_lib.pipeline.frames import FRAME_SOURCES, aps_frames, event_frames, mc_event_frames
+from evio_lib.pipeline.frames import (FRAME_SOURCES, STREAM_ID_OFFSET, aps_frames, event_frames, frame_streams,
+                                      mc_event_frames)
 from evio_lib.threads import set_threads, single_threaded_blas  # re-exported: `from evio_lib.pipeline.run import set_threads` keeps working
 
 __all__ = ["INIT_MODES", "MIN_PERCENT_DISTANCE_M", "PipelineConfig", "PipelineResult", "run_pipeline", "set_threads"]
@@ -73,7 +75,9 @@ class PipelineConfig:
 
     Attributes:
         frames: 'aps' (the recorded frames), 'events' (reconstructed from event windows) or 'mc-events' (event
-            windows warped with the gyroscope's rotation and counted: :func:`~evio_lib.pipeline.frames.mc_event_frames`).
+            windows warped with the gyroscope's rotation and counted: :func:`~evio_lib.pipeline.frames.mc_event_frames`),
+            or two of them joined by '+' ('aps+mc-events', 'aps+events'): two frame streams, each with its own
+            tracker, whose tracks the filter fuses (Ultimate SLAM's standard frames + events).
         features: detector name of ``evio_lib.features`` ('sift', 'superpoint' = the shipped CNN, 'orb', ...).
         detector_options: extra options of the detector as (name, value) pairs (e.g. ('weights', PATH)).
         tracker: 'descriptor' (the thesis's front-end) or 'klt' (optical flow; ``features`` then detects new ones).
@@ -142,7 +146,7 @@ class PipelineConfig:
         low, high = self.window_bounds()
         if high is not None and high <= low:
             raise ValueError(f"max_window_s ({high:g}) must be greater than min_window_s ({low:g})")
-        if self.frames == "events":  # before the recording loads: a name or a checkpoint file
+        if "events" in frame_streams(self.frames):  # before the recording loads: a name or a checkpoint file
             from evio_lib.events.reconstruct import available_reconstructors
 
             names = available_reconstructors()
@@ -165,7 +169,7 @@ class PipelineConfig:
         """Return (least, greatest) window duration in s of the event source (the source's defaults for None)."""
         from evio_lib.pipeline.frames import MC_MAX_WINDOW_S, MC_MIN_WINDOW_S
 
-        mc = self.frames == "mc-events"
+        mc = "mc-events" in frame_streams(self.frames)
         low = self.min_window_s if self.min_window_s is not None else (MC_MIN_WINDOW_S if mc else 0.0)
         high = self.max_window_s if self.max_window_s is not None else (MC_MAX_WINDOW_S if mc else None)
         return float(low), (None if high is None else float(high))
@@ -184,8 +188,9 @@ class PipelineConfig:
         name = {"sift": "SIFT", "superpoint": "CNN", "fast": "FAST"}.get(detector, detector)
         if self.tracker == "klt":
             name = f"KLT + {name}"
-        source = {"aps": "APS frames", "mc-events": "motion-compensated event frames"}.get(
-            self.frames, f"event frames ({self.reconstructor})")
+        names = {"aps": "APS frames", "mc-events": "motion-compensated event frames",
+                 "events": f"event frames ({self.reconstructor})"}
+        source = " + ".join(names[s] for s in frame_streams(self.frames))
         return f"{name} on {source}"
 
 
@@ -394,6 +399,9 @@ def msckf_config_for(config: PipelineConfig, data: LoadedDataset) -> MsckfConfig
 def _frames(data: LoadedDataset, config: PipelineConfig, t_start: float, t_end: float,
             gyro_bias: Any = None) -> Iterator[tuple[float, np.ndarray, float]]:
     """Return the run's frame source; ``gyro_bias`` (a callable) gives mc-events the filter's current gyro bias."""
+    streams = frame_streams(config.frames)
+    if len(streams) > 1:
+        raise ValueError(f"_frames makes one stream; split {config.frames!r} with frame_streams")
     if config.frames == "aps":
         return aps_frames(data.sequence, t_start, t_end)
     low, high = config.window_bounds()
@@ -410,15 +418,24 @@ def _frames(data: LoadedDataset, config: PipelineConfig, t_start: float, t_end: 
                         checkpoint=config.reconstructor)  # a reconstruct-train checkpoint file
 
 
+def _tagged(frames: Iterator[tuple[float, np.ndarray, float]], stream: int
+            ) -> Iterator[tuple[float, np.ndarray, float, int]]:
+    """Yield each (t, image, seconds) of ``frames`` with its stream's index appended."""
+    for t, image, seconds in frames:
+        yield t, image, seconds, stream
+
+
 def _span(data: LoadedDataset, config: PipelineConfig) -> tuple[float, float]:
     """Return (t_first, t_last): the time span the run may process (inside the IMU's, cut by max_duration)."""
     seq = data.sequence
-    if config.frames == "aps" or config.imu_only:
+    streams = frame_streams(config.frames)
+    t0, t1 = -math.inf, math.inf
+    if "aps" in streams or config.imu_only:
         if len(seq.frame_times) < 2:
             raise ValueError("the recording has fewer than 2 frames")
         t0, t1 = float(seq.frame_times[0]), float(seq.frame_times[-1])
-    else:
-        t0, t1 = float(seq.events["t"][0]), float(seq.events["t"][-1])
+    if not config.imu_only and streams != ("aps",):  # events too: the span both cover
+        t0, t1 = max(t0, float(seq.events["t"][0])), min(t1, float(seq.events["t"][-1]))
     t0, t1 = max(t0, float(seq.imu.t[0])), min(t1, float(seq.imu.t[-1]))
     if config.max_duration is not None:
         t1 = min(t1, t0 + config.max_duration)
@@ -506,7 +523,11 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
     k0 = int(np.searchsorted(imu.t, t_first, side="right"))
     wall0 = time.perf_counter()
     filt.feed_imu(imu.t[k0:], imu.gyro[k0:], imu.accel[k0:])
-    tracker = create_tracker(seq.camera, config.frontend_config(), detector=detector)
+    streams = frame_streams(config.frames)
+    # one tracker (and standstill test) per frame stream; the second stream's track ids are offset so that the
+    # filter's tracks of the two never share an id (STREAM_ID_OFFSET)
+    trackers = [create_tracker(seq.camera, config.frontend_config(), detector=detector) for _ in streams]
+    standstills = [standstill] + [StandstillDetector(zv) for _ in streams[1:]]
     sigma_px = config.pixel_noise_px
     outputs: list = []
     tracked: list = []
@@ -519,15 +540,21 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
         bar = tqdm(total=total, unit="s", desc=config.label(), leave=False, bar_format="{l_bar}{bar}| {n:.1f}/"
                    "{total:.1f} s [{elapsed}<{remaining}]")
     t_prev = None
+    t_prev_stream: list[float | None] = [None] * len(streams)
     if config.imu_only:
         times = seq.frame_times[(seq.frame_times > t_first) & (seq.frame_times <= t_last)]
-        source = ((float(t), None, 0.0) for t in times)
+        source = ((float(t), None, 0.0, 0) for t in times)
     else:
-        source = _frames(data, config, t_first, t_last, gyro_bias=lambda: filt.state.imu.b_g)
+        def bias() -> np.ndarray:
+            return filt.state.imu.b_g
+
+        parts = [_tagged(_frames(data, dataclasses.replace(config, frames=name), t_first, t_last, gyro_bias=bias), k)
+                 for k, name in enumerate(streams)]
+        source = parts[0] if len(parts) == 1 else heapq.merge(*parts, key=lambda item: item[0])
     # one BLAS thread: the front-end's and the filter's matrices are small, and threaded BLAS spins (evio_lib.threads)
     with warnings.catch_warnings(), single_threaded_blas():
         warnings.simplefilter("ignore", MsckfWarning)  # counted in filt.faults and reported in the summary
-        for t, image, t_rec in source:
+        for t, image, t_rec, k in source:
             if t <= t_first or (t_prev is not None and t <= t_prev):
                 continue
             timings["reconstruction"] += t_rec
@@ -537,23 +564,26 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
                 timings["filter"] += time.perf_counter() - start
             else:
                 R_prior = None
-                if t_prev is not None:
+                if t_prev_stream[k] is not None:
                     b_g = filt.state.imu.b_g
-                    R_prior = camera_rotation_prior(imu.t, imu.gyro, t_prev, t, data.R_CtoI, gyro_bias=b_g)
-                frame = tracker.process(image, t, R_prior)
+                    R_prior = camera_rotation_prior(imu.t, imu.gyro, t_prev_stream[k], t, data.R_CtoI, gyro_bias=b_g)
+                frame = trackers[k].process(image, t, R_prior)
+                t_prev_stream[k] = t
+                if k:
+                    frame = dataclasses.replace(frame, ids=frame.ids + k * STREAM_ID_OFFSET)
                 timings["detection"] += frame.stats.time_detect_s
                 timings["matching"] += frame.stats.time_match_s
                 timings["ransac"] += frame.stats.time_ransac_s
                 tracked.append(frame)
                 start = time.perf_counter()
                 out = None
-                if zv.enabled and standstill.test(t, frame.ids, frame.pixels, imu.t, imu.gyro, imu.accel,
-                                                  filt.state.imu, msckf_cfg.gravity).still:
+                if zv.enabled and standstills[k].test(t, frame.ids, frame.pixels, imu.t, imu.gyro, imu.accel,
+                                                      filt.state.imu, msckf_cfg.gravity).still:
                     out = filt.zero_velocity_update(t, zv)  # None: its gate refused; a visual update then
                     zupt_frames += out is not None
                 if out is None:
                     cov = observation_covariance(seq.camera, frame.pixels, sigma_px) if len(frame) else None
-                    out = filt.process_image(t, frame.ids, frame.xy, cov)
+                    out = filt.process_image(t, frame.ids, frame.xy, cov, stream=k)
                 outputs.append(out)
                 timings["filter"] += time.perf_counter() - start
             if not (np.all(np.isfinite(outputs[-1].p_IinG)) and np.all(np.isfinite(outputs[-1].P_imu))):

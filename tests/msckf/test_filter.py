@@ -582,3 +582,43 @@ def test_unknown_oc_update_mode_is_rejected(rng):
     cfg, s = _window_state(rng)
     with pytest.raises(ValueError, match=r"oc_update must be one of \('projected', 'eq86'\); got 'frobenius'"):
         Msckf(cfg, s, oc_update="frobenius")
+
+
+# ---------------------------------------------------------------- two frame streams
+def test_two_frame_streams_keep_their_own_tracks_and_both_constrain_the_trajectory():
+    """Frames of two streams (e.g. APS and event frames of one camera) interleaved in time: an image of one stream
+    never ends the other stream's tracks, both streams' tracks are used, the run tracks the truth as well as one
+    stream does, and an id of one stream is refused in the other."""
+    traj, imu, frames, cfg, state = simulation(seed=4, duration=4.0)
+    times_b = np.array([t for t, _, _ in frames]) + 0.025  # a second stream between the first one's frames
+    s = traj.evaluate(times_b)
+    R_CtoG, p_CinG = EXT.camera_pose(s.R_ItoG, s.p_IinG)
+    other = _Landmarks(np.random.default_rng(99), 40, (1.5, 5.0), (3, 30), 10**7)
+    frames_b = [(float(t), *other.observe(R_CtoG[k], p_CinG[k], 0.05 if k else 0.0, SIGMA))
+                for k, t in enumerate(times_b)]
+    merged = sorted([(t, ids, xy, 0) for t, ids, xy in frames] + [(t, ids, xy, 1) for t, ids, xy in frames_b],
+                    key=lambda item: item[0])
+    f = Msckf(cfg, state)
+    f.feed_imu(imu.t, imu.gyro, imu.accel)
+    outputs, used = [], {0: 0, 1: 0}
+    for t, ids, xy, stream in merged:
+        before = {fid for fid in f.tracks if fid < 10**7}
+        out = f.process_image(t, ids, xy, stream=stream)
+        outputs.append(out)
+        used[stream] += out.n_features_used
+        if stream == 1:  # no track of stream 0 ended at an image of stream 1 (pruning aside)
+            after = {fid for fid in f.tracks if fid < 10**7}
+            assert before - after == set() or out.counters.get("cameras_removed", 0) > 0
+    assert used[0] > 100 and used[1] > 100  # updates happen at the frames of both streams
+    assert_finite(outputs)
+    single = Msckf(cfg, state).run(imu.t, imu.gyro, imu.accel, frames)
+    err_two, err_one = position_errors(traj, outputs), position_errors(traj, single)
+    assert err_two[-1] < 2.0 * max(err_one[-1], 0.02) and err_two.max() < 0.3
+    f2 = Msckf(cfg, state)
+    f2.feed_imu(imu.t, imu.gyro, imu.accel)
+    t0, ids0, xy0 = frames[0]
+    f2.process_image(t0, ids0, xy0, stream=0)
+    with pytest.raises(ValueError, match="a track of stream 0; each stream needs its own ids"):
+        f2.process_image(t0 + 0.01, ids0[:3], xy0[:3], stream=1)
+    with pytest.raises(ValueError, match="stream must be an integer >= 0"):
+        f2.process_image(t0 + 0.02, ids0[:3], xy0[:3], stream=-1)

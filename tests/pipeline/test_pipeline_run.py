@@ -224,3 +224,25 @@ def test_event_frames_with_a_time_cap_give_frames_in_a_still_stretch(boxes_event
     inside = lambda times: np.count_nonzero((np.asarray(times) > 0.62) & (np.asarray(times) < 0.88))  # noqa: E731
     assert inside(capped) >= 4 and inside(plain) <= 1
     assert np.all(np.diff(capped) <= 0.05 + 1e-9)
+
+
+def test_two_frame_streams_in_one_run(boxes_events):
+    """aps+mc-events: the APS frames and the motion-compensated event frames, each through its own tracker, in
+    time order into one filter; the second stream's ids are offset, and both streams' frames are processed."""
+    from evio_lib.pipeline.frames import STREAM_ID_OFFSET, frame_streams
+
+    assert frame_streams("aps+mc-events") == ("aps", "mc-events")
+    config = PipelineConfig(frames="aps+mc-events", tracker="klt", features="fast")
+    assert config.label() == "KLT + FAST on APS frames + motion-compensated event frames"
+    both = run_pipeline(boxes_events, config)
+    aps = run_pipeline(boxes_events, PipelineConfig(tracker="klt", features="fast"))
+    mc = run_pipeline(boxes_events, PipelineConfig(frames="mc-events", tracker="klt", features="fast"))
+    assert np.all(np.diff(both.t) > 0) and np.all(np.isfinite(both.p_IinG))
+    # every frame of either stream inside the run's span is processed once
+    assert set(np.round(aps.t, 9)) | set(np.round(mc.t, 9)) >= set(np.round(both.t, 9))
+    assert len(both.t) >= len(aps.t) + len(mc.t) - 3
+    assert both.metrics["rmse_m"] < 0.2
+    assert np.mean(both.track_lengths) > 3  # the streams' tracks are not cut by each other's frames
+    with pytest.raises(ValueError, match="frames must be one of"):
+        PipelineConfig(frames="aps+aps")
+    assert STREAM_ID_OFFSET > 2**31
