@@ -221,7 +221,7 @@ def bounded_count_windows(events: np.ndarray, n_events: int, min_duration: float
     if max_duration is not None and not (np.isfinite(max_duration) and max_duration > min_duration):
         raise ValueError(f"max_duration must be None or a number of seconds > min_duration ({min_duration:g}); got "
                          f"{max_duration!r}")
-    t = events["t"]
+    t = np.ascontiguousarray(events["t"])  # searchsorted would copy the strided field at every call
     if events.size == 0 and (t_start is None or t_end is None):
         return np.zeros((0, 2), np.int64), np.zeros(0)
     t0 = float(t[0]) if t_start is None else float(t_start)
