@@ -97,6 +97,13 @@ BAD_INPUTS = [
     ("features-train", "name the VARIANT(s) to train"),
     ("features-train magicpoint --out {d}/runs --steps 1",
      "output folder {d}/runs/magicpoint already exists and is not empty; use --force to replace it, or --resume"),
+    # run: stretches and event windows
+    ("run {d}/full --start 1", "--start applies to simulated presets"),
+    ("run boxes_like --start 70", "start of boxes_like must be in [0, 60) s"),
+    ("run boxes_like --start -1", "--start must be >= 0; got -1"),
+    ("run boxes_like --max-window 0", "--max-window must be > 0; got 0"),
+    ("run boxes_like --frames mc-events --min-window 0.2 --max-window 0.1", "(0.1) must be greater than"),
+    ("run boxes_like --frames mc", "--frames: invalid choice: 'mc'"),
     # course and the command itself
     ("course --only 99 --no-execute", "--only 99 matches no notebook; available: 01_"),
     ("", "the following arguments are required: COMMAND"),

@@ -35,15 +35,18 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                         "checkpoint file")
     p.add_argument("--window-fraction", type=real(above=0.0), default=None,
                    help="event frames: n of N_e = n H W events per window (default: 0.7 boxes_like, 0.2 aerial_like, "
-                        "0.5 otherwise)")
+                        "0.5 otherwise; mc-events: 1.0 for every recording)")
     p.add_argument("--adaptive", action="store_true", help="event frames: adaptive windows instead of a fixed n")
     p.add_argument("--min-window", type=real(at_least=0.0), default=None, metavar="SECONDS",
-                   help="event frames: the shortest window, s (default: none for events, 1/60 s for mc-events)")
+                   help="event frames: the shortest window, s (default: none for events, 0.01 s for mc-events)")
     p.add_argument("--max-window", type=real(above=0.0), default=None, metavar="SECONDS",
                    help="event frames: the longest window, s; a slow stretch still gives a frame this often "
                         "(default: none for events, 0.1 s for mc-events)")
     p.add_argument("--duration", type=real(above=0.0), default=None,
                    help="presets: seconds to simulate (default: the whole preset, 60 s boxes_like, 40 s aerial_like)")
+    p.add_argument("--start", type=real(at_least=0.0), default=0.0, metavar="SECONDS",
+                   help="presets: where in the preset's motion the simulated stretch begins (default 0; e.g. --start "
+                        "50 --duration 10 for the violent end of boxes_like)")
     p.add_argument("--max-duration", type=real(above=0.0), default=None,
                    help="seconds of the recording to process from its start (default: all)")
     p.add_argument("--seed", type=integer(minimum=0), default=0, help="presets: simulation seed; RANSAC seed (default 0)")
@@ -142,7 +145,7 @@ def main_run(args: argparse.Namespace) -> int:
     except ValueError as error:  # the message names the config field; the user typed the option
         raise as_option_error(error, _OPTIONS) from None
     start = time.perf_counter()
-    data = load_dataset(args.dataset, duration=args.duration, seed=args.seed,
+    data = load_dataset(args.dataset, duration=args.duration, seed=args.seed, start=args.start,
                         need_events=args.frames != "aps" and not args.imu_only, need_frames="aps" in args.frames.split("+")
                         or args.imu_only, extrinsics=args.extrinsics, progress=not args.quiet, calib=args.calib)
     print(f"loaded {data.sequence.name} ({data.kind}) in {time.perf_counter() - start:.1f} s")

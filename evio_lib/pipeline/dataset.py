@@ -85,12 +85,29 @@ def check_preset_duration(preset: str, duration: Any) -> float:
     return value
 
 
+def check_preset_start(preset: str, start: float) -> float:
+    """Return ``start`` as a float in [0, the preset's duration), or raise ValueError naming the preset's span."""
+    full = PRESET_DURATIONS[preset] if preset in PRESETS else None
+    if full is None:
+        raise ValueError(f"preset must be one of {PRESETS}; got {preset!r}")
+    try:
+        value = float(start)
+    except (TypeError, ValueError):
+        raise ValueError(f"start of {preset} must be a number of seconds in [0, {full:g}); got {start!r}") from None
+    if not np.isfinite(value) or value < 0 or value >= full:
+        raise ValueError(f"start of {preset} must be in [0, {full:g}) s (where in the preset's motion the stretch "
+                         f"begins); got {start!r}")
+    return value
+
+
 def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, with_events: bool = False,
-                    cache: bool = True, progress: bool = False, jobs: int | None = None) -> Sequence:
-    """Return the simulated recording of a preset: the first ``duration`` s of its full motion (cached as .npz).
+                    cache: bool = True, progress: bool = False, jobs: int | None = None, start: float = 0.0
+                    ) -> Sequence:
+    """Return the simulated recording of a preset: ``duration`` s of its full motion from ``start`` (cached as .npz).
 
     The motion is always the preset's whole trajectory (60 s boxes_like: gentle start, violent end; 40 s
-    aerial_like), so a shorter duration is the start of the same recording, not a faster one. ``jobs``: processes
+    aerial_like), so a shorter duration is the start of the same recording, not a faster one; ``start`` > 0 takes a
+    later stretch of the same motion (e.g. the violent end of boxes_like: ``start=50, duration=10``). ``jobs``: processes
     that render the APS frames (``simulate_sequence``; the result does not depend on it); None:
     ``evio_lib.sim.jobs.default_jobs()``, ``EVIO_JOBS`` or one per core, at most 4.
     """
@@ -101,8 +118,12 @@ def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, w
     from evio_lib.sim.presets import SimulationConfig, simulate_sequence
 
     full = PRESET_DURATIONS[preset] if preset in PRESETS else None
-    duration = check_preset_duration(preset, full if duration is None else duration)
-    stem = sequence_cache_dir() / f"{preset}_d{duration:g}_seed{seed}"
+    start = check_preset_start(preset, start)
+    duration = check_preset_duration(preset, (full - start) if duration is None else duration)
+    if start + duration > full + 1e-9:
+        raise ValueError(f"the stretch [{start:g}, {start + duration:g}] s of {preset} ends after its motion (0-{full:g} s); "
+                         f"use a duration of at most {full - start:g} s from {start:g} s")
+    stem = sequence_cache_dir() / (f"{preset}_d{duration:g}_seed{seed}" + (f"_start{start:g}" if start else ""))
     path = stem.with_name(stem.name + ("_events.npz" if with_events else "_frames.npz"))
     # a recording simulated with events also serves a run that needs only the frames (the same seed gives the same
     # frames, IMU and ground truth with or without events)
@@ -114,7 +135,7 @@ def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, w
     if cache:  # before the simulation (seconds to minutes): a cache that cannot be written is said now
         check_cache_file_writable(path)
     config = SimulationConfig(preset=preset, duration=duration, trajectory_duration=full, seed=seed,
-                              with_events=with_events)
+                              with_events=with_events, start_time=start)
     sequence = simulate_sequence(config, progress=progress, jobs=jobs)
     if cache:
         store_sequence_npz(sequence, path)
@@ -213,13 +234,15 @@ def _is_euroc(folder: Path) -> bool:
 
 def load_dataset(dataset: str | Path | None = None, *, duration: float | None = None, seed: int = 0,
                  need_events: bool = False, need_frames: bool = True, extrinsics: str | Path | None = None,
-                 progress: bool = False, calib: str | Path | None = None) -> LoadedDataset:
+                 progress: bool = False, calib: str | Path | None = None, start: float = 0.0) -> LoadedDataset:
     """Return the recording named by ``dataset`` (a preset name, a folder or a file; None: ``boxes_like``).
 
     Args:
         dataset: 'boxes_like', 'aerial_like', an ECD folder, a EuRoC ASL folder or an AEDAT4 file (``.aedat4``:
             events, APS frames and IMU, converted from g and deg/s; no ground truth, so the run starts static).
-        duration: presets only: seconds simulated (default: the preset's whole 60 / 40 s).
+        duration: presets only: seconds simulated (default: the preset's whole 60 / 40 s, or what is left after
+            ``start``).
+        start: presets only: where in the preset's motion the simulated stretch begins, s (default 0).
         seed: presets only: the simulation seed.
         need_events, need_frames: what the run uses (a preset is simulated with events only when needed; a folder
             without them is refused with a message saying what is missing).
@@ -239,13 +262,15 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
     if text in PRESETS:
         if calib is not None:
             raise ValueError(f"--calib applies to recordings; the preset {text} knows its camera")
-        seq = simulate_preset(text, duration, seed, with_events=need_events, progress=progress)
+        seq = simulate_preset(text, duration, seed, with_events=need_events, progress=progress, start=start)
         kind, source = "preset", text
     elif Path(text).is_file() and Path(text).suffix.lower() == ".aedat4":
         from evio_lib.io.aedat4 import read_aedat4
 
         if duration is not None:
             raise ValueError("--duration applies to simulated presets; for a recording use --max-duration")
+        if start:
+            raise ValueError("--start applies to simulated presets; a recording is processed from its beginning")
         if calib is None:
             raise ValueError(f"{text}: an AEDAT4 recording holds no camera calibration; give one with --calib FILE "
                              f"(one line fx fy cx cy k1 k2 p1 p2 [k3] in pixels, the ECD calib.txt format, e.g. from "
@@ -257,6 +282,8 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
     else:
         if duration is not None:
             raise ValueError("--duration applies to simulated presets; for a recording folder use --max-duration")
+        if start:
+            raise ValueError("--start applies to simulated presets; a recording is processed from its beginning")
         folder = Path(text)
         if not folder.exists():
             raise ValueError(f"DATASET {text!r} is neither a preset ({', '.join(PRESETS)}) nor an existing folder")

@@ -87,10 +87,11 @@ class PipelineConfig:
             tracks continue (the second-best match anywhere in the repetitive room is often close) and the error is
             17.9 % of the distance; with the test off (guided window + mutual check + two-point RANSAC), 3.6 %.
         reconstructor: event frames only: a reconstructor name ('firenet', 'high_pass', 'direct').
-        window_fraction: event frames only: n of N_e = n H W; None: the thesis's n for the preset (0.7 / 0.2).
+        window_fraction: event frames only: n of N_e = n H W; None: the thesis's n for the preset (0.7 / 0.2) for
+            reconstructed frames, 1.0 for every recording for motion-compensated ones (``MC_WINDOW_FRACTION``).
         adaptive_windows: event frames only: adaptive windows instead of fixed N_e.
         min_window_s, max_window_s: event frames only: the least and the greatest window duration, s (None: the
-            source's default; 'events': none, 'mc-events': 1/60 s and 0.1 s).
+            source's default; 'events': none, 'mc-events': 0.01 s and 0.1 s).
         init: one of :data:`INIT_MODES`.
         bias_init: 'zero', 'groundtruth', or six numbers (b_g [rad/s], b_a [m/s^2]).
         imu_only: propagate the IMU only (no frames are processed: the IMU-only rows of Table 6).

@@ -24,6 +24,22 @@ def test_preset_duration_is_the_start_of_the_whole_motion(boxes_aps):
     np.testing.assert_allclose(longer.groundtruth.p_BinG[: len(t)], boxes_aps.sequence.groundtruth.p_BinG, atol=1e-9)
 
 
+def test_preset_start_takes_a_later_stretch_of_the_same_motion(boxes_aps):
+    """start = 2 s: the stretch [2, 3] s of the motion, its ground truth that of the recording from 0 s there, cached
+    under its own name; a start past the motion, or a stretch ending after it, is refused."""
+    later = load_dataset("boxes_like", duration=1.0, start=2.0)
+    gt, full = later.sequence.groundtruth, boxes_aps.sequence.groundtruth
+    assert gt.t[0] >= 2.0 and gt.t[-1] <= 3.0 + 1e-9 and later.sequence.imu.t[0] >= 2.0
+    k = np.searchsorted(full.t, gt.t[0])
+    np.testing.assert_allclose(full.t[k:k + 50], gt.t[:50], atol=1e-9)
+    np.testing.assert_allclose(full.p_BinG[k:k + 50], gt.p_BinG[:50], atol=1e-9)
+    assert list(sequence_cache_dir().glob("boxes_like_d1_seed0_start2_frames.npz"))
+    with pytest.raises(ValueError, match=r"start of boxes_like must be in \[0, 60\) s"):
+        load_dataset("boxes_like", start=60.0)
+    with pytest.raises(ValueError, match=r"ends after its motion"):
+        load_dataset("boxes_like", start=59.0, duration=2.0)
+
+
 @pytest.mark.parametrize("dataset, message", [
     ("no_such_preset", "neither a preset"),
     (__file__, "is a file"),
