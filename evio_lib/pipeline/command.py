@@ -16,9 +16,10 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="a preset (boxes_like [default], aerial_like; simulated on first use and cached), an ECD folder "
                         "(events.txt, images.txt + images/, imu.txt, calib.txt, optional groundtruth.txt), a EuRoC "
                         "ASL folder (mav0/) or an AEDAT4 file (.aedat4, with --calib)")
-    p.add_argument("--frames", choices=["aps", "events", "mc-events"], default="aps",
+    p.add_argument("--frames", choices=["aps", "events", "mc-events", "aps+events", "aps+mc-events"], default="aps",
                    help="aps: the recorded frames (default); events: frames reconstructed from event windows; "
-                        "mc-events: event windows warped with the gyroscope's rotation and counted (no network)")
+                        "mc-events: event windows warped with the gyroscope's rotation and counted (no network); "
+                        "aps+events, aps+mc-events: both streams, each with its own tracker, fused by the filter")
     p.add_argument("--features", default="sift",
                    help="feature detector: sift (default), superpoint (the shipped CNN), orb, fast, ...")
     p.add_argument("--weights", type=Path, default=None,
@@ -185,7 +186,7 @@ def add_table_arguments(p: argparse.ArgumentParser) -> None:
                    help="seconds of each preset (default: the whole preset, 60 s boxes_like, 40 s aerial_like)")
     p.add_argument("--rows", nargs="+", default=None,
                    help="only these rows: imu imu_bias sift_aps cnn_aps sift_events cnn_events klt_aps "
-                        "klt_events sift_mc_events cnn_mc_events klt_mc_events cnn_events_trained")
+                        "klt_events sift_mc_events cnn_mc_events klt_mc_events klt_aps_mc_events cnn_events_trained")
     p.add_argument("--events-cnn", type=Path, default=None,
                    help="checkpoint of a CNN trained with event frames (the 'CNN trained with event frames' row)")
     p.add_argument("--jobs", type=integer(minimum=1), default=1, help="parallel joblib workers (default 1)")

@@ -10,7 +10,9 @@ Rows (thesis Table 6, plus the KLT front-end of msckf_vio / OpenVINS as a baseli
 - the CNN trained with event frames, when a checkpoint is given (``events_cnn``); none is shipped yet, and the
   row then says so instead of a number;
 - KLT + FAST on the FireNet event frames, and SIFT, the CNN and KLT + FAST on motion-compensated event frames
-  (``mc-events``: each window's events warped with the gyroscope's rotation and counted, Rebecq et al. 2017).
+  (``mc-events``: each window's events warped with the gyroscope's rotation and counted, Rebecq et al. 2017);
+- KLT + FAST on both the APS frames and the motion-compensated event frames, fused by the filter (Ultimate SLAM's
+  frames + events + IMU).
 
 Each (preset, row, seed) job is a pure function of its arguments (:func:`table_job`: it loads the simulated
 recording from the cache, or simulates it, runs the pipeline and returns a dict of numbers), run through joblib
@@ -62,6 +64,8 @@ TABLE_ROWS = (
              (("features", "superpoint"), ("frames", "mc-events"))),
     TableRow("klt_mc_events", "KLT + FAST, motion-compensated event frames",
              (("tracker", "klt"), ("features", "fast"), ("frames", "mc-events"))),
+    TableRow("klt_aps_mc_events", "KLT + FAST, APS + motion-compensated event frames",
+             (("tracker", "klt"), ("features", "fast"), ("frames", "aps+mc-events"))),
 )
 
 

@@ -246,3 +246,18 @@ def test_two_frame_streams_in_one_run(boxes_events):
     with pytest.raises(ValueError, match="frames must be one of"):
         PipelineConfig(frames="aps+aps")
     assert STREAM_ID_OFFSET > 2**31
+
+
+def test_table_rows_cover_every_frame_source_and_the_help_names_them():
+    import argparse
+
+    from evio_lib.pipeline.command import add_table_arguments
+    from evio_lib.pipeline.table import TABLE_ROWS
+
+    sources = {dict(row.options).get("frames", "aps") for row in TABLE_ROWS}
+    assert sources == {"aps", "events", "mc-events", "aps+mc-events"}
+    assert all(row.needs_events == (dict(row.options).get("frames", "aps") != "aps") for row in TABLE_ROWS)
+    parser = argparse.ArgumentParser()
+    add_table_arguments(parser)
+    rows_help = next(a.help for a in parser._actions if a.dest == "rows")
+    assert all(row.key in rows_help.split() for row in TABLE_ROWS)
