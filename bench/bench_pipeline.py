@@ -1,7 +1,8 @@
 """Benchmark: the pipeline's real-time factor per configuration and where the time goes.
 
 For each configuration the whole chain runs on the same stretch of a simulated preset (the simulation is done, or
-read from the cache, first and not timed): frames (APS, FireNet reconstructions of event windows, or motion-compensated event frames), the front-end
+read from the cache, first and not timed): frames (APS, FireNet reconstructions of event windows, or
+motion-compensated event frames), the front-end
 (detection with undistortion of the keypoints, matching or optical flow, two-point RANSAC) and the MSCKF (with the
 per-observation covariances). Printed per configuration: milliseconds per frame in each stage, the frame rate, and
 the real-time factor = seconds of recording processed per wall-clock second (> 1: faster than real time). One

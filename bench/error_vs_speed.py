@@ -75,10 +75,10 @@ def main() -> None:
             cells.append(f"{np.sqrt(np.mean(err ** 2)) if k.any() else np.nan:>22.3f}")
         print(f"{a:5.0f}-{b:<5.0f}  {speed[inside].mean():6.2f} {rate[inside].mean():6.2f} | " + " | ".join(cells))
     if args.out:
-        fig = plot_error_comparison({n: r.t for n, r in results.items()},
-                                    {n: np.linalg.norm(r.p_IinG - r.truth["p_IinG"], axis=1) for n, r in results.items()},
-                                    log=True, styles={n: "--" for n in results if "mc-events" in n},
-                                    title=f"{args.preset}, seed {args.seed}: position error (dashed: with event frames)",
+        errors = {n: np.linalg.norm(r.p_IinG - r.truth["p_IinG"], axis=1) for n, r in results.items()}
+        fig = plot_error_comparison({n: r.t for n, r in results.items()}, errors, log=True,
+                                    styles={n: "--" for n in results if "mc-events" in n},
+                                    title=f"{args.preset}, seed {args.seed}: position error (dashed: event frames)",
                                     motion=(t_grid, speed, rate))
         fig.savefig(args.out, dpi=110)
         print(f"\nwrote {args.out}")

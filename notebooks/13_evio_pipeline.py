@@ -866,7 +866,8 @@ mc_results = {name: run_pipeline(data_events, config) for name, config in mc_con
 for result in mc_results.values():
     print(result.summary())
 all_rmse = ev_rmse | {name: r.metrics["rmse_m"] for name, r in mc_results.items()}
-mc_klt, firenet_klt = mc_results["KLT + FAST, motion-compensated event frames"], event_results["KLT + FAST, event frames"]
+mc_klt = mc_results["KLT + FAST, motion-compensated event frames"]
+firenet_klt = event_results["KLT + FAST, event frames"]
 per_frame = {"FireNet": firenet_klt.timings["reconstruction"] / len(firenet_klt.t),
              "motion-compensated": mc_klt.timings["reconstruction"] / len(mc_klt.t)}
 print("milliseconds to make one frame: " + ", ".join(f"{k} {1e3 * v:.1f}" for k, v in per_frame.items()))

@@ -147,8 +147,9 @@ def main_run(args: argparse.Namespace) -> int:
         raise as_option_error(error, _OPTIONS) from None
     start = time.perf_counter()
     data = load_dataset(args.dataset, duration=args.duration, seed=args.seed, start=args.start,
-                        need_events=args.frames != "aps" and not args.imu_only, need_frames="aps" in args.frames.split("+")
-                        or args.imu_only, extrinsics=args.extrinsics, progress=not args.quiet, calib=args.calib)
+                        need_events=args.frames != "aps" and not args.imu_only,
+                        need_frames="aps" in args.frames.split("+") or args.imu_only, extrinsics=args.extrinsics,
+                        progress=not args.quiet, calib=args.calib)
     print(f"loaded {data.sequence.name} ({data.kind}) in {time.perf_counter() - start:.1f} s")
     for note in data.notes:
         print(f"  {note}")

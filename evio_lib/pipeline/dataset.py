@@ -107,7 +107,8 @@ def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, w
 
     The motion is always the preset's whole trajectory (60 s boxes_like: gentle start, violent end; 40 s
     aerial_like), so a shorter duration is the start of the same recording, not a faster one; ``start`` > 0 takes a
-    later stretch of the same motion (e.g. the violent end of boxes_like: ``start=50, duration=10``). ``jobs``: processes
+    later stretch of the same motion (e.g. the violent end of boxes_like: ``start=50, duration=10``). ``jobs``:
+    processes
     that render the APS frames (``simulate_sequence``; the result does not depend on it); None:
     ``evio_lib.sim.jobs.default_jobs()``, ``EVIO_JOBS`` or one per core, at most 4.
     """
@@ -121,8 +122,8 @@ def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, w
     start = check_preset_start(preset, start)
     duration = check_preset_duration(preset, (full - start) if duration is None else duration)
     if start + duration > full + 1e-9:
-        raise ValueError(f"the stretch [{start:g}, {start + duration:g}] s of {preset} ends after its motion (0-{full:g} s); "
-                         f"use a duration of at most {full - start:g} s from {start:g} s")
+        raise ValueError(f"the stretch [{start:g}, {start + duration:g}] s of {preset} ends after its motion "
+                         f"(0-{full:g} s); use a duration of at most {full - start:g} s from {start:g} s")
     stem = sequence_cache_dir() / (f"{preset}_d{duration:g}_seed{seed}" + (f"_start{start:g}" if start else ""))
     path = stem.with_name(stem.name + ("_events.npz" if with_events else "_frames.npz"))
     # a recording simulated with events also serves a run that needs only the frames (the same seed gives the same

@@ -24,9 +24,9 @@ import numpy as np
 from evio_lib.events.representations import MAX_EVENT_FRAME_RATE_HZ  # re-exported here
 from evio_lib.sequence import Sequence
 
-__all__ = ["FRAME_SOURCES", "STREAM_ID_OFFSET", "frame_streams", "MAX_EVENT_FRAME_RATE_HZ", "MC_MAX_WINDOW_S", "MC_MIN_EVENTS", "MC_MIN_WINDOW_S",
-           "MC_WINDOW_FRACTION",
-           "THESIS_WINDOW_FRACTION", "aps_frames", "event_frames", "mc_event_frames", "default_window_fraction"]
+__all__ = ["FRAME_SOURCES", "MAX_EVENT_FRAME_RATE_HZ", "MC_MAX_WINDOW_S", "MC_MIN_EVENTS", "MC_MIN_WINDOW_S",
+           "MC_WINDOW_FRACTION", "STREAM_ID_OFFSET", "THESIS_WINDOW_FRACTION", "aps_frames", "default_window_fraction",
+           "event_frames", "frame_streams", "mc_event_frames"]
 
 FRAME_SOURCES = ("aps", "events", "mc-events", "aps+events", "aps+mc-events")
 #: A source "a+b" feeds two frame streams into one run (:func:`frame_streams` splits it): each has its own tracker,
@@ -167,7 +167,8 @@ def mc_event_frames(sequence: Sequence, R_CtoI: np.ndarray, window_fraction: flo
     Each window's events are warped to the window's middle time with the gyroscope's rotation and counted
     (:func:`evio_lib.events.motion_compensation.motion_compensated_frame`); that middle time is the frame's time.
     The windows hold N_e = n H W events (n = :data:`MC_WINDOW_FRACTION` by default, for every recording), held
-    between ``min_window_s`` and ``max_window_s`` (defaults :data:`MC_MIN_WINDOW_S`, :data:`MC_MAX_WINDOW_S`). A window with fewer than :data:`MC_MIN_EVENTS` events (a
+    between ``min_window_s`` and ``max_window_s`` (defaults :data:`MC_MIN_WINDOW_S`, :data:`MC_MAX_WINDOW_S`).
+    A window with fewer than :data:`MC_MIN_EVENTS` events (a
     still stretch) gives no frame.
 
     Args:

@@ -75,7 +75,8 @@ class PipelineConfig:
 
     Attributes:
         frames: 'aps' (the recorded frames), 'events' (reconstructed from event windows) or 'mc-events' (event
-            windows warped with the gyroscope's rotation and counted: :func:`~evio_lib.pipeline.frames.mc_event_frames`),
+            windows warped with the gyroscope's rotation and counted:
+            :func:`~evio_lib.pipeline.frames.mc_event_frames`),
             or two of them joined by '+' ('aps+mc-events', 'aps+events'): two frame streams, each with its own
             tracker, whose tracks the filter fuses (Ultimate SLAM's standard frames + events).
         features: detector name of ``evio_lib.features`` ('sift', 'superpoint' = the shipped CNN, 'orb', ...).
@@ -140,10 +141,11 @@ class PipelineConfig:
             object.__setattr__(self, "bias_init", check_bias_values(values, "bias_init"))
         for name in ("min_window_s", "max_window_s"):
             value = getattr(self, name)
+            strict = name == "max_window_s"
             if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))
-                                      or not math.isfinite(value) or value < 0 or (name == "max_window_s" and value == 0)):
-                raise ValueError(f"{name} must be None or a number of seconds {'>' if name == 'max_window_s' else '>='} "
-                                 f"0; got {value!r}")
+                                      or not math.isfinite(value) or value < 0 or (strict and value == 0)):
+                raise ValueError(f"{name} must be None or a number of seconds {'>' if strict else '>='} 0; got "
+                                 f"{value!r}")
         low, high = self.window_bounds()
         if high is not None and high <= low:
             raise ValueError(f"max_window_s ({high:g}) must be greater than min_window_s ({low:g})")
