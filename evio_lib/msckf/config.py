@@ -67,6 +67,12 @@ class MsckfConfig:
         keyframe_*: S-MSCKF's two-way keyframe selection thresholds (rotation, translation, tracking rate).
         pixel_noise_sigma, focal_length_px: feature measurement noise in pixels and the focal length that converts
             it to normalised image coordinates (``feature_noise_sigma``).
+        observation_outlier_px: per-observation outlier test [None: off]. After a track is triangulated, its
+            observations reprojecting farther than this many pixels from the point are dropped (the worst first,
+            while at least ``min_track_length`` remain and at most a third go) and the point is triangulated again
+            without them, so that one jumped observation (a descriptor match to a similar-looking place) costs one
+            observation instead of poisoning, or losing, the whole track. The chi-square gate then tests what is
+            left.
         chi2_gating, chi2_probability: per-feature chi-square (Mahalanobis) gating and its probability [0.95],
             applied to ALL of a feature's observations in the window (dof 2M - 3) even when a prune uses only
             some. A gate also throws away correct data, and which data depends on the residual: the kept
@@ -140,6 +146,8 @@ class MsckfConfig:
     focal_length_px: float = _param(199.0, "px", "focal length converting pixel noise to normalised units")
     chi2_gating: bool = _param(True, "", "reject features failing the chi-square test")
     chi2_probability: float = _param(0.95, "", "chi-square gating probability (quantile)")
+    observation_outlier_px: float | None = _param(None, "px", "drop a track's observations reprojecting farther "
+                                                              "than this after triangulation (None: off)")
     # triangulation (inverse-depth Gauss-Newton, thesis §3.3.7)
     triangulation_max_iterations: int = _param(10, "", "Gauss-Newton iterations at most")
     triangulation_tolerance: float = _param(1e-7, "", "stop when the update norm falls below this")
@@ -186,6 +194,12 @@ class MsckfConfig:
         for name in _POSITIVE:
             if getattr(self, name) <= 0.0:
                 raise ValueError(f"{name} must be > 0; got {getattr(self, name)!r}")
+        if self.observation_outlier_px is not None:
+            value = self.observation_outlier_px
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+                    or not math.isfinite(value) or value <= 0:
+                raise ValueError(f"observation_outlier_px must be None or a number of pixels > 0; got {value!r}")
+            object.__setattr__(self, "observation_outlier_px", float(value))
         if not 0.0 < self.chi2_probability < 1.0:
             raise ValueError(f"chi2_probability must lie in (0, 1), e.g. 0.95; got {self.chi2_probability!r}")
         if not 0.0 <= self.keyframe_tracking_rate_threshold <= 1.0:

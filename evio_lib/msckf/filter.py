@@ -790,6 +790,8 @@ class Msckf:
         results = triangulate_inverse_depth_batch(
             [(R_C[u.window_idx], p_C[u.window_idx], u.xy) for u in uses], **self._tri_settings
         )
+        if self.config.observation_outlier_px is not None:
+            uses, results = self._drop_outlier_observations(uses, results, R_C, p_C)
         ok: list[tuple[int, _FeatureUse, NDArray[np.float64]]] = []
         for k, (u, res) in enumerate(zip(uses, results)):
             if not res.success:
@@ -844,6 +846,46 @@ class Msckf:
         if not np.any(used) or not self._apply_update(H_parts, r_parts, col_parts):
             used[:] = False
         return used
+
+    def _drop_outlier_observations(self, uses: list[_FeatureUse], results: list[Any], R_C: NDArray[np.float64],
+                                   p_C: NDArray[np.float64]) -> tuple[list[_FeatureUse], list[Any]]:
+        """Return (uses, results) with each track's outlying observations dropped and the track triangulated again.
+
+        An observation is an outlier when it reprojects farther than ``config.observation_outlier_px`` from the
+        triangulated point (the last estimate also when the triangulation failed for its RMS residual, which one
+        jump can cause). The worst go first, while at least ``min_track_length`` observations and two thirds of
+        the track remain; a pruned feature keeps at least two involved observations. Counted in
+        ``rejections["outlier_observations"]``."""
+        limit = self.config.observation_outlier_px / self.config.focal_length_px  # normalised units
+        changed: list[int] = []
+        uses = list(uses)
+        for k, (u, res) in enumerate(zip(uses, results)):
+            M = u.xy.shape[0]
+            if M <= self.config.min_track_length or not (res.success or res.reason == "large_residual"):
+                continue
+            p_FinC = np.einsum("mij,mj->mi", R_C[u.window_idx], res.p_FinG - p_C[u.window_idx])
+            if np.any(p_FinC[:, 2] <= 1e-9):
+                continue
+            err = np.linalg.norm(u.xy - p_FinC[:, :2] / p_FinC[:, 2:3], axis=1)
+            order = np.argsort(err)[::-1]
+            most = min(M - self.config.min_track_length, M // 3)
+            drop = [i for i in order[:most] if err[i] > limit]
+            keep = np.ones(M, dtype=bool)
+            keep[drop] = False
+            if not drop or np.count_nonzero(u.involved & keep) < min(2, np.count_nonzero(u.involved)):
+                continue
+            self.rejections["outlier_observations"] += len(drop)
+            uses[k] = _FeatureUse(u.window_idx[keep], u.xy[keep], u.involved[keep],
+                                  None if u.whiten is None else u.whiten[keep])
+            changed.append(k)
+        if changed:
+            again = triangulate_inverse_depth_batch(
+                [(R_C[uses[k].window_idx], p_C[uses[k].window_idx], uses[k].xy) for k in changed],
+                **self._tri_settings)
+            results = list(results)
+            for k, res in zip(changed, again):
+                results[k] = res
+        return uses, results
 
     def _project(
         self,

@@ -64,6 +64,9 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-zupt", action="store_true",
                    help="no zero-velocity updates where the platform stands still (default: detected from the "
                         "feature tracks and the IMU, and applied as in OpenVINS)")
+    p.add_argument("--outlier-px", type=real(above=0.0), default=None, metavar="PX",
+                   help="drop a track's observations that reproject farther than PX pixels from its triangulated "
+                        "point, and keep the rest of the track (default: off)")
     p.add_argument("--extrinsics", type=Path, default=None,
                    help="a Kalibr YAML with T_cam_imu, overriding the recording's extrinsics")
     p.add_argument("--calib", type=Path, default=None,
@@ -142,7 +145,8 @@ def main_run(args: argparse.Namespace) -> int:
                                 window_fraction=args.window_fraction, adaptive_windows=args.adaptive,
                                 min_window_s=args.min_window, max_window_s=args.max_window, init=args.init,
                                 bias_init=_bias(args.bias_init), imu_only=args.imu_only, oc=not args.no_oc,
-                                zupt=not args.no_zupt, max_duration=args.max_duration, seed=args.seed)
+                                zupt=not args.no_zupt, max_duration=args.max_duration, seed=args.seed,
+                                observation_outlier_px=args.outlier_px)
     except ValueError as error:  # the message names the config field; the user typed the option
         raise as_option_error(error, _OPTIONS) from None
     start = time.perf_counter()
@@ -175,7 +179,7 @@ def _require_checkpoint_file(option: str, path: Path | None) -> None:
 _OPTIONS = {"reconstructor": "--reconstructor", "bias_init": "--bias-init", "max_duration": "--max-duration",
             "window_fraction": "--window-fraction", "min_window_s": "--min-window", "max_window_s": "--max-window",
             "max_features": "--max-features", "init": "--init", "frames": "--frames", "seed": "--seed",
-            "method": "--tracker"}
+            "method": "--tracker", "observation_outlier_px": "--outlier-px"}
 
 
 def add_table_arguments(p: argparse.ArgumentParser) -> None:

@@ -101,6 +101,8 @@ class PipelineConfig:
         max_duration: seconds of the recording processed from the start (None: all).
         seed: seed of the front-end's RANSAC.
         zupt: detect standstill and apply zero-velocity updates there (module docstring).
+        observation_outlier_px: the filter drops a track's observations that reproject farther than this after
+            triangulation and keeps the rest (``MsckfConfig.observation_outlier_px``; None: off).
     """
 
     frames: str = "aps"
@@ -122,6 +124,7 @@ class PipelineConfig:
     max_duration: float | None = None
     seed: int = 0
     zupt: bool = True
+    observation_outlier_px: float | None = None
 
     def __post_init__(self) -> None:
         if self.frames not in FRAME_SOURCES:
@@ -163,6 +166,8 @@ class PipelineConfig:
             object.__setattr__(self, "detector_options", tuple(sorted(self.detector_options.items())))
         if not isinstance(self.zupt, bool):
             raise ValueError(f"zupt must be True or False; got {self.zupt!r}")
+        if self.observation_outlier_px is not None:  # checked as the filter will check it, before any loading
+            MsckfConfig(observation_outlier_px=self.observation_outlier_px)
         if not (math.isfinite(self.pixel_noise_px) and self.pixel_noise_px > 0):
             raise ValueError(f"pixel_noise_px must be > 0; got {self.pixel_noise_px!r}")
         FrontendConfig(method=self.tracker, max_features=self.max_features, ratio=self.match_ratio,
@@ -393,7 +398,8 @@ def msckf_config_for(config: PipelineConfig, data: LoadedDataset) -> MsckfConfig
     gravity = data.sequence.metadata.get("gravity_G")  # Sequence.metadata is always a dict
     cfg = MsckfConfig().with_imu_noise(data.noise)
     changes: dict[str, Any] = dict(pixel_noise_sigma=config.pixel_noise_px, focal_length_px=math.sqrt(cam.fx * cam.fy),
-                                   observability_constrained=config.oc, imu_only=config.imu_only)
+                                   observability_constrained=config.oc, imu_only=config.imu_only,
+                                   observation_outlier_px=config.observation_outlier_px)
     if gravity is not None:
         changes["gravity_G"] = tuple(float(g) for g in gravity)
     return dataclasses.replace(cfg, **changes)

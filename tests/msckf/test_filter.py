@@ -622,3 +622,62 @@ def test_two_frame_streams_keep_their_own_tracks_and_both_constrain_the_trajecto
         f2.process_image(t0 + 0.01, ids0[:3], xy0[:3], stream=1)
     with pytest.raises(ValueError, match="stream must be an integer >= 0"):
         f2.process_image(t0 + 0.02, ids0[:3], xy0[:3], stream=-1)
+
+
+# ---------------------------------------------------------------- per-observation outliers
+def test_outlier_observations_are_dropped_and_the_track_kept():
+    """A track with one observation jumped by 12 px: the option drops that observation and triangulates the rest
+    again (the point moves back to where the clean track puts it); without it the jump biases the point."""
+    traj, imu, frames, cfg, state = simulation(seed=5, duration=2.0, life=(200, 200), n_features=20)
+    f = Msckf(dataclasses.replace(cfg, max_camera_states=30), state)
+    f.feed_imu(imu.t, imu.gyro, imu.accel)
+    for t, ids, xy in frames[:12]:
+        f.process_image(t, ids, xy)
+    q_C, p_C = f.state.camera_poses
+    R_C = quat_to_rot(q_C)
+    fid, track = max(f.tracks.items(), key=lambda item: len(item[1]))
+    pos = f._window_positions()
+    idx = np.array([pos[c] for c, _, _ in track])
+    xy = np.array([z for _, z, _ in track])
+    assert len(track) >= 8
+    clean = _FeatureUse(idx, xy, np.ones(len(idx), bool))
+    jumped_xy = xy.copy()
+    jumped_xy[len(idx) // 2, 0] += 12.0 * SIGMA  # 12 px
+    jumped = _FeatureUse(idx, jumped_xy, np.ones(len(idx), bool))
+    settings = f._tri_settings
+    (res_clean, res_jumped) = triangulate_inverse_depth_batch([(R_C[u.window_idx], p_C[u.window_idx], u.xy)
+                                                               for u in (clean, jumped)], **settings)
+    assert res_clean.success
+    biased = np.linalg.norm(res_jumped.p_FinG - res_clean.p_FinG)
+    assert biased > 0.03 * np.linalg.norm(res_clean.p_FinG - p_C[idx[0]])  # one jump moves the point
+    g = Msckf(dataclasses.replace(f.config, observation_outlier_px=3.0), f.state)
+    (use,), (res,) = g._drop_outlier_observations([jumped], [res_jumped], R_C, p_C)
+    assert res.success and len(use.xy) == len(idx) - 1
+    assert not np.any(np.all(use.xy == jumped_xy[len(idx) // 2], axis=1))  # the jumped one went
+    assert np.linalg.norm(res.p_FinG - res_clean.p_FinG) < 0.2 * biased
+    assert g.rejections["outlier_observations"] == 1
+    (same,), _ = g._drop_outlier_observations([clean], [res_clean], R_C, p_C)  # a clean track stays whole
+    assert len(same.xy) == len(idx)
+
+
+def test_outlier_observation_option_helps_a_run_with_jumps_and_is_checked():
+    traj, imu, frames, cfg, state = simulation(seed=6, duration=6.0, life=(10, 40))
+    rng = np.random.default_rng(7)
+    jumped = []
+    for t, ids, xy in frames:  # 4 % of the observations jump by 6-15 px, as a wrong descriptor match would
+        xy = xy.copy()
+        hit = rng.random(len(ids)) < 0.04
+        xy[hit] += rng.choice([-1.0, 1.0], (hit.sum(), 2)) * rng.uniform(6, 15, (hit.sum(), 1)) * SIGMA
+        jumped.append((t, ids, xy))
+    plain = Msckf(cfg, state).run(imu.t, imu.gyro, imu.accel, jumped)
+    option = Msckf(dataclasses.replace(cfg, observation_outlier_px=3.0), state)
+    out = option.run(imu.t, imu.gyro, imu.accel, jumped)
+    assert option.rejections["outlier_observations"] > 20
+    used_plain = sum(o.n_features_used for o in plain)
+    used_option = sum(o.n_features_used for o in out)
+    assert used_option > used_plain  # tracks that one jump made fail are used
+    err_plain, err_option = position_errors(traj, plain), position_errors(traj, out)
+    assert np.sqrt(np.mean(err_option ** 2)) < np.sqrt(np.mean(err_plain ** 2))
+    for bad in (0.0, -1.0, float("nan"), True):
+        with pytest.raises(ValueError, match="observation_outlier_px"):
+            MsckfConfig(observation_outlier_px=bad)
