@@ -17,8 +17,10 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 from evio_lib.events.array import make_events  # noqa: E402
+from evio_lib.events.motion_compensation import motion_compensated_frame  # noqa: E402
 from evio_lib.events.representations import (adaptive_windows, polarity_frame, time_surface,  # noqa: E402
                                              voxel_grid)
+from evio_lib.geometry.camera import PinholeRadtan  # noqa: E402
 
 
 def main() -> None:
@@ -30,11 +32,16 @@ def main() -> None:
     n, w, h = args.events, 240, 180
     events = make_events(np.sort(rng.uniform(0, 0.1, n)), rng.integers(0, w, n), rng.integers(0, h, n),
                          rng.choice([-1, 1], n))
+    camera = PinholeRadtan.davis240c()
+    imu_t = np.arange(-0.01, 0.11, 0.001)  # a 1 kHz gyro turning at 2 rad/s
+    gyro = np.tile([1.2, -1.5, 0.4], (imu_t.size, 1))
     cases = {
         "polarity frame": lambda: polarity_frame(events, w, h),
         "time surface (2 channels)": lambda: time_surface(events, w, h),
         "voxel grid B=5 (normalised)": lambda: voxel_grid(events, w, h, 5),
         "adaptive windows": lambda: adaptive_windows(events, w, h),
+        "motion-compensated frame (gyro)": lambda: motion_compensated_frame(events, camera, 0.05, imu_t, gyro,
+                                                                            np.eye(3)),
     }
     for name, run in cases.items():
         best = min(_timed(run) for _ in range(args.repeats))

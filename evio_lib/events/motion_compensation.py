@@ -92,23 +92,20 @@ def warp_events(events: np.ndarray, camera: PinholeRadtan, t_ref: float, imu_t: 
     w_C = w @ R_CtoI                                                         # rates in the camera frame (rows)
     grid = camera.normalized_grid().reshape(-1, 2)
     xy = grid[events["y"].astype(np.intp) * camera.width + events["x"]]      # undistorted rays, looked up
+    # per event: its interval k, the rate and the rotation of that interval (gathered column by column: contiguous)
+    k = np.clip(np.searchsorted(breaks, t, side="right") - 1, 0, w.shape[0] - 1)
+    dt = t - breaks[k]
+    px, py, pz = (dt * w_C[:, i][k] for i in range(3))                          # phi = w_k (t_e - t_k), frame C
+    x, y = xy[:, 0], xy[:, 1]                                                 # b_e = (x, y, 1)
+    cx, cy, cz = py - pz * y, pz * x - px, px * y - py * x                   # phi x b_e
+    bx = x + cx + 0.5 * (py * cz - pz * cy)                                  # exp([phi]x) b_e to second order
+    by = y + cy + 0.5 * (pz * cx - px * cz)
+    bz = 1.0 + cz + 0.5 * (px * cy - py * cx)
+    m = M.reshape(-1, 9).T                                                   # (9, intervals)
+    zr = m[6][k] * bx + m[7][k] * by + m[8][k] * bz
     out = np.empty((events.size, 2))
-    # the events are sorted by time, so each interval's events are one slice: one 3 x 3 product per interval
-    cuts = np.searchsorted(t, breaks[1:-1], side="left")
-    for k, (a, b) in enumerate(zip(np.concatenate([[0], cuts]), np.concatenate([cuts, [events.size]]))):
-        if b <= a:
-            continue
-        dt = t[a:b] - breaks[k]
-        px, py, pz = dt * w_C[k, 0], dt * w_C[k, 1], dt * w_C[k, 2]          # phi = w_k (t_e - t_k), camera frame
-        x, y = xy[a:b, 0], xy[a:b, 1]                                         # b_e = (x, y, 1)
-        cx, cy, cz = py - pz * y, pz * x - px, px * y - py * x               # phi x b_e
-        bx = x + cx + 0.5 * (py * cz - pz * cy)                              # exp([phi]x) b_e to second order
-        by = y + cy + 0.5 * (pz * cx - px * cz)
-        bz = 1.0 + cz + 0.5 * (px * cy - py * cx)
-        Mk = M[k]
-        zr = Mk[2, 0] * bx + Mk[2, 1] * by + Mk[2, 2] * bz
-        out[a:b, 0] = (Mk[0, 0] * bx + Mk[0, 1] * by + Mk[0, 2] * bz) / zr
-        out[a:b, 1] = (Mk[1, 0] * bx + Mk[1, 1] * by + Mk[1, 2] * bz) / zr
+    out[:, 0] = (m[0][k] * bx + m[1][k] * by + m[2][k] * bz) / zr
+    out[:, 1] = (m[3][k] * bx + m[4][k] * by + m[5][k] * bz) / zr
     return camera.normalized_to_pixels(out)
 
 
