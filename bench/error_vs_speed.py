@@ -63,6 +63,8 @@ def main() -> None:
               f"{results[name].timings['realtime_factor']:.2f}x real time", flush=True)
     t_all = next(iter(results.values())).t
     edges = np.arange(t_all[0], t_all[-1] + 1e-9, args.stretch)
+    if edges[-1] < t_all[-1]:  # the last, shorter stretch too
+        edges = np.append(edges, t_all[-1] + 1e-9)
     t_grid = np.linspace(t_all[0], t_all[-1], 600)
     speed, rate = camera_motion(data, t_grid)
     print(f"\n{'stretch [s]':<12} {'speed':>6} {'rad/s':>6} | " + " | ".join(f"{n:>22}" for n in results))
