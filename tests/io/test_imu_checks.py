@@ -78,9 +78,10 @@ def test_preset_through_load_dataset_passes(tmp_path, monkeypatch):
     import evio_lib.pipeline.dataset as dataset
     from evio_lib.sim.presets import SimulationConfig, simulate_sequence
 
-    def imu_only(preset, duration=None, seed=0, with_events=False, cache=True, progress=False):  # skip rendering
+    def imu_only(preset, duration=None, seed=0, with_events=False, cache=True, progress=False, start=0.0):
         return simulate_sequence(SimulationConfig(preset=preset, duration=duration, trajectory_duration=60.0,
-                                                  seed=seed, with_events=False, with_frames=False))
+                                                  seed=seed, with_events=False, with_frames=False,
+                                                  start_time=start))  # skip rendering
     monkeypatch.setattr(dataset, "simulate_preset", imu_only)
     data = load_dataset("boxes_like", duration=2.5, need_frames=False)
     assert data.notes == ("extrinsics: from the recording (simulator)",)  # the stored noise: no default named
