@@ -20,7 +20,7 @@ The rotation comes from the gyro as in :mod:`evio_lib.frontend.gyro_prior`. Over
 relative to its start, A(t) = R_{I(t) -> I(t_a)}, is the ordered product of exp([w_k dt_k]x) over the intervals
 between the breakpoints (t_a, the IMU samples inside, t_b), each with its mean rate w_k. An event inside interval k
 adds the partial step exp([w_k (t_e - t_k)]x) (expanded to second order: at most 0.05 rad per 5 ms interval even at
-10 rad/s, an error below 2e-5 rad), and in the camera frame (R_ItoC = R_CtoI^T)::
+10 rad/s, an error of about 2e-5 rad), and in the camera frame (R_ItoC = R_CtoI^T)::
 
     R_{C(t_e) -> C(t_ref)} = R_ItoC A(t_ref)^T A(t_k) exp([w_k (t_e - t_k)]x) R_CtoI
 

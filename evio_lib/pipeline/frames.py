@@ -5,9 +5,9 @@ Event frames follow the thesis: the stream is cut into windows of N_e = n H W ev
 textured boxes, 0.2 for the sparse aerial scene) or into adaptive windows (a window closes when it holds
 ``events_per_active_pixel`` events per pixel that fired), each window is fed to a reconstructor
 (:func:`evio_lib.events.create_reconstructor`: the shipped FireNet by default) with its recurrent state carried, and
-the frame's time is the window's last event. The frames come one at a time (a generator), so a long recording
-never holds all its frames in memory. A stretch without events yields no frame: the filter then propagates the IMU
-alone across it. Windows may also be held between a least and a greatest duration (``min_window_s``,
+the frame's time is the window's last event (for time-bounded windows, the window's end). The frames come one at
+a time (a generator), so a long recording never holds all its frames in memory. A stretch without events yields
+no frame: the filter then propagates the IMU alone across it. Windows may also be held between a least and a greatest duration (``min_window_s``,
 ``max_window_s``), so that fast motion does not flood the front-end and a slow stretch still gives frames.
 
 Motion-compensated event frames (``mc-events``, :func:`mc_event_frames`) need no network: each window's events are
@@ -38,8 +38,9 @@ STREAM_ID_OFFSET = 1 << 40
 MC_MIN_WINDOW_S = 0.01
 MC_MAX_WINDOW_S = 0.1
 #: mc-events: n of the windows' N_e = n H W, one value for every recording (the thesis's n per scene serves the
-#: reconstructed frames). Chosen on the validation seed (3) of both whole presets with KLT: n = 1.0 gave 0.53 % of
-#: the distance on boxes_like and 0.82 % on aerial_like, against 0.78 % and 16 % with the thesis's 0.7 and 0.2.
+#: reconstructed frames). Chosen on the validation seed (3) of both whole presets with KLT: n = 1.0 (windows of
+#: 0.01-0.1 s) gave 0.53 % of the distance on boxes_like and 0.82 % on aerial_like, against 0.78 % and 16 % with the
+#: thesis's 0.7 and 0.2 (windows of 1/60-0.1 s); docs/pipeline.md has the whole search.
 MC_WINDOW_FRACTION = 1.0
 MC_MIN_EVENTS = 500
 #: The thesis's n (§4.1, Figs. 16/18): 0.7 for boxes_like, 0.2 for aerial_like.
