@@ -16,7 +16,8 @@ The warp of an event at pixel u_e and time t_e (a point far away, or any point u
 and the frame is the count of warped events per pixel, each event spread over its four neighbouring pixels with
 bilinear weights (so sub-pixel warps keep their precision), lightly blurred and scaled to [0, 1].
 
-The rotation comes from the gyro as in :mod:`evio_lib.frontend.gyro_prior`. Over the window the IMU orientation
+The rotation comes from the gyro integrator of the tracker's rotation prior
+(:func:`evio_lib.frontend.gyro_prior.gyro_orientations`). Over the window the IMU orientation
 relative to its start, A(t) = R_{I(t) -> I(t_a)}, is the ordered product of exp([w_k dt_k]x) over the intervals
 between the breakpoints (t_a, the IMU samples inside, t_b), each with its mean rate w_k. An event inside interval k
 adds the partial step exp([w_k (t_e - t_k)]x) (expanded to second order: at most 0.05 rad per 5 ms interval even at
@@ -33,39 +34,11 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from evio_lib.frontend.gyro_prior import gyro_orientations
 from evio_lib.geometry.camera import PinholeRadtan
 from evio_lib.geometry.rotation import so3_exp
 
-__all__ = ["window_rotations", "warp_events", "accumulate_bilinear", "motion_compensated_frame"]
-
-
-def window_rotations(imu_t: ArrayLike, gyro: ArrayLike, t_a: float, t_b: float, gyro_bias: ArrayLike | None = None
-                     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """Return (breaks (M + 1,), A (M + 1, 3, 3), w (M, 3)): the IMU's rotation over [t_a, t_b] (module docstring).
-
-    breaks are t_a, the IMU sample times inside (t_a, t_b), and t_b; A[k] = R_{I(breaks[k]) -> I(t_a)}; w[k] is the
-    mean bias-corrected rate over [breaks[k], breaks[k + 1]] (the gyro interpolated linearly, as ``integrate_gyro``).
-
-    >>> t = np.linspace(0.0, 1.0, 101); w = np.tile([0.0, 0.0, 0.5], (101, 1))
-    >>> breaks, A, rates = window_rotations(t, w, 0.2, 0.4)
-    >>> bool(np.allclose(A[-1], so3_exp([0.0, 0.0, 0.1])))   # R_{I(0.4) -> I(0.2)}: 0.1 rad about z
-    True
-    """
-    times = np.asarray(imu_t, dtype=np.float64)
-    rates = np.asarray(gyro, dtype=np.float64)
-    if not t_b >= t_a:
-        raise ValueError(f"the window must have t_b >= t_a; got t_a = {t_a!r}, t_b = {t_b!r}")
-    lo, hi = np.searchsorted(times, [t_a, t_b], side="right")
-    breaks = np.concatenate([[float(t_a)], times[lo:hi][times[lo:hi] < t_b], [float(t_b)]])
-    bias = np.zeros(3) if gyro_bias is None else np.asarray(gyro_bias, dtype=np.float64)
-    w_at = np.stack([np.interp(breaks, times, rates[:, i]) for i in range(3)], axis=1) - bias
-    w = 0.5 * (w_at[:-1] + w_at[1:])
-    steps = so3_exp(w * np.diff(breaks)[:, None]).reshape(-1, 3, 3)
-    A = np.empty((breaks.size, 3, 3))
-    A[0] = np.eye(3)
-    for k, step in enumerate(steps):  # A(t_{k+1}) = A(t_k) exp(w_k dt_k)
-        A[k + 1] = A[k] @ step
-    return breaks, A, w
+__all__ = ["warp_events", "accumulate_bilinear", "motion_compensated_frame"]
 
 
 def warp_events(events: np.ndarray, camera: PinholeRadtan, t_ref: float, imu_t: ArrayLike, gyro: ArrayLike,
@@ -84,7 +57,7 @@ def warp_events(events: np.ndarray, camera: PinholeRadtan, t_ref: float, imu_t: 
         return np.zeros((0, 2))
     t = events["t"]
     t_a, t_b = min(float(t[0]), float(t_ref)), max(float(t[-1]), float(t_ref))
-    breaks, A, w = window_rotations(imu_t, gyro, t_a, t_b, gyro_bias)
+    breaks, A, w = gyro_orientations(imu_t, gyro, t_a, t_b, gyro_bias)
     R_CtoI = np.asarray(R_CtoI, dtype=np.float64)
     k_ref = int(np.clip(np.searchsorted(breaks, t_ref, side="right") - 1, 0, w.shape[0] - 1))
     A_ref = A[k_ref] @ so3_exp(w[k_ref] * (t_ref - breaks[k_ref]))

@@ -19,7 +19,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from evio_lib.geometry.rotation import so3_exp
 
-__all__ = ["integrate_gyro", "camera_rotation_prior", "camera_rotation_priors"]
+__all__ = ["integrate_gyro", "gyro_orientations", "camera_rotation_prior", "camera_rotation_priors"]
 
 
 def integrate_gyro(t: ArrayLike, gyro: ArrayLike, t0: float, t1: float,
@@ -59,14 +59,38 @@ def integrate_gyro(t: ArrayLike, gyro: ArrayLike, t0: float, t1: float,
     bias = np.zeros(3) if gyro_bias is None else np.asarray(gyro_bias, dtype=np.float64)
     if bias.shape != (3,) or not np.isfinite(bias).all():
         raise ValueError(f"gyro_bias must be a finite (3,) vector in rad/s; got shape {bias.shape}")
+    return gyro_orientations(times, rates, float(t0), float(t1), bias)[1][-1].T
+
+
+def gyro_orientations(t: ArrayLike, gyro: ArrayLike, t0: float, t1: float, gyro_bias: ArrayLike | None = None
+                      ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Return (breaks (M + 1,), A (M + 1, 3, 3), w (M, 3)): the IMU's orientation over [t0, t1] at every breakpoint.
+
+    breaks are t0, the sample times inside (t0, t1), and t1; A[k] = R_{I(breaks[k]) -> I(t0)} = prod_{j<k}
+    exp([w_j dt_j]x); w[k] is the mean bias-corrected rate over [breaks[k], breaks[k + 1]] (the gyro interpolated
+    linearly). :func:`integrate_gyro` is A[-1]^T; motion compensation (``events.motion_compensation``) reads every
+    A[k]. The inputs are not checked here (``integrate_gyro`` checks them).
+
+    >>> t = np.linspace(0.0, 1.0, 101); w = np.tile([0.0, 0.0, 0.5], (101, 1))
+    >>> breaks, A, rates = gyro_orientations(t, w, 0.2, 0.4)
+    >>> bool(np.allclose(A[-1], so3_exp([0.0, 0.0, 0.1])))   # R_{I(0.4) -> I(0.2)}: 0.1 rad about z
+    True
+    """
+    times = np.asarray(t, dtype=np.float64)
+    rates = np.asarray(gyro, dtype=np.float64)
+    if not t1 >= t0:
+        raise ValueError(f"the span must have t1 >= t0; got t0 = {t0!r}, t1 = {t1!r}")
     inside = times[(times > t0) & (times < t1)]
     breaks = np.concatenate([[float(t0)], inside, [float(t1)]])
-    w = np.stack([np.interp(breaks, times, rates[:, i]) for i in range(3)], axis=1) - bias
-    steps = so3_exp(0.5 * (w[:-1] + w[1:]) * np.diff(breaks)[:, None])  # exp(w_k dt_k), all k at once
-    R_I1toI0 = np.eye(3)
-    for step in steps:  # prod_k exp(w_k dt_k), in order
-        R_I1toI0 = R_I1toI0 @ step
-    return R_I1toI0.T
+    bias = np.zeros(3) if gyro_bias is None else np.asarray(gyro_bias, dtype=np.float64)
+    w_at = np.stack([np.interp(breaks, times, rates[:, i]) for i in range(3)], axis=1) - bias
+    w = 0.5 * (w_at[:-1] + w_at[1:])
+    steps = so3_exp(w * np.diff(breaks)[:, None]).reshape(-1, 3, 3)  # exp(w_k dt_k), all k at once
+    A = np.empty((breaks.size, 3, 3))
+    A[0] = np.eye(3)
+    for k, step in enumerate(steps):  # A(t_{k+1}) = A(t_k) exp(w_k dt_k), in order
+        A[k + 1] = A[k] @ step
+    return breaks, A, w
 
 
 def camera_rotation_prior(t: ArrayLike, gyro: ArrayLike, t0: float, t1: float, R_CtoI: ArrayLike,

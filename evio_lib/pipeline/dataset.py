@@ -260,6 +260,8 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
     notes: list[str] = []
     dataset = "boxes_like" if dataset is None else dataset
     text = str(dataset)
+    if start and text not in PRESETS:
+        raise ValueError("--start applies to simulated presets; a recording is processed from its beginning")
     if text in PRESETS:
         if calib is not None:
             raise ValueError(f"--calib applies to recordings; the preset {text} knows its camera")
@@ -270,8 +272,6 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
 
         if duration is not None:
             raise ValueError("--duration applies to simulated presets; for a recording use --max-duration")
-        if start:
-            raise ValueError("--start applies to simulated presets; a recording is processed from its beginning")
         if calib is None:
             raise ValueError(f"{text}: an AEDAT4 recording holds no camera calibration; give one with --calib FILE "
                              f"(one line fx fy cx cy k1 k2 p1 p2 [k3] in pixels, the ECD calib.txt format, e.g. from "
@@ -283,8 +283,6 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
     else:
         if duration is not None:
             raise ValueError("--duration applies to simulated presets; for a recording folder use --max-duration")
-        if start:
-            raise ValueError("--start applies to simulated presets; a recording is processed from its beginning")
         folder = Path(text)
         if not folder.exists():
             raise ValueError(f"DATASET {text!r} is neither a preset ({', '.join(PRESETS)}) nor an existing folder")

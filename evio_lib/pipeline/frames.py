@@ -169,8 +169,7 @@ def mc_event_frames(sequence: Sequence, R_CtoI: np.ndarray, window_fraction: flo
     (:func:`evio_lib.events.motion_compensation.motion_compensated_frame`); that middle time is the frame's time.
     The windows hold N_e = n H W events (n = :data:`MC_WINDOW_FRACTION` by default, for every recording), held
     between ``min_window_s`` and ``max_window_s`` (defaults :data:`MC_MIN_WINDOW_S`, :data:`MC_MAX_WINDOW_S`).
-    A window with fewer than :data:`MC_MIN_EVENTS` events (a
-    still stretch) gives no frame.
+    A window with fewer than :data:`MC_MIN_EVENTS` events (a still stretch) gives no frame.
 
     Args:
         sequence: a recording with events, an IMU and a camera.

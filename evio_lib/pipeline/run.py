@@ -527,7 +527,6 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
     filt = Msckf(msckf_cfg, state)
     imu = seq.imu
     zv = ZeroVelocityConfig(enabled=config.zupt and not config.imu_only)
-    standstill = StandstillDetector(zv)
     zupt_frames = 0
     k0 = int(np.searchsorted(imu.t, t_first, side="right"))
     wall0 = time.perf_counter()
@@ -536,7 +535,7 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
     # one tracker (and standstill test) per frame stream; the second stream's track ids are offset so that the
     # filter's tracks of the two never share an id (STREAM_ID_OFFSET)
     trackers = [create_tracker(seq.camera, config.frontend_config(), detector=detector) for _ in streams]
-    standstills = [standstill] + [StandstillDetector(zv) for _ in streams[1:]]
+    standstills = [StandstillDetector(zv) for _ in streams]
     sigma_px = config.pixel_noise_px
     outputs: list = []
     tracked: list = []

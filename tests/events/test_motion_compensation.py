@@ -5,9 +5,8 @@ import numpy as np
 import pytest
 
 from evio_lib.events.array import make_events
-from evio_lib.events.motion_compensation import (accumulate_bilinear, motion_compensated_frame, warp_events,
-                                                 window_rotations)
-from evio_lib.frontend.gyro_prior import integrate_gyro
+from evio_lib.events.motion_compensation import accumulate_bilinear, motion_compensated_frame, warp_events
+from evio_lib.frontend.gyro_prior import gyro_orientations, integrate_gyro
 from evio_lib.geometry.camera import PinholeRadtan
 from evio_lib.geometry.rotation import so3_exp
 
@@ -39,14 +38,18 @@ def camera() -> PinholeRadtan:
     return PinholeRadtan.davis240c()  # with radial-tangential distortion
 
 
-def test_window_rotations_end_matches_the_gyro_integrator():
+def test_gyro_orientations_follow_the_continuous_rotation():
+    """The cumulative gyro integration that the warp reads (frontend.gyro_prior.gyro_orientations) against the
+    fine integration of the continuous rates, at every breakpoint; its end is integrate_gyro's rotation."""
     imu_t = np.arange(0.0, 1.0, 0.001)
     gyro = _rates(imu_t)
-    breaks, A, w = window_rotations(imu_t, gyro, 0.1003, 0.1317, gyro_bias=[0.01, -0.02, 0.03])
+    breaks, A, w = gyro_orientations(imu_t, gyro, 0.1003, 0.1317)
     assert breaks[0] == 0.1003 and breaks[-1] == 0.1317 and np.all(np.diff(breaks) > 0)
     assert A.shape == (breaks.size, 3, 3) and w.shape == (breaks.size - 1, 3)
-    R_I0toI1 = integrate_gyro(imu_t, gyro, 0.1003, 0.1317, gyro_bias=[0.01, -0.02, 0.03])
-    np.testing.assert_allclose(A[-1], R_I0toI1.T, atol=1e-12)  # A = R_{I(t_b) -> I(t_a)}
+    R_ItoG = _orientations(breaks)
+    expected = np.swapaxes(R_ItoG[0], -1, -2) @ R_ItoG  # R_{I(t) -> I(t_a)} = R_ItoG(t_a)^T R_ItoG(t)
+    np.testing.assert_allclose(A, expected, atol=1e-6)
+    np.testing.assert_array_equal(A[-1].T, integrate_gyro(imu_t, gyro, 0.1003, 0.1317))
 
 
 def test_warp_matches_the_true_rotation_of_each_ray(camera):
