@@ -52,6 +52,8 @@ from numbers import Integral, Real
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from evio_lib.geometry.rotation import cross3
+
 _MIN_MOVING = 3  # moving matches that must agree on a translation before it counts as observed
 _MOVING_FACTOR = 3.0  # a match is "moving" when its compensated displacement is at least this many thresholds
 
@@ -151,8 +153,8 @@ def _sampson_parts(t: NDArray[np.float64], g1: NDArray[np.float64], f2: NDArray[
     g1h = np.concatenate([g1, np.ones((g1.shape[0], 1))], axis=1)
     f2h = np.concatenate([f2, np.ones((f2.shape[0], 1))], axis=1)
     tt = t[..., None, :]
-    Eg = np.cross(tt, g1h)  # E g1 = t x g1 (epipolar lines in view 2)
-    Etf = -np.cross(tt, f2h)  # E^T f2 = [t x]^T f2 = -(t x f2) (epipolar lines in view 1)
+    Eg = cross3(tt, g1h)  # E g1 = t x g1 (epipolar lines in view 2)
+    Etf = -cross3(tt, f2h)  # E^T f2 = [t x]^T f2 = -(t x f2) (epipolar lines in view 1)
     r = np.einsum("...ki,ki->...k", Eg, f2h)  # f2^T E g1
     # s = sqrt((E g1)_1^2 + (E g1)_2^2 + (E^T f2)_1^2 + (E^T f2)_2^2)
     return r, np.sqrt(Eg[..., 0] ** 2 + Eg[..., 1] ** 2 + Etf[..., 0] ** 2 + Etf[..., 1] ** 2)
@@ -249,7 +251,7 @@ def two_point_ransac(
     n = candidates.shape[0]
     i = moving[generator.integers(0, moving.shape[0], size=iterations)]  # one moving match per hypothesis
     j = candidates[(np.searchsorted(candidates, i) + 1 + generator.integers(0, n - 1, size=iterations)) % n]
-    t = np.cross(c[i], c[j])  # t = c_i x c_j, the null vector of both constraints
+    t = cross3(c[i], c[j])  # t = c_i x c_j, the null vector of both constraints
     norm = np.linalg.norm(t, axis=1)
     if not (norm > 1e-12).any():
         return unobservable

@@ -43,7 +43,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from evio_lib.geometry.rotation import as_float_array, quat_to_rot
+from evio_lib.geometry.rotation import as_float_array, cross3, quat_to_rot
 from evio_lib.msckf.propagation import PropagationSteps
 from evio_lib.msckf.state import CAMERA_DIM, IMU_DIM, POS, THETA, VEL, FilterState
 
@@ -129,8 +129,8 @@ def imu_nullspace(
     N = np.zeros(batch + (IMU_DIM, 4))
     N[..., POS, 0:3] = np.eye(3)  # global translation: δp = I
     N[..., THETA, 3] = quat_to_rot(q) @ g  # δθ = R_GtoI g
-    N[..., VEL, 3] = -np.cross(v, g)  # δv = -[v x] g
-    N[..., POS, 3] = -np.cross(p, g)  # δp = -[p x] g
+    N[..., VEL, 3] = -cross3(v, g)  # δv = -[v x] g
+    N[..., POS, 3] = -cross3(p, g)  # δp = -[p x] g
     return N
 
 
@@ -161,7 +161,7 @@ def state_nullspace(
         c = IMU_DIM + CAMERA_DIM * i
         N[c:c + 3, 3] = quat_to_rot(q) @ g  # δθ_C = R_GtoC g
         N[c + 3:c + 6, 0:3] = np.eye(3)
-        N[c + 3:c + 6, 3] = -np.cross(p, g)  # δp_C = -[p_C x] g
+        N[c + 3:c + 6, 3] = -cross3(p, g)  # δp_C = -[p_C x] g
     return N
 
 
@@ -189,8 +189,8 @@ def constrain_transition(Phi: NDArray[np.float64], steps: PropagationSteps) -> N
     u = R_prev @ g  # u = R_GtoI,k|k-1 g_G
     uu = np.einsum("ki,ki->k", u, u)
     s = u / uu[:, None]  # (u^T u)^-1 u^T
-    w1 = np.cross(v_prev - v_next, g)  # ([v_k|k-1 x] - [v_k+1|k x]) g                             (Eq. 82)
-    w2 = np.cross(steps.dt[:, None] * v_prev + p_prev - p_next, g)  # (δt[v x] + [p x] - [p' x]) g  (Eq. 83)
+    w1 = cross3(v_prev - v_next, g)  # ([v_k|k-1 x] - [v_k+1|k x]) g                             (Eq. 82)
+    w2 = cross3(steps.dt[:, None] * v_prev + p_prev - p_next, g)  # (δt[v x] + [p x] - [p' x]) g  (Eq. 83)
     for rows, w in ((VEL, w1), (POS, w2)):
         A = Phi[:, rows, THETA]
         Au_w = np.einsum("kij,kj->ki", A, u) - w
@@ -221,7 +221,7 @@ def constrain_camera_blocks(
     batch = A.shape[:-2]
     u = np.empty(batch + (CAMERA_DIM,))
     u[..., :3] = R @ g  # R_GtoC,null g_G
-    u[..., 3:] = np.cross(p_F - p_C, g)  # [(p_FinG - p_CinG,null) x] g_G
+    u[..., 3:] = cross3(p_F - p_C, g)  # [(p_FinG - p_CinG,null) x] g_G
     uu = np.einsum("...i,...i->...", u, u)
     Au = np.einsum("...ij,...j->...i", A, u)
     A_star = A - (Au / uu[..., None])[..., :, None] * u[..., None, :]  # A* = A - A u (u^T u)^-1 u^T   (Eq. 86)
@@ -300,7 +300,7 @@ def camera_nullspace(
     N = np.zeros(p.shape[:-1] + (CAMERA_DIM, 4))
     N[..., 3:, 0:3] = np.eye(3)  # global translation: δp_C = I
     N[..., :3, 3] = R @ g  # yaw: δθ_C = R_GtoC g
-    N[..., 3:, 3] = -np.cross(p, g)  # δp_C = -[p_C x] g
+    N[..., 3:, 3] = -cross3(p, g)  # δp_C = -[p_C x] g
     return N.reshape(p.shape[:-2] + (CAMERA_DIM * p.shape[-2], 4))
 
 

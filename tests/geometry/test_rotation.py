@@ -8,6 +8,7 @@ from scipy.linalg import expm
 from scipy.spatial.transform import Rotation
 
 from evio_lib.geometry.rotation import (
+    cross3,
     hamilton_to_jpl,
     jpl_to_hamilton,
     omega_matrix,
@@ -60,6 +61,16 @@ def test_skew_is_cross_product_and_antisymmetric(rng):
     assert S.shape == (7, 3, 3) and S.dtype == np.float64
     np.testing.assert_allclose(S @ b[..., None], np.cross(a, b)[..., None], atol=1e-14)
     np.testing.assert_array_equal(S, -np.swapaxes(S, -1, -2))
+
+
+@pytest.mark.parametrize("shape_a, shape_b", [((3,), (3,)), ((50, 3), (50, 3)), ((7, 1, 3), (40, 3)), ((3,), (9, 3))])
+def test_cross3_is_np_cross_bit_for_bit(rng, shape_a, shape_b):
+    a = rng.normal(size=shape_a) * 10.0 ** rng.uniform(-6, 6, size=shape_a)
+    b = rng.normal(size=shape_b) * 10.0 ** rng.uniform(-6, 6, size=shape_b)
+    expected = np.cross(a, b)
+    got = cross3(a, b)
+    assert got.shape == expected.shape
+    np.testing.assert_array_equal(got, expected)
 
 
 def test_skew_thesis_layout():
