@@ -41,6 +41,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from evio_lib.geometry.rotation import cross3
 from evio_lib.sim.textures import (
     aerial_terrain_texture,
     load_texture,
@@ -497,13 +498,13 @@ class Scene:
         o_C = (self._origins - p_CinG) @ R_CtoG
         u_C = self._axes_u @ R_CtoG
         v_C = self._axes_v @ R_CtoG
-        n_C = np.cross(u_C, v_C)
+        n_C = cross3(u_C, v_C)
         h = np.einsum("ij,ij->i", n_C, o_C)  # h = n . o
         n_norm = np.linalg.norm(n_C, axis=1)
         usable = np.abs(h) > 1e-12 * n_norm * (1.0 + np.linalg.norm(o_C, axis=1))  # camera not in the plane
         usable &= self._two_sided | (h > 0)  # single-sided planes: only from the front (h > 0)
         safe_h = np.where(usable, h, 1.0)[:, None]
-        forms = np.stack([n_C / safe_h, np.cross(v_C, o_C) / safe_h, np.cross(o_C, u_C) / safe_h], axis=1)
+        forms = np.stack([n_C / safe_h, cross3(v_C, o_C) / safe_h, cross3(o_C, u_C) / safe_h], axis=1)
         return {"forms": forms, "usable": usable, "distance": np.abs(h) / n_norm,
                 "corners": np.stack([o_C, o_C + u_C, o_C + u_C + v_C, o_C + v_C], axis=1)}
 
