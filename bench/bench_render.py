@@ -4,6 +4,7 @@ Run from the repository root::
 
     python bench/bench_render.py            # full benchmark (room + aerial, render_intensity and render)
     python bench/bench_render.py --frames 50
+    EVIO_RENDERER=numpy python bench/bench_render.py   # the NumPy path the compiled kernels are tested against
 
 Target (course design): <= 4 ms per ``render_intensity`` frame for the indoor room (~40 planes) and the aerial
 ground, so that events can be simulated from ~1000 renders per simulated second. Each frame moves the camera

@@ -369,7 +369,7 @@ fig = plot_image_row(views, ["boxes_like: intensity", "depth [m]", "aerial_like:
 plt.show()
 
 # %% [markdown]
-# Simulating takes a while (about two minutes for both recordings in full mode), so `simulate_sequence_cached` stores
+# Simulating takes a while (about a minute for both recordings in full mode on a 2-core machine), so `simulate_sequence_cached` stores
 # each recording in the project's cache folder (`data/cache/sequences/`, or `$EVIO_CACHE_DIR`), under a name that
 # hashes every field of its config, and reads it back on the next run; `simulate_sequence` alone always simulates.
 
