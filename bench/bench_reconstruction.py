@@ -46,6 +46,7 @@ def main() -> None:
     windows = [make_events(np.sort(rng.uniform(k, k + 1, n)), rng.integers(0, w, n), rng.integers(0, h, n),
                            rng.choice([-1, 1], n)) for k in range(args.frames)]
     methods = {name: create_reconstructor(name, w, h) for name in ("direct", "high_pass", "firenet")}
+    methods["firenet (bfloat16)"] = create_reconstructor("firenet", w, h, precision="bfloat16")
     with tempfile.TemporaryDirectory() as folder:  # a random-weight E2VID-style UNet, loaded the way users load one
         path = Path(folder) / "e2vid_random.pt"
         torch.save({"format": "evio-reconstructor-v1", "architecture": "e2vid", "network_options": {}, "num_bins": 5,
@@ -97,9 +98,9 @@ def _variants(net, example) -> dict:
     last = torch.channels_last
     cl_net = copy.deepcopy(net).to(memory_format=last)
 
-    def bf16(voxels, state):
-        with torch.autocast("cpu", dtype=torch.bfloat16):
-            return net(voxels, state)
+    from evio_lib.events.reconstruction.nets import AutocastForward
+
+    bf16 = AutocastForward(net)  # precision="bfloat16" of the reconstructor
 
     class _Pair(torch.nn.Module):  # trace the two calls: the first frame (no state) and the later ones
         def __init__(self, inner):

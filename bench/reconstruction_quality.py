@@ -2,6 +2,7 @@
 slider_depth frames (see evio_lib.events.reconstruction.evaluation for the protocol and the normalisation).
 
 Usage:  python bench/reconstruction_quality.py [--methods direct high_pass firenet] [--max-frames 12]
+                                              [--split test|val] [--precision float32|bfloat16]
 
 The first run simulates the three held-out stretches (0.4 s each, seed 101; several minutes) and caches them in data/cache.
 """
@@ -20,9 +21,12 @@ def main() -> None:
     parser.add_argument("--split", choices=["test", "val"], default="test",
                         help="test: the held-out stretches (seed 101) that are reported; val: the same stretches of "
                              "other scenes (seed 202) where networks and settings are chosen")
+    parser.add_argument("--precision", choices=["float32", "bfloat16"], default=None,
+                        help="the networks' arithmetic (default: each reconstructor's own, float32)")
     args = parser.parse_args()
     seed = VALIDATION_SEED if args.split == "val" else EVAL_SEED
-    rows = quality_table(args.methods, max_frames=args.max_frames, seed=seed, with_slider=args.split == "test")
+    rows = quality_table(args.methods, max_frames=args.max_frames, seed=seed, with_slider=args.split == "test",
+                         precision=args.precision)
     print(f"| {'sequence':32s} | {'method':22s} | {'MSE':>6s} | {'SSIM':>6s} | frames |")
     print(f"|{'-' * 34}|{'-' * 24}|{'-' * 8}|{'-' * 8}|--------|")
     for r in rows:

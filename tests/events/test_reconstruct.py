@@ -110,3 +110,19 @@ def test_a_bad_checkpoint_is_a_clear_error(tmp_path):
         create_reconstructor("learned", 8, 8, checkpoint=bad)
     with pytest.raises(FileNotFoundError):
         create_reconstructor("learned", 8, 8, checkpoint=tmp_path / "missing.pt")
+
+
+def test_bfloat16_network_is_close_to_float32_and_other_precisions_are_refused():
+    rng = np.random.default_rng(5)
+    n = 40_000
+    windows = [make_events(np.sort(rng.uniform(k, k + 1, n)), rng.integers(0, 64, n), rng.integers(0, 48, n),
+                           rng.choice([-1, 1], n)) for k in range(6)]
+    images = {}
+    for precision in ("float32", "bfloat16"):
+        rec = create_reconstructor("firenet", 64, 48, precision=precision)
+        images[precision] = np.stack([rec.reconstruct(w) for w in windows])  # state carried over six windows
+        assert images[precision].dtype == np.float32
+    difference = np.abs(images["float32"] - images["bfloat16"])
+    assert 0 < difference.max() < 0.03 and difference.mean() < 3e-3
+    with pytest.raises(ValueError, match="precision must be one of float32, bfloat16; got 'float16'"):
+        create_reconstructor("firenet", 64, 48, precision="float16")

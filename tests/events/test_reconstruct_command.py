@@ -81,3 +81,18 @@ def test_bad_times_files(tmp_path):
     bad.write_text("# nothing\n")
     with pytest.raises(ValueError, match="no timestamps"):
         read_times_file(bad)
+
+
+def test_bfloat16_frames_are_close_to_float32_ones(ecd_folder, tmp_path):
+    import cv2
+
+    listings = {}
+    for precision in ("float32", "bfloat16"):
+        out = tmp_path / precision
+        assert main_reconstruct([str(ecd_folder), "--out", str(out), "--method", "firenet", "--window-fraction", "1.0",
+                                 "--sensor-size", "32", "24", "--precision", precision, "--quiet"]) == 0
+        listings[precision] = [cv2.imread(str(out / name), cv2.IMREAD_GRAYSCALE).astype(int)
+                               for _, name in read_listing(out)]
+    assert len(listings["float32"]) == len(listings["bfloat16"]) == 4000 // (32 * 24)
+    for a, b in zip(listings["float32"], listings["bfloat16"]):
+        assert np.abs(a - b).max() <= 6  # 8-bit frames; bfloat16 keeps 8 bits of mantissa (a few 1e-3 measured)

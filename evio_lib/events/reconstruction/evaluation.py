@@ -223,15 +223,16 @@ def load_slider_slice(folder: str | Path | None = None) -> dict[str, np.ndarray]
 
 def quality_table(methods: Sequence[str], stretches: Sequence[str] = tuple(EVAL_STRETCHES), duration: float | None = None,
                   max_frames: int | None = 12, with_aps: bool = True, with_slider: bool = True,
-                  seed: int = EVAL_SEED) -> list[dict]:
+                  seed: int = EVAL_SEED, precision: str | None = None) -> list[dict]:
     """Return rows {method, sequence, mse, ssim, frames}: every method (a reconstructor's name or a reconstruct-train
     checkpoint file) on every held-out stretch (at the thesis's n),
-    the blurred APS frames for reference, and the real slider frames (EVREAL protocol) when the real data is present."""
+    the blurred APS frames for reference, and the real slider frames (EVREAL protocol) when the real data is present.
+    ``precision``: the networks' arithmetic (``float32`` or ``bfloat16``; None: each reconstructor's default)."""
     rows = []
     for stretch in stretches:
         sequence = simulated_eval_sequence(stretch, duration=duration, seed=seed)
         for method in methods:
-            rec = reconstructor_by_name_or_file(method, sequence.width, sequence.height)
+            rec = reconstructor_by_name_or_file(method, sequence.width, sequence.height, precision=precision)
             rows.append({"method": method, "sequence": stretch,
                          **score_windows(rec, sequence, THESIS_FRACTION[stretch], max_frames=max_frames)})
         if with_aps and len(sequence.frame_times):
@@ -239,7 +240,7 @@ def quality_table(methods: Sequence[str], stretches: Sequence[str] = tuple(EVAL_
     slider = load_slider_slice() if with_slider else None
     if slider is not None:
         for method in methods:
-            rec = reconstructor_by_name_or_file(method, 240, 180)
+            rec = reconstructor_by_name_or_file(method, 240, 180, precision=precision)
             score = score_at_frame_times(rec, slider["events"], slider["frame_times"], slider["frames"],
                                          max_window_events=window_size_from_fraction(0.35, 240, 180))
             rows.append({"method": method, "sequence": "real slider_depth (APS frames)", "mse": score["mse"],

@@ -22,8 +22,8 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-__all__ = ["ConvGRUCell", "ConvLSTMCell", "FireNet", "FireNetInference", "E2VIDRecurrent", "build_network",
-           "count_parameters", "inference_network"]
+__all__ = ["PRECISIONS", "AutocastForward", "ConvGRUCell", "ConvLSTMCell", "FireNet", "FireNetInference",
+           "E2VIDRecurrent", "build_network", "count_parameters", "inference_network"]
 
 
 class ConvGRUCell(nn.Module):
@@ -168,11 +168,40 @@ class FireNetInference(nn.Module):
         return torch.sigmoid_(F.conv2d(x, self.pred_w, self.pred_b)), [h1, h2]
 
 
-def inference_network(net: nn.Module) -> nn.Module:
-    """Return the fastest CPU forward pass for ``net``: a :class:`FireNetInference` for a FireNet, else ``net`` itself.
+PRECISIONS = ("float32", "bfloat16")
+"""Arithmetic of a reconstruction network's forward pass (:func:`inference_network`)."""
 
-    The FireNet's own parameters and state_dict are not changed (the shipped weights load into FireNet as before).
+
+class AutocastForward(nn.Module):
+    """``net``'s forward pass under ``torch.autocast`` in bfloat16; images returned as float32, state carried in bfloat16.
+
+    Convolutions run in bfloat16 (8 bits of mantissa), which oneDNN computes about twice as fast as float32 on CPUs
+    with AVX512-BF16 or AMX. The images differ from float32's by a few 1e-3 (measured in docs/reconstruction.md with
+    ``bench/bench_reconstruction.py --variants`` and their SSIM with ``bench/reconstruction_quality.py --precision``).
     """
+
+    def __init__(self, net: nn.Module) -> None:
+        super().__init__()
+        self.net = net
+        self.device_type = next(net.parameters()).device.type
+
+    def forward(self, voxels: torch.Tensor, state: list | None = None) -> tuple[torch.Tensor, list]:
+        with torch.autocast(self.device_type, dtype=torch.bfloat16):
+            image, state = self.net(voxels, state)
+        return image.float(), state
+
+
+def inference_network(net: nn.Module, precision: str = "float32") -> nn.Module:
+    """Return the fastest forward pass for ``net`` in ``precision`` (one of :data:`PRECISIONS`).
+
+    float32: a :class:`FireNetInference` for a FireNet on the CPU (outputs within ~1e-6), else ``net`` itself.
+    bfloat16: :class:`AutocastForward` around ``net`` (the eager network: oneDNN's bfloat16 convolutions are fastest
+    in its default memory layout). The network's own parameters and state_dict are not changed.
+    """
+    if precision not in PRECISIONS:
+        raise ValueError(f"precision must be one of {', '.join(PRECISIONS)}; got {precision!r}")
+    if precision == "bfloat16":
+        return AutocastForward(net).eval()
     if type(net) is FireNet and all(p.device.type == "cpu" for p in net.parameters()):
         return FireNetInference(net).eval()
     return net
