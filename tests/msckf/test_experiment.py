@@ -241,3 +241,19 @@ def test_bad_input_raises_value_errors():
         run_vio_sim_config({"preset": "boxes_like"})
     with pytest.raises(ValueError, match=r"max_camera_states must be an integer >= 2"):  # MsckfConfig checks
         experiment_msckf_config(VioSimConfig(msckf_overrides={"max_camera_states": 0}))
+
+
+def test_run_vio_sim_seeds_gives_the_same_runs_in_worker_processes():
+    from evio_lib.msckf.experiment import run_vio_sim_seeds
+
+    options = dict(preset="boxes_like", duration=2.0, features=30, baselines=False,
+                   msckf_overrides={"init_sigma_velocity": 0.03})
+    serial = run_vio_sim_seeds([3, 4, 5], jobs=1, **options)
+    parallel = run_vio_sim_seeds([3, 4, 5], jobs=2, **options)
+    assert [r.config.seed for r in parallel] == [3, 4, 5]
+    for a, b in zip(serial, parallel):
+        np.testing.assert_array_equal(a.p_est, b.p_est)
+        np.testing.assert_array_equal(a.nees_pose, b.nees_pose)
+    assert not np.array_equal(serial[0].p_est, serial[1].p_est)  # different seeds, different runs
+    with pytest.raises(ValueError, match="jobs must be an integer >= 1"):
+        run_vio_sim_seeds([1], jobs=0)
