@@ -60,7 +60,7 @@ from evio_lib.features import create_detector
 from evio_lib.frontend import camera_rotation_priors, create_tracker, match_mutual_ratio, stats_table
 from evio_lib.frontend.two_point_ransac import two_point_ransac
 from evio_lib.geometry.rotation import so3_log
-from evio_lib.pipeline import PipelineConfig, load_dataset, run_pipeline
+from evio_lib.pipeline import PipelineConfig, load_dataset, run_pipeline, run_pipelines
 from evio_lib.pipeline.frames import default_window_fraction
 from evio_lib.pipeline.run import msckf_config_for
 
@@ -470,6 +470,9 @@ assert np.linalg.eigvalsh(G)[0] > 0.2 * np.linalg.eigvalsh(G)[1]
 # - **IMU only** (`imu_only=True`): the same filter, no frames: dead reckoning;
 # - **SIFT** with the thesis's descriptor tracker;
 # - **KLT**: pyramidal Lucas-Kanade optical flow with FAST detections, what msckf_vio and OpenVINS run.
+#
+# `run_pipelines(data, configs)` runs `run_pipeline` for each of them, side by side in one worker process per CPU
+# core. A run is deterministic, so it gives the same trajectory as alone; only its timings feel the neighbours.
 
 # %%
 configs = {
@@ -477,7 +480,7 @@ configs = {
     "SIFT": PipelineConfig(features="sift"),
     "KLT + FAST": PipelineConfig(tracker="klt", features="fast"),
 }
-results = {name: run_pipeline(data, config) for name, config in configs.items()}
+results = run_pipelines(data, configs)
 for result in results.values():
     print(result.summary())
 rmse = {name: r.metrics["rmse_m"] for name, r in results.items()}
@@ -658,7 +661,7 @@ assert slider_ratio is None or slider_ratio > 1.5 * box_ratio  # real slider fra
 
 # %%
 data_aerial = load_dataset("aerial_like", duration=D_APS)
-aerial_results = {name: run_pipeline(data_aerial, config) for name, config in configs.items()}
+aerial_results = run_pipelines(data_aerial, configs)
 for result in aerial_results.values():
     print(result.summary())
 plot_error_comparison({name: r.t - r.t[0] for name, r in aerial_results.items()},
@@ -765,7 +768,7 @@ event_configs = {
     "KLT + FAST, APS frames": PipelineConfig(tracker="klt", features="fast"),
     "KLT + FAST, event frames": PipelineConfig(tracker="klt", features="fast", frames="events"),
 }
-event_results = {name: run_pipeline(data_events, config) for name, config in event_configs.items()}
+event_results = run_pipelines(data_events, event_configs)
 for result in event_results.values():
     print(result.summary())
 ev, aps = event_results["SIFT, event frames"], event_results["SIFT, APS frames"]
@@ -878,7 +881,7 @@ mc_configs = {
     "SIFT, motion-compensated event frames": PipelineConfig(features="sift", frames="mc-events"),
     "KLT + FAST, motion-compensated event frames": PipelineConfig(tracker="klt", features="fast", frames="mc-events"),
 }
-mc_results = {name: run_pipeline(data_events, config) for name, config in mc_configs.items()}
+mc_results = run_pipelines(data_events, mc_configs)
 for result in mc_results.values():
     print(result.summary())
 all_rmse = ev_rmse | {name: r.metrics["rmse_m"] for name, r in mc_results.items()}

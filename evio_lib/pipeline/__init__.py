@@ -19,6 +19,7 @@ _EXPORTS = {
     "PRESETS": "dataset", "LoadedDataset": "dataset", "load_dataset": "dataset",
     "read_kalibr_extrinsics": "dataset", "simulate_preset": "dataset",
     "INIT_MODES": "run", "PipelineConfig": "run", "PipelineResult": "run", "run_pipeline": "run",
+    "run_pipelines": "run",
 }
 
 __all__ = list(_EXPORTS)

@@ -42,7 +42,7 @@ import time
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any, Iterator, Mapping
 
 import numpy as np
 
@@ -59,7 +59,8 @@ from evio_lib.pipeline.frames import (FRAME_SOURCES, STREAM_ID_OFFSET, aps_frame
                                       mc_event_frames)
 from evio_lib.threads import set_threads, single_threaded_blas  # re-exported: `from evio_lib.pipeline.run import set_threads` keeps working
 
-__all__ = ["INIT_MODES", "MIN_PERCENT_DISTANCE_M", "PipelineConfig", "PipelineResult", "run_pipeline", "set_threads"]
+__all__ = ["INIT_MODES", "MIN_PERCENT_DISTANCE_M", "PipelineConfig", "PipelineResult", "run_pipeline", "run_pipelines",
+           "set_threads"]
 
 INIT_MODES = ("auto", "groundtruth", "static")
 #: Shortest ground-truth path for which the % of distance is reported, m. Over a shorter path the mean error divided
@@ -714,3 +715,34 @@ def trajectory_metrics(result: PipelineResult, aligned_only: bool = False) -> di
                     "orientation_rmse_deg", "rmse_first_half_m", "rmse_second_half_m"):
             row[key] = float("nan")
     return row
+
+
+def run_pipelines(data: LoadedDataset, configs: Mapping[str, PipelineConfig], jobs: int | None = None,
+                  threads: int = 1) -> dict[str, PipelineResult]:
+    """Return ``{name: run_pipeline(data, config)}`` for every configuration, the runs spread over worker processes.
+
+    Every run is deterministic, so its trajectory, tracks and metrics are the same in a worker as here (tested).
+    Its timings are those of its own process with ``threads`` threads: on a CPU with fewer free cores than workers
+    they are slower than a run alone. ``jobs``: worker processes (default :func:`evio_lib.sim.jobs.default_jobs`:
+    ``EVIO_JOBS``, else one per core, at most 4); 1 runs them here, one after the other.
+
+    >>> from evio_lib.pipeline import load_dataset
+    >>> data = load_dataset("boxes_like", duration=2.0)  # doctest: +SKIP
+    >>> results = run_pipelines(data, {"SIFT": PipelineConfig(), "KLT": PipelineConfig(tracker="klt", features="fast")})  # doctest: +SKIP
+    """
+    from evio_lib.sim.jobs import check_jobs, default_jobs
+
+    names = list(configs)
+    jobs = min(check_jobs(default_jobs() if jobs is None else jobs), max(len(names), 1))
+    if jobs == 1:
+        return {name: run_pipeline(data, configs[name]) for name in names}
+    from joblib import Parallel, delayed
+
+    results = Parallel(n_jobs=jobs)(delayed(_run_in_worker)(data, configs[name], threads) for name in names)
+    return dict(zip(names, results))
+
+
+def _run_in_worker(data: LoadedDataset, config: PipelineConfig, threads: int) -> PipelineResult:
+    """One run of :func:`run_pipelines` in a worker process, limited to ``threads`` threads."""
+    set_threads(threads)
+    return run_pipeline(data, config)

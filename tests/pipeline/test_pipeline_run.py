@@ -261,3 +261,19 @@ def test_table_rows_cover_every_frame_source_and_the_help_names_them():
     add_table_arguments(parser)
     rows_help = next(a.help for a in parser._actions if a.dest == "rows")
     assert all(row.key in rows_help.split() for row in TABLE_ROWS)
+
+
+def test_run_pipelines_in_workers_equals_runs_one_by_one(boxes_aps):
+    from evio_lib.pipeline.run import run_pipelines
+
+    configs = {"IMU only": PipelineConfig(imu_only=True, max_duration=1.5),
+               "KLT": PipelineConfig(tracker="klt", features="fast", max_duration=1.5)}
+    serial = run_pipelines(boxes_aps, configs, jobs=1)
+    parallel = run_pipelines(boxes_aps, configs, jobs=2)
+    assert list(parallel) == list(configs)
+    for name in configs:
+        np.testing.assert_array_equal(parallel[name].p_IinG, serial[name].p_IinG)
+        assert parallel[name].metrics["rmse_m"] == serial[name].metrics["rmse_m"]
+    assert serial["KLT"].metrics["rmse_m"] < serial["IMU only"].metrics["rmse_m"]
+    with pytest.raises(ValueError, match="jobs must be an integer >= 1"):
+        run_pipelines(boxes_aps, configs, jobs=0)
