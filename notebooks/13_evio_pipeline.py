@@ -916,10 +916,11 @@ assert all_rmse["KLT + FAST, APS frames"] < all_rmse["KLT + FAST, motion-compens
 
 # %%
 from evio_lib.pipeline.table import aggregate, format_table6, run_table, table_rows
+from evio_lib.sim.jobs import default_jobs  # one worker per core (EVIO_JOBS overrides)
 
 rows = table_rows(["imu", "imu_bias", "sift_aps", "klt_aps"])
 records = run_table(presets=("boxes_like",), seeds=TABLE_SEEDS, rows=rows,
-                    durations={"boxes_like": TABLE_DURATION}, jobs=1, progress=False)
+                    durations={"boxes_like": TABLE_DURATION}, jobs=default_jobs(), progress=False)
 table = {row["row"]: row for row in aggregate(records)}
 display(Markdown(f"boxes_like, first {TABLE_DURATION:g} s, seeds {list(TABLE_SEEDS)}:\n\n" +
                  format_table6(list(table.values()))))
