@@ -90,6 +90,19 @@ def execute_notebook(path: Path, timeout_s: int = 1800, fast: bool | None = None
     client = NotebookClient(notebook, timeout=timeout_s, kernel_name="python3",
                             resources={"metadata": {"path": str(path.parent)}},
                             extra_arguments=["--IPKernelApp.log_level=ERROR"])
-    client.execute(env=kernel_environment(fast))
+    notebook.cells.append(nbformat.v4.new_code_cell(_STOP_WORKERS))  # executed last, never stored
+    try:
+        client.execute(env=kernel_environment(fast))
+    finally:
+        notebook.cells.pop()
     nbformat.write(notebook, path)
     return path
+
+
+#: Run after a notebook's last cell: stop joblib's idle worker processes (``run_pipelines``, ``run_table``, the
+#: simulator's frame workers) before the kernel shuts down. Otherwise the kernel's shutdown interrupts them and each
+#: prints a KeyboardInterrupt traceback into the course's output. Reads loky's executor without creating one.
+_STOP_WORKERS = """import sys as _sys
+_pool = getattr(_sys.modules.get("joblib.externals.loky.reusable_executor"), "_executor", None)
+if _pool is not None:
+    _pool.shutdown(wait=True)"""

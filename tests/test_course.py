@@ -99,3 +99,28 @@ def test_executing_prints_no_kernel_transport_warning(tmp_path, capfd):
     captured = capfd.readouterr()
     assert "without encryption" not in captured.err + captured.out
     assert "hello" in "".join(json.loads(notebook_path.read_text())["cells"][0]["outputs"][0]["text"])
+
+
+def test_joblib_workers_are_stopped_before_the_kernel_and_the_cleanup_is_not_stored(tmp_path, capfd):
+    source = tmp_path / "01_workers.py"
+    source.write_text("# %%\nimport math\nfrom joblib import Parallel, delayed\n"
+                      "print(sum(Parallel(n_jobs=2)(delayed(math.sqrt)(i) for i in range(4))))\n")
+    notebook_path = course.build_notebooks([source], out_dir=tmp_path / "nb")[0]
+    course.execute_notebook(notebook_path, timeout_s=120, fast=True)
+    cells = json.loads(notebook_path.read_text())["cells"]
+    assert len(cells) == 1 and "_pool" not in "".join(cells[0]["source"])
+    assert "KeyboardInterrupt" not in capfd.readouterr().err
+
+
+def test_stop_workers_ends_the_reusable_pool_without_making_one():
+    import joblib.externals.loky.reusable_executor as loky_pool
+    from joblib import Parallel, delayed
+
+    assert Parallel(n_jobs=2)(delayed(abs)(-i) for i in range(4)) == [0, 1, 2, 3]
+    pool = loky_pool._executor
+    processes = list(pool._processes.values())
+    assert processes and all(p.is_alive() for p in processes)
+    exec(course._STOP_WORKERS, {})
+    assert not any(p.is_alive() for p in processes)
+    exec(course._STOP_WORKERS, {})  # a stopped pool again: nothing to do, no error
+    assert Parallel(n_jobs=2)(delayed(abs)(-i) for i in range(3)) == [0, 1, 2]  # joblib starts a new pool
