@@ -163,12 +163,12 @@ def build_parser(full: Container[str] | None = None) -> argparse.ArgumentParser:
     p = sub.add_parser("course", help="build and execute the course notebooks (build/notebooks/*.ipynb)",
                        description="Convert the notebooks/NN_*.py lessons (jupytext) into build/notebooks/*.ipynb "
                                    "and execute them in order, storing the outputs in the .ipynb files. On a 2-core "
-                                   "CPU the whole course takes about 11 min in full mode and about 3 min with --fast.")
+                                   "CPU the whole course takes about 10 min in full mode and about 3 min with --fast.")
     p.add_argument("--only", nargs="+", metavar="NN",
                    help="only notebooks whose names start with these prefixes, e.g. 01 02")
     p.add_argument("--fast", action="store_true",
                    help="fast mode: tiny data and few iterations, the same lessons (about 3 min for the whole course "
-                        "instead of about 11; the same as EVIO_FAST=1)")
+                        "instead of about 10; the same as EVIO_FAST=1)")
     p.add_argument("--no-execute", action="store_true", help="only convert the jupytext sources to .ipynb")
     p.add_argument("--open", action="store_true", help="start JupyterLab on the built notebooks afterwards")
     p.set_defaults(func=_cmd_course)

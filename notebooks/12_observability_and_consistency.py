@@ -197,13 +197,14 @@ assert residual["OC H, first estimates"] < 1e-9
 
 # %%
 n_runs = 3 if FAST else 8
+jobs = 1 if FAST else None  # worker processes (None: one per core); fast mode's runs are too short to pay for them
 duration = 3.0 if FAST else 10.0
 start = {"init_sigma_velocity": 0.03}
 results = {}
 t0 = time.perf_counter()
 for oc in (True, False):  # independent runs, spread over the CPU's cores (the same numbers as one by one)
     results[oc] = run_vio_sim_seeds([100 + k for k in range(n_runs)], preset="boxes_like", duration=duration, oc=oc,
-                                    baselines=False, msckf_overrides=start)
+                                    baselines=False, msckf_overrides=start, jobs=jobs)
 print(f"{2 * n_runs} runs of {duration:g} s in {time.perf_counter() - t0:.1f} s")
 t = results[True][0].t
 lo6, hi6 = chi2_bounds(6, n_runs)
@@ -286,7 +287,8 @@ n_runs_att, duration_att = (3, 3.0) if FAST else (8, 10.0)
 big_start = {"init_sigma_velocity": 0.03, "init_sigma_attitude": 0.05}
 t0 = time.perf_counter()
 results_att = {oc: run_vio_sim_seeds([100 + k for k in range(n_runs_att)], preset="boxes_like", duration=duration_att,
-                                     oc=oc, baselines=False, msckf_overrides=big_start) for oc in (True, False)}
+                                     oc=oc, baselines=False, msckf_overrides=big_start, jobs=jobs)
+               for oc in (True, False)}
 print(f"{2 * n_runs_att} runs of {duration_att:g} s in {time.perf_counter() - t0:.1f} s")
 lo6a, hi6a = chi2_bounds(6, n_runs_att)
 lo1a, hi1a = chi2_bounds(1, n_runs_att)

@@ -70,6 +70,7 @@ FAST = fast_mode()  # CI sets EVIO_FAST=1: a few seconds of each run
 D_APS = 5.0 if FAST else 20.0  # seconds of each preset for the APS-frame runs
 D_EVENTS = 2.0 if FAST else 8.0  # seconds simulated with events (slow: several CPU seconds per simulated second)
 TABLE_DURATION, TABLE_SEEDS = (3.0, (0,)) if FAST else (6.0, (0, 1))
+JOBS = 1 if FAST else None  # worker processes for the side-by-side runs (None: one per core); fast runs are too short
 EUROC = Path(evio_lib.__file__).resolve().parents[1].parent / "shared" / "data" / "real" / "euroc_V1_01_easy_micro"
 HAVE_EUROC = (EUROC / "mav0").is_dir()  # real data is optional: its cells skip without it
 print(f"fast mode: {FAST}; APS runs over {D_APS:g} s, event runs over {D_EVENTS:g} s; EuRoC slice found: {HAVE_EUROC}")
@@ -480,7 +481,7 @@ configs = {
     "SIFT": PipelineConfig(features="sift"),
     "KLT + FAST": PipelineConfig(tracker="klt", features="fast"),
 }
-results = run_pipelines(data, configs)
+results = run_pipelines(data, configs, jobs=JOBS)
 for result in results.values():
     print(result.summary())
 rmse = {name: r.metrics["rmse_m"] for name, r in results.items()}
@@ -661,7 +662,7 @@ assert slider_ratio is None or slider_ratio > 1.5 * box_ratio  # real slider fra
 
 # %%
 data_aerial = load_dataset("aerial_like", duration=D_APS)
-aerial_results = run_pipelines(data_aerial, configs)
+aerial_results = run_pipelines(data_aerial, configs, jobs=JOBS)
 for result in aerial_results.values():
     print(result.summary())
 plot_error_comparison({name: r.t - r.t[0] for name, r in aerial_results.items()},
@@ -768,7 +769,7 @@ event_configs = {
     "KLT + FAST, APS frames": PipelineConfig(tracker="klt", features="fast"),
     "KLT + FAST, event frames": PipelineConfig(tracker="klt", features="fast", frames="events"),
 }
-event_results = run_pipelines(data_events, event_configs)
+event_results = run_pipelines(data_events, event_configs, jobs=JOBS)
 for result in event_results.values():
     print(result.summary())
 ev, aps = event_results["SIFT, event frames"], event_results["SIFT, APS frames"]
@@ -881,7 +882,7 @@ mc_configs = {
     "SIFT, motion-compensated event frames": PipelineConfig(features="sift", frames="mc-events"),
     "KLT + FAST, motion-compensated event frames": PipelineConfig(tracker="klt", features="fast", frames="mc-events"),
 }
-mc_results = run_pipelines(data_events, mc_configs)
+mc_results = run_pipelines(data_events, mc_configs, jobs=JOBS)
 for result in mc_results.values():
     print(result.summary())
 all_rmse = ev_rmse | {name: r.metrics["rmse_m"] for name, r in mc_results.items()}
@@ -920,7 +921,7 @@ from evio_lib.sim.jobs import default_jobs  # one worker per core (EVIO_JOBS ove
 
 rows = table_rows(["imu", "imu_bias", "sift_aps", "klt_aps"])
 records = run_table(presets=("boxes_like",), seeds=TABLE_SEEDS, rows=rows,
-                    durations={"boxes_like": TABLE_DURATION}, jobs=default_jobs(), progress=False)
+                    durations={"boxes_like": TABLE_DURATION}, jobs=JOBS or default_jobs(), progress=False)
 table = {row["row"]: row for row in aggregate(records)}
 display(Markdown(f"boxes_like, first {TABLE_DURATION:g} s, seeds {list(TABLE_SEEDS)}:\n\n" +
                  format_table6(list(table.values()))))

@@ -292,7 +292,7 @@ def test_help_texts_say_what_a_user_needs(capsys):
     assert "python -m evio_lib" not in parser.description.splitlines()[0]  # says what evio does, not how to type it
     assert cli.main(["course", "--help"]) == 0
     text = " ".join(capsys.readouterr().out.split())
-    assert "build/notebooks" in text and "about 3 min" in text and "about 11 min" in text and "--fast" in text
+    assert "build/notebooks" in text and "about 3 min" in text and "about 10 min" in text and "--fast" in text
     assert cli.main(["features-benchmark", "--help"]) == 0
     text = " ".join(capsys.readouterr().out.split())
     assert "default run" in text and "two hours on a 2-core CPU" in text and "--keep-going" in text and "--force" in text
