@@ -31,6 +31,27 @@ from numba import njit
 __all__ = ["visible_slots", "shade_slots", "sample_atlas"]
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _minimum(a, b):  # type: ignore[no-untyped-def]
+    """``np.minimum(a, b)`` for two scalars: NaN if either is NaN, else ``a`` if ``a < b``, else ``b`` (so a tie of
+    +0 and -0 gives ``b``, as NumPy does; Python's ``min`` gives ``a``, which flips the z-buffer's sign test)."""
+    if a != a:
+        return a
+    if b != b:
+        return b
+    return a if a < b else b
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _maximum(a, b):  # type: ignore[no-untyped-def]
+    """``np.maximum(a, b)`` for two scalars, with NumPy's rule for NaN and ties (see :func:`_minimum`)."""
+    if a != a:
+        return a
+    if b != b:
+        return b
+    return a if a > b else b
+
+
 @njit(cache=True, nogil=True)
 def visible_slots(x: np.ndarray, y: np.ndarray, boxes: np.ndarray, forms: np.ndarray, index_bits: int
                   ) -> np.ndarray:
@@ -60,9 +81,9 @@ def visible_slots(x: np.ndarray, y: np.ndarray, boxes: np.ndarray, forms: np.nda
                 w = xv * wa + yv * wb + wc
                 s = xv * sa + yv * sb + sc
                 t = xv * ta + yv * tb + tc
-                edge = min(s, t)
-                edge = min(edge, w - s)
-                edge = min(edge, w - t)
+                edge = _minimum(s, t)
+                edge = _minimum(edge, w - s)
+                edge = _minimum(edge, w - t)
                 bits[0] = math.copysign(w, edge)
                 key = (bits_int[0] & clear) | tag
                 if key > keys[r, c]:
@@ -98,8 +119,8 @@ def shade_slots(x: np.ndarray, y: np.ndarray, slot: np.ndarray, columns: np.ndar
             if w <= zero:
                 k, w, col_w, row_w = 0, one, zero, zero
             inv_w = one / w
-            col = min(max(col_w * inv_w, zero), spans[k, 0])
-            row = min(max(row_w * inv_w, zero), spans[k, 1])
+            col = _minimum(_maximum(col_w * inv_w, zero), spans[k, 0])
+            row = _minimum(_maximum(row_w * inv_w, zero), spans[k, 1])
             w_out[r, c], col_out[r, c], row_out[r, c], slot_out[r, c] = w, col, row, k
     return w_out, col_out, row_out, slot_out
 
@@ -127,10 +148,10 @@ def sample_atlas(slot: np.ndarray, col: np.ndarray, row: np.ndarray, lod: np.nda
                 cv = cv - np.floor(cv / pu) * pu
                 rv = rv - np.floor(rv / pv) * pv
             top_level = max_level[k]
-            level_of_detail = min(lod[r, c], top_level)
+            level_of_detail = _minimum(lod[r, c], top_level)
             level0 = np.floor(level_of_detail)
             blend = level_of_detail - level0  # trilinear weight of the coarser level
-            level1 = min(level0 + one, top_level)
+            level1 = _minimum(level0 + one, top_level)
             first_level = k * n_levels
             value0 = _bilinear(data, base[first_level + np.int64(level0)], stride, scales[np.int64(level0)], cv, rv)
             value1 = _bilinear(data, base[first_level + np.int64(level1)], stride, scales[np.int64(level1)], cv, rv)

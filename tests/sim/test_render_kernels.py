@@ -77,3 +77,17 @@ def test_recording_is_the_same_with_either_renderer(monkeypatch: pytest.MonkeyPa
     assert len(reference.events) > 10_000 and len(reference.frames) >= 5
     np.testing.assert_array_equal(compiled.events, reference.events)
     np.testing.assert_array_equal(compiled.frames, reference.frames)
+
+
+def test_exact_plane_corners_resolve_like_numpy(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Rays through a plane's exact corner give edge functions of +0 and -0: the tie must break as np.minimum's."""
+    texture = np.random.default_rng(0).random((8, 8), dtype=np.float32)
+    camera = PinholeRadtan(fx=20.0, fy=20.0, cx=8.0, cy=6.0, width=17, height=13)  # pixel centres on whole rays
+    compared = 0
+    for origin in ([0.0, 0.0, 2.0], [-1.0, 0.0, 2.0], [0.0, -1.0, 4.0], [-0.5, -0.5, 1.0]):
+        for axis_u, axis_v in (([2.0, 0, 0], [0, -2.0, 0]), ([2.0, 0, 0], [0, 2.0, 0]), ([0, 2.0, 0], [2.0, 0, 0])):
+            scene = Scene([TexturedPlane(origin, axis_u, axis_v, texture)], background=0.3)
+            reference, compiled = _render_both(monkeypatch, scene, camera, np.eye(3), np.zeros(3))
+            np.testing.assert_array_equal(compiled, reference)
+            compared += 1
+    assert compared == 12
