@@ -192,8 +192,8 @@ assert residual["OC H, first estimates"] < 1e-9
 # are small: 1 mrad of attitude and, instead of the library's 0.1 m/s, 0.03 m/s of velocity (`boxes_like` starts
 # slowly, and a 3-4σ velocity draw at 0.1 m/s can make every early triangulation fail;
 # [docs/msckf_consistency.md](../docs/msckf_consistency.md) has the measurements). `run_vio_sim_seeds` runs one
-# experiment per seed, spread over the CPU's cores: each run draws only from its own seed, so the numbers are the same
-# as running them one after the other.
+# experiment per seed; in full mode it spreads them over the CPU's cores (fast mode's short runs go one after the
+# other). Each run draws only from its own seed, so the numbers are the same either way.
 
 # %%
 n_runs = 3 if FAST else 8
@@ -202,7 +202,7 @@ duration = 3.0 if FAST else 10.0
 start = {"init_sigma_velocity": 0.03}
 results = {}
 t0 = time.perf_counter()
-for oc in (True, False):  # independent runs, spread over the CPU's cores (the same numbers as one by one)
+for oc in (True, False):  # independent runs: the same numbers in worker processes as one by one
     results[oc] = run_vio_sim_seeds([100 + k for k in range(n_runs)], preset="boxes_like", duration=duration, oc=oc,
                                     baselines=False, msckf_overrides=start, jobs=jobs)
 print(f"{2 * n_runs} runs of {duration:g} s in {time.perf_counter() - t0:.1f} s")

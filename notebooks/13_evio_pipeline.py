@@ -472,8 +472,9 @@ assert np.linalg.eigvalsh(G)[0] > 0.2 * np.linalg.eigvalsh(G)[1]
 # - **SIFT** with the thesis's descriptor tracker;
 # - **KLT**: pyramidal Lucas-Kanade optical flow with FAST detections, what msckf_vio and OpenVINS run.
 #
-# `run_pipelines(data, configs)` runs `run_pipeline` for each of them, side by side in one worker process per CPU
-# core. A run is deterministic, so it gives the same trajectory as alone; only its timings feel the neighbours.
+# `run_pipelines(data, configs)` runs `run_pipeline` for each of them. In full mode they run side by side, one worker
+# process per CPU core (at most 4); fast mode's short runs go one after the other (`JOBS`). A run is deterministic,
+# so it gives the same trajectory either way; only its timings feel the neighbours.
 
 # %%
 configs = {

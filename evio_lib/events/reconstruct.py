@@ -142,7 +142,10 @@ class LearnedReconstructor(Reconstructor):
         super().__init__(width, height)
         import torch
 
-        from evio_lib.events.reconstruction.nets import build_network, inference_network
+        from evio_lib.events.reconstruction.nets import PRECISIONS, build_network, inference_network
+
+        if precision not in PRECISIONS:  # before the checkpoint loads and the thread count changes
+            raise ValueError(f"precision must be one of {', '.join(PRECISIONS)}; got {precision!r}")
 
         from evio_lib.io.checkpoint import CheckpointError, load_state, read_checkpoint
 
@@ -164,7 +167,8 @@ class LearnedReconstructor(Reconstructor):
                    f"its state_dict does not fit the {ckpt['architecture']} network its settings describe")
         self.net.to(self.device).eval()
         # the forward pass used: FireNetInference on CPU (same outputs within ~1e-6, ~1.2-1.5x faster), else the net;
-        # precision="bfloat16": the net under autocast (about 1.6-1.7x faster again on AVX512-BF16 CPUs, a few 1e-3 off)
+        # precision="bfloat16": the net under autocast (1.35x the frames/s on 2 threads, 1.56x on one, on this AVX-512
+        # machine with native bfloat16; images a few 1e-3 off, the same SSIM within 0.001: docs/reconstruction.md)
         self.forward = inference_network(self.net, precision)
         self.precision = precision
         self.checkpoint = path

@@ -34,6 +34,7 @@ import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from numbers import Integral
 from typing import Any, Sequence
 
 import numpy as np
@@ -603,8 +604,9 @@ def run_vio_sim_seeds(seeds: Sequence[int], jobs: int | None = None, **kwargs: A
 
     Monte Carlo runs are independent and each seeds all of its own random streams, so the results are the same
     numbers in any number of processes (tested). ``jobs``: worker processes (default
-    :func:`evio_lib.sim.jobs.default_jobs`: ``EVIO_JOBS``, else one per core, at most 4); 1 runs them here, in order.
-    Each worker keeps one BLAS thread.
+    :func:`evio_lib.sim.jobs.default_jobs`: ``EVIO_JOBS``, else one per logical CPU, at most 4 and at most one per
+    seed); 1 runs them here, in order. The filter's steps run on one BLAS thread in any process
+    (:func:`evio_lib.threads.single_threaded_blas`). ``out_dir`` is refused: the runs would write the same files.
 
     >>> runs = run_vio_sim_seeds([0, 1], jobs=1, duration=2.0, features=30, baselines=False)
     >>> [r.config.seed for r in runs], bool(runs[0].metrics["rmse_m"] != runs[1].metrics["rmse_m"])
@@ -612,6 +614,13 @@ def run_vio_sim_seeds(seeds: Sequence[int], jobs: int | None = None, **kwargs: A
     """
     from evio_lib.sim.jobs import check_jobs, default_jobs
 
+    if kwargs.get("out_dir") is not None:
+        raise ValueError("run_vio_sim_seeds writes no files: every seed would write out_dir's trajectory.txt; call "
+                         "run_vio_sim(seed=..., out_dir=...) for the run to keep")
+    seeds = list(seeds)
+    bad = [s for s in seeds if isinstance(s, bool) or not isinstance(s, Integral) or s < 0]
+    if bad:
+        raise ValueError(f"seeds must be non-negative integers; got {bad[:3]}")
     seeds = [int(s) for s in seeds]
     jobs = min(check_jobs(default_jobs() if jobs is None else jobs), max(len(seeds), 1))
     if jobs == 1:

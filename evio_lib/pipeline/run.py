@@ -722,9 +722,10 @@ def run_pipelines(data: LoadedDataset, configs: Mapping[str, PipelineConfig], jo
     """Return ``{name: run_pipeline(data, config)}`` for every configuration, the runs spread over worker processes.
 
     Every run is deterministic, so its trajectory, tracks and metrics are the same in a worker as here (tested).
-    Its timings are those of its own process with ``threads`` threads: on a CPU with fewer free cores than workers
-    they are slower than a run alone. ``jobs``: worker processes (default :func:`evio_lib.sim.jobs.default_jobs`:
-    ``EVIO_JOBS``, else one per core, at most 4); 1 runs them here, one after the other.
+    Its timings are those of its own process, set to ``threads`` threads (:func:`set_threads`): on a CPU with fewer
+    free cores than workers, or whose cores are hyper-threads, they are slower than a run alone. ``jobs``: worker
+    processes (default :func:`evio_lib.sim.jobs.default_jobs`: ``EVIO_JOBS``, else one per logical CPU, at most 4 and
+    at most one per configuration); 1 runs them here, one after the other, with this process's thread settings.
 
     >>> from evio_lib.pipeline import load_dataset
     >>> data = load_dataset("boxes_like", duration=2.0)  # doctest: +SKIP
@@ -734,6 +735,8 @@ def run_pipelines(data: LoadedDataset, configs: Mapping[str, PipelineConfig], jo
 
     names = list(configs)
     jobs = min(check_jobs(default_jobs() if jobs is None else jobs), max(len(names), 1))
+    if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
+        raise ValueError(f"threads must be an integer >= 1 (threads per worker); got {threads!r}")
     if jobs == 1:
         return {name: run_pipeline(data, configs[name]) for name in names}
     from joblib import Parallel, delayed

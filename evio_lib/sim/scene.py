@@ -36,6 +36,7 @@ SIGGRAPH 1983; the thesis (§2.2) for why event cameras need smooth, contrasted 
 from __future__ import annotations
 
 import os
+import warnings
 from dataclasses import dataclass
 from typing import Any, Sequence
 
@@ -63,31 +64,39 @@ __all__ = [
 
 RENDERER_ENV = "EVIO_RENDERER"
 """Environment variable that picks the intensity renderer: ``numba`` (compiled kernels), ``numpy``, or ``auto``."""
-_NUMBA_IMPORTS: list[bool] = []  # memo of whether Numba imports here
+_KERNELS_PROBLEM: list[str] = []  # memo: "" when the compiled kernels load here, else why they do not
 
 
 def renderer_backend() -> str:
     """Return the backend of :meth:`Scene.render_intensity`: ``"numba"`` or ``"numpy"`` (same numbers, bit for bit).
 
-    ``EVIO_RENDERER`` = ``numba`` | ``numpy`` | ``auto`` (default: Numba when it imports, else NumPy). The compiled
-    kernels (:mod:`evio_lib.sim.render_kernels`) render about 4x faster; NumPy is the reference they are tested
-    against.
+    ``EVIO_RENDERER`` = ``numba`` | ``numpy`` | ``auto`` (default: the compiled kernels when they load, else NumPy
+    with one warning saying why). The kernels (:mod:`evio_lib.sim.render_kernels`) render about 2x faster; NumPy is
+    the reference they are tested against. They need the numba package and a writable cache folder for their machine
+    code (``evio_lib/sim/__pycache__``, else Numba's user cache, else ``NUMBA_CACHE_DIR``).
     """
     choice = os.environ.get(RENDERER_ENV, "auto").strip().lower() or "auto"
     if choice not in ("auto", "numba", "numpy"):
         raise ValueError(f"{RENDERER_ENV} must be one of auto, numba, numpy; got {choice!r}")
     if choice == "numpy":
         return "numpy"
-    if not _NUMBA_IMPORTS:
+    if not _KERNELS_PROBLEM:
         try:
-            import numba  # noqa: F401
-        except ImportError:
-            _NUMBA_IMPORTS.append(False)
+            import evio_lib.sim.render_kernels  # noqa: F401  (compiles lazily; fails here without numba or a cache)
+        except ImportError as error:
+            _KERNELS_PROBLEM.append(f"the numba package does not import ({error}); pip install numba")
+        except Exception as error:  # e.g. RuntimeError: cannot cache function ...: no locator available
+            _KERNELS_PROBLEM.append(f"Numba cannot load the kernels ({type(error).__name__}: {error}); set "
+                                    f"NUMBA_CACHE_DIR to a writable folder")
         else:
-            _NUMBA_IMPORTS.append(True)
-    if not _NUMBA_IMPORTS[0]:
+            _KERNELS_PROBLEM.append("")
+        if _KERNELS_PROBLEM[0] and choice == "auto":
+            warnings.warn(f"rendering with NumPy (about 2x slower, same images): {_KERNELS_PROBLEM[0]}; "
+                          f"{RENDERER_ENV}=numpy silences this", RuntimeWarning, stacklevel=2)
+    if _KERNELS_PROBLEM[0]:
         if choice == "numba":
-            raise ValueError(f"{RENDERER_ENV}=numba needs the numba package (pip install numba)")
+            raise ValueError(f"{RENDERER_ENV}=numba cannot be used here: {_KERNELS_PROBLEM[0]}; or set "
+                             f"{RENDERER_ENV}=numpy")
         return "numpy"
     return "numba"
 
@@ -408,6 +417,9 @@ class _CameraTables:
         grid = np.asarray(camera.normalized_grid(), dtype=np.float64)
         if grid.ndim != 3 or grid.shape[2] != 2 or grid.shape[0] < 2 or grid.shape[1] < 2:
             raise ValueError(f"camera.normalized_grid() must have shape (H, W, 2) with H, W >= 2; got {grid.shape}")
+        if not np.isfinite(grid).all():  # e.g. a distortion with no inverse at some pixels
+            bad = int(np.count_nonzero(~np.isfinite(grid).all(axis=2)))
+            raise ValueError(f"camera.normalized_grid() must be finite; {bad} pixels have NaN/inf rays")
         self.grid_ref = camera.normalized_grid()
         self.height, self.width = grid.shape[:2]
         self.x64 = np.ascontiguousarray(grid[..., 0])

@@ -257,3 +257,7 @@ def test_run_vio_sim_seeds_gives_the_same_runs_in_worker_processes():
     assert not np.array_equal(serial[0].p_est, serial[1].p_est)  # different seeds, different runs
     with pytest.raises(ValueError, match="jobs must be an integer >= 1"):
         run_vio_sim_seeds([1], jobs=0)
+    with pytest.raises(ValueError, match="writes no files"):
+        run_vio_sim_seeds([1, 2], out_dir="somewhere")
+    with pytest.raises(ValueError, match="seeds must be non-negative integers; got \\[1.5\\]"):
+        run_vio_sim_seeds([1.5])

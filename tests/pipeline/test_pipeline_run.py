@@ -277,3 +277,5 @@ def test_run_pipelines_in_workers_equals_runs_one_by_one(boxes_aps):
     assert serial["KLT"].metrics["rmse_m"] < serial["IMU only"].metrics["rmse_m"]
     with pytest.raises(ValueError, match="jobs must be an integer >= 1"):
         run_pipelines(boxes_aps, configs, jobs=0)
+    with pytest.raises(ValueError, match="threads must be an integer >= 1"):
+        run_pipelines(boxes_aps, configs, jobs=2, threads=0)

@@ -91,3 +91,34 @@ def test_exact_plane_corners_resolve_like_numpy(monkeypatch: pytest.MonkeyPatch)
             np.testing.assert_array_equal(compiled, reference)
             compared += 1
     assert compared == 12
+
+
+def test_kernels_that_cannot_load_fall_back_to_numpy_or_are_named(monkeypatch: pytest.MonkeyPatch) -> None:
+    import evio_lib.sim.scene as scene_module
+
+    problem = "Numba cannot load the kernels (RuntimeError: cannot cache function); set NUMBA_CACHE_DIR"
+    monkeypatch.setattr(scene_module, "_KERNELS_PROBLEM", [problem])
+    monkeypatch.delenv(RENDERER_ENV, raising=False)
+    assert renderer_backend() == "numpy"
+    monkeypatch.setenv(RENDERER_ENV, "numba")
+    with pytest.raises(ValueError, match="EVIO_RENDERER=numba cannot be used here: Numba cannot load .*EVIO_RENDERER=numpy"):
+        renderer_backend()
+
+
+def test_a_camera_with_non_finite_rays_is_refused_by_both_renderers(monkeypatch: pytest.MonkeyPatch) -> None:
+    class BrokenCamera:
+        width, height = 8, 6
+
+        def __init__(self) -> None:
+            ys, xs = np.mgrid[0:6, 0:8]
+            self._grid = np.stack([(xs - 3.5) / 10.0, (ys - 2.5) / 10.0], axis=-1)
+            self._grid[2, 3] = np.nan
+
+        def normalized_grid(self) -> np.ndarray:
+            return self._grid
+
+    scene = Scene([TexturedPlane([-1.0, -1.0, 2.0], [2.0, 0, 0], [0, 2.0, 0], np.full((4, 4), 0.5, np.float32))])
+    for backend in ("numpy", "numba"):
+        monkeypatch.setenv(RENDERER_ENV, backend)
+        with pytest.raises(ValueError, match="normalized_grid\\(\\) must be finite; 1 pixels have NaN/inf rays"):
+            scene.render_intensity(BrokenCamera(), np.eye(3), np.zeros(3))

@@ -111,8 +111,9 @@ def add_reconstruct_arguments(parser: argparse.ArgumentParser) -> argparse.Argum
                         help=f"reconstructor: {', '.join(available_reconstructors())} (default firenet, the shipped "
                              f"network), or a checkpoint file written by reconstruct-train")
     parser.add_argument("--precision", choices=["float32", "bfloat16"], default="float32",
-                        help="a network's arithmetic (default float32; bfloat16 is 1.35-1.55x faster on CPUs with "
-                             "AVX512-BF16 or AMX, at the same SSIM within 0.001 on the held-out stretches)")
+                        help="a network's arithmetic (default float32; bfloat16 gave 1.35x the frames per second on two "
+                             "threads of a CPU with native bfloat16 (AVX512-BF16), the same SSIM within 0.001 on the "
+                             "held-out stretches; ignored by direct and high_pass)")
     window = parser.add_mutually_exclusive_group()
     window.add_argument("--window-fraction", type=float, default=None, metavar="N",
                         help=f"N_e = N * H * W events per frame (default {DEFAULT_FRACTION}; the thesis used 0.7 on "
