@@ -68,7 +68,7 @@ cv2.setNumThreads(1)
 torch.set_num_threads(1)
 FAST = fast_mode()  # CI sets EVIO_FAST=1: a few seconds of each run
 D_APS = 5.0 if FAST else 20.0  # seconds of each preset for the APS-frame runs
-D_EVENTS = 2.0 if FAST else 8.0  # seconds simulated with events (slow: several CPU seconds per simulated second)
+D_EVENTS = 2.0 if FAST else 8.0  # seconds simulated with events (slow: about 2 CPU seconds per simulated second)
 TABLE_DURATION, TABLE_SEEDS = (3.0, (0,)) if FAST else (6.0, (0, 1))
 JOBS = 1 if FAST else None  # worker processes for the side-by-side runs (None: one per core); fast runs are too short
 EUROC = Path(evio_lib.__file__).resolve().parents[1].parent / "shared" / "data" / "real" / "euroc_V1_01_easy_micro"
@@ -754,9 +754,9 @@ else:
 #
 # `PipelineConfig(frames="events")` replaces the APS frames by frames reconstructed from windows of
 # $N_e = n H W$ events (thesis Eq. 87, n = 0.7 for this room) by the shipped FireNet (lesson 04). The recording must
-# then be simulated with events, which is slow (several CPU seconds per simulated second, more as the motion speeds
-# up), so this part uses a short stretch: the first `D_EVENTS` seconds. APS frames over the same recording are the
-# reference.
+# then be simulated with events, which is slow (about two CPU seconds per simulated second here, more as the motion
+# speeds up), so this part uses a short stretch: the first `D_EVENTS` seconds. APS frames over the same recording are
+# the reference.
 
 # %%
 data_events = load_dataset("boxes_like", duration=D_EVENTS, need_events=True)
