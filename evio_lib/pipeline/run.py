@@ -89,6 +89,9 @@ class PipelineConfig:
             tracks continue (the second-best match anywhere in the repetitive room is often close) and the error is
             17.9 % of the distance; with the test off (guided window + mutual check + two-point RANSAC), 3.6 %.
         reconstructor: event frames only: a reconstructor name ('firenet', 'high_pass', 'direct').
+        reconstructor_precision: event frames only: a network's arithmetic, 'float32' (default) or 'bfloat16' (1.35x
+            FireNet's frames per second on two threads of a CPU with native bfloat16, the same SSIM within 0.001;
+            docs/reconstruction.md); direct and high_pass ignore it.
         window_fraction: event frames only: n of N_e = n H W; None: the thesis's n for the preset (0.7 / 0.2) for
             reconstructed frames, 1.0 for every recording for motion-compensated ones (``MC_WINDOW_FRACTION``).
         adaptive_windows: event frames only: adaptive windows instead of fixed N_e.
@@ -113,6 +116,7 @@ class PipelineConfig:
     max_features: int = 60
     match_ratio: float | None = None
     reconstructor: str = "firenet"
+    reconstructor_precision: str = "float32"
     window_fraction: float | None = None
     adaptive_windows: bool = False
     min_window_s: float | None = None
@@ -161,6 +165,8 @@ class PipelineConfig:
                                                            and not Path(self.reconstructor).is_file()):
                 raise ValueError(f"reconstructor must be one of {names} or a reconstruct-train checkpoint file; got "
                                  f"{self.reconstructor!r}")
+        if self.reconstructor_precision not in ("float32", "bfloat16"):
+            raise ValueError(f"reconstructor_precision must be float32 or bfloat16; got {self.reconstructor_precision!r}")
         if self.max_duration is not None and not (math.isfinite(self.max_duration) and self.max_duration > 0):
             raise ValueError(f"max_duration must be None or a number of seconds > 0; got {self.max_duration!r}")
         if isinstance(self.detector_options, dict):
@@ -420,12 +426,13 @@ def _frames(data: LoadedDataset, config: PipelineConfig, t_start: float, t_end: 
                                t_end, min_window_s=low, max_window_s=high, gyro_bias=gyro_bias)
     from evio_lib.events.reconstruct import available_reconstructors
 
+    network = {} if config.reconstructor in ("direct", "high_pass") else {"precision": config.reconstructor_precision}
     if config.reconstructor in available_reconstructors():
         return event_frames(data.sequence, config.reconstructor, config.window_fraction, config.adaptive_windows,
-                            t_start, t_end, min_window_s=low, max_window_s=high)
+                            t_start, t_end, min_window_s=low, max_window_s=high, **network)
     return event_frames(data.sequence, "learned", config.window_fraction, config.adaptive_windows, t_start, t_end,
-                        min_window_s=low, max_window_s=high,
-                        checkpoint=config.reconstructor)  # a reconstruct-train checkpoint file
+                        min_window_s=low, max_window_s=high, checkpoint=config.reconstructor,  # a reconstruct-train file
+                        **network)
 
 
 def _tagged(frames: Iterator[tuple[float, np.ndarray, float]], stream: int
