@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 
+from evio_lib.events.reconstruct import PRECISIONS
 from evio_lib.events.reconstruction.evaluation import EVAL_SEED, VALIDATION_SEED, quality_table
 
 
@@ -21,7 +22,7 @@ def main() -> None:
     parser.add_argument("--split", choices=["test", "val"], default="test",
                         help="test: the held-out stretches (seed 101) that are reported; val: the same stretches of "
                              "other scenes (seed 202) where networks and settings are chosen")
-    parser.add_argument("--precision", choices=["float32", "bfloat16"], default=None,
+    parser.add_argument("--precision", choices=PRECISIONS, default=None,
                         help="the networks' arithmetic (default: each reconstructor's own, float32)")
     args = parser.parse_args()
     seed = VALIDATION_SEED if args.split == "val" else EVAL_SEED

@@ -29,8 +29,12 @@ import numpy as np
 from evio_lib.events.array import EVENT_DTYPE
 from evio_lib.events.representations import check_sensor_pixels, voxel_grid
 
-__all__ = ["Reconstructor", "LogIntegrator", "LearnedReconstructor", "available_reconstructors", "create_reconstructor",
-           "reconstructor_by_name_or_file", "shipped_checkpoint", "reconstruct_windows", "reconstruct_at_times"]
+__all__ = ["PRECISIONS", "Reconstructor", "LogIntegrator", "LearnedReconstructor", "available_reconstructors",
+           "create_reconstructor", "reconstructor_by_name_or_file", "shipped_checkpoint", "reconstruct_windows",
+           "reconstruct_at_times"]
+
+#: A network's arithmetic (``precision=`` of the learned reconstructors; the classical ones have none to choose).
+PRECISIONS = ("float32", "bfloat16")
 
 WEIGHTS_DIR = Path(__file__).resolve().parents[1] / "weights"
 #: Shipped learned reconstructors: name -> checkpoint file in evio_lib/weights/.
@@ -142,10 +146,9 @@ class LearnedReconstructor(Reconstructor):
         super().__init__(width, height)
         import torch
 
-        from evio_lib.events.reconstruction.nets import PRECISIONS, build_network, inference_network
+        from evio_lib.events.reconstruction.nets import build_network, inference_network
 
-        if precision not in PRECISIONS:  # before the checkpoint loads and the thread count changes
-            raise ValueError(f"precision must be one of {', '.join(PRECISIONS)}; got {precision!r}")
+        _check_precision(precision)  # before the checkpoint loads and the thread count changes
 
         from evio_lib.io.checkpoint import CheckpointError, load_state, read_checkpoint
 
@@ -214,11 +217,14 @@ def create_reconstructor(name: str = "firenet", width: int = 240, height: int = 
     Names: ``direct`` (options: contrast, cutoff_hz), ``high_pass`` (contrast, cutoff_hz = 0.06, per_event_decay = 0.06),
     ``firenet`` (the shipped network; options: device, threads, precision = ``float32`` or ``bfloat16``), ``learned``
     with ``checkpoint=PATH`` (any checkpoint, e.g. an ``e2vid`` run of ``reconstruct-train``; the same options).
+    ``precision`` is checked for every name; ``direct`` and ``high_pass`` compute in float64 whatever it says.
 
     >>> r = create_reconstructor("direct", 4, 3)
     >>> r.reconstruct(np.zeros(0, EVENT_DTYPE), t_end=0.1).shape
     (3, 4)
     """
+    if name in ("direct", "high_pass"):  # no network: nothing to compute in another precision
+        _check_precision(options.pop("precision", PRECISIONS[0]))
     if name == "direct":
         return LogIntegrator(width, height, name="direct", **options)
     if name == "high_pass":
@@ -241,14 +247,18 @@ def create_reconstructor(name: str = "firenet", width: int = 240, height: int = 
     raise ValueError(f"unknown reconstructor {name!r}; choose one of {available_reconstructors() + ['learned']}")
 
 
+def _check_precision(precision: str) -> None:
+    """Raise ValueError unless ``precision`` is one of :data:`PRECISIONS`."""
+    if precision not in PRECISIONS:
+        raise ValueError(f"precision must be one of {', '.join(PRECISIONS)}; got {precision!r}")
+
+
 def reconstructor_by_name_or_file(method: str, width: int, height: int, what: str = "method",
                                   precision: str | None = None) -> Reconstructor:
     """Return the reconstructor named ``method`` (:func:`available_reconstructors`), else the one in the
     reconstruct-train checkpoint file ``method``; ``what`` names the setting in the error for anything else.
     ``precision`` (``float32`` or ``bfloat16``) applies to networks; the classical methods ignore it."""
     options = {} if precision is None else {"precision": precision}
-    if method in ("direct", "high_pass"):
-        return create_reconstructor(method, width, height)
     if method in available_reconstructors():
         return create_reconstructor(method, width, height, **options)
     if method.endswith(".pt") or Path(method).is_file():

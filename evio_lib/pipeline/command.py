@@ -12,6 +12,8 @@ __all__ = ["add_run_arguments", "main_run", "add_table_arguments", "main_table"]
 
 def add_run_arguments(p: argparse.ArgumentParser) -> None:
     """Add the options of ``run``."""
+    from evio_lib.events.reconstruct import PRECISIONS  # no torch: --help stays light
+
     p.add_argument("dataset", nargs="?", default="boxes_like", metavar="DATASET",
                    help="a preset (boxes_like [default], aerial_like; simulated on first use and cached), an ECD folder "
                         "(events.txt, images.txt + images/, imu.txt, calib.txt, optional groundtruth.txt), a EuRoC "
@@ -34,7 +36,7 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--reconstructor", default="firenet",
                    help="event frames: firenet (default, shipped), high_pass, direct, or a reconstruct-train "
                         "checkpoint file")
-    p.add_argument("--reconstructor-precision", choices=["float32", "bfloat16"], default="float32",
+    p.add_argument("--reconstructor-precision", choices=PRECISIONS, default=PRECISIONS[0],
                    help="event frames: a network's arithmetic (default float32; bfloat16 gave 1.35x FireNet's frames "
                         "per second on two threads of a CPU with native bfloat16, the same SSIM within 0.001)")
     p.add_argument("--window-fraction", type=real(above=0.0), default=None,
@@ -181,7 +183,8 @@ def _require_checkpoint_file(option: str, path: Path | None) -> None:
 
 #: PipelineConfig fields and the ``run`` options that set them (for messages).
 _OPTIONS = {"reconstructor": "--reconstructor", "reconstructor_precision": "--reconstructor-precision",
-            "bias_init": "--bias-init", "max_duration": "--max-duration", "window_fraction": "--window-fraction", "min_window_s": "--min-window", "max_window_s": "--max-window",
+            "bias_init": "--bias-init", "max_duration": "--max-duration", "window_fraction": "--window-fraction",
+            "min_window_s": "--min-window", "max_window_s": "--max-window",
             "max_features": "--max-features", "init": "--init", "frames": "--frames", "seed": "--seed",
             "method": "--tracker", "observation_outlier_px": "--outlier-px"}
 

@@ -165,8 +165,11 @@ class PipelineConfig:
                                                            and not Path(self.reconstructor).is_file()):
                 raise ValueError(f"reconstructor must be one of {names} or a reconstruct-train checkpoint file; got "
                                  f"{self.reconstructor!r}")
-        if self.reconstructor_precision not in ("float32", "bfloat16"):
-            raise ValueError(f"reconstructor_precision must be float32 or bfloat16; got {self.reconstructor_precision!r}")
+        from evio_lib.events.reconstruct import PRECISIONS
+
+        if self.reconstructor_precision not in PRECISIONS:
+            raise ValueError(f"reconstructor_precision must be {' or '.join(PRECISIONS)}; got "
+                             f"{self.reconstructor_precision!r}")
         if self.max_duration is not None and not (math.isfinite(self.max_duration) and self.max_duration > 0):
             raise ValueError(f"max_duration must be None or a number of seconds > 0; got {self.max_duration!r}")
         if isinstance(self.detector_options, dict):
@@ -426,13 +429,13 @@ def _frames(data: LoadedDataset, config: PipelineConfig, t_start: float, t_end: 
                                t_end, min_window_s=low, max_window_s=high, gyro_bias=gyro_bias)
     from evio_lib.events.reconstruct import available_reconstructors
 
-    network = {} if config.reconstructor in ("direct", "high_pass") else {"precision": config.reconstructor_precision}
+    precision = config.reconstructor_precision
     if config.reconstructor in available_reconstructors():
         return event_frames(data.sequence, config.reconstructor, config.window_fraction, config.adaptive_windows,
-                            t_start, t_end, min_window_s=low, max_window_s=high, **network)
+                            t_start, t_end, min_window_s=low, max_window_s=high, precision=precision)
     return event_frames(data.sequence, "learned", config.window_fraction, config.adaptive_windows, t_start, t_end,
                         min_window_s=low, max_window_s=high, checkpoint=config.reconstructor,  # a reconstruct-train file
-                        **network)
+                        precision=precision)
 
 
 def _tagged(frames: Iterator[tuple[float, np.ndarray, float]], stream: int

@@ -126,3 +126,13 @@ def test_bfloat16_network_is_close_to_float32_and_other_precisions_are_refused()
     assert 0 < difference.max() < 0.03 and difference.mean() < 3e-3
     with pytest.raises(ValueError, match="precision must be one of float32, bfloat16; got 'float16'"):
         create_reconstructor("firenet", 64, 48, precision="float16")
+
+
+def test_classical_reconstructors_check_a_precision_and_compute_as_always():
+    window = make_events(np.linspace(0.0, 0.1, 50), np.arange(50) % 8, np.arange(50) % 6, np.ones(50))
+    for name in ("direct", "high_pass"):
+        plain = create_reconstructor(name, 8, 6).reconstruct(window, t_end=0.1)
+        given = create_reconstructor(name, 8, 6, precision="bfloat16").reconstruct(window, t_end=0.1)
+        np.testing.assert_array_equal(given, plain)
+        with pytest.raises(ValueError, match="precision must be one of float32, bfloat16; got 'half'"):
+            create_reconstructor(name, 8, 6, precision="half")

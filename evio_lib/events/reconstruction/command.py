@@ -101,7 +101,7 @@ def read_times_file(path: str | Path) -> np.ndarray:
 def add_reconstruct_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     """Add the options of ``python -m evio_lib reconstruct`` to ``parser``."""
     from evio_lib.cli_args import output_folder
-    from evio_lib.events.reconstruct import available_reconstructors
+    from evio_lib.events.reconstruct import PRECISIONS, available_reconstructors
 
     parser.add_argument("sequence", metavar="SEQUENCE",
                         help="an ECD-layout folder (events.txt, optional calib.txt) or a preset: boxes_like, aerial_like")
@@ -110,7 +110,7 @@ def add_reconstruct_arguments(parser: argparse.ArgumentParser) -> argparse.Argum
     parser.add_argument("--method", default="firenet",
                         help=f"reconstructor: {', '.join(available_reconstructors())} (default firenet, the shipped "
                              f"network), or a checkpoint file written by reconstruct-train")
-    parser.add_argument("--precision", choices=["float32", "bfloat16"], default="float32",
+    parser.add_argument("--precision", choices=PRECISIONS, default=PRECISIONS[0],
                         help="a network's arithmetic (default float32; bfloat16 gave 1.35x the frames per second on two "
                              "threads of a CPU with native bfloat16 (AVX512-BF16), the same SSIM within 0.001 on the "
                              "held-out stretches; ignored by direct and high_pass)")

@@ -22,6 +22,8 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
+from evio_lib.events.reconstruct import PRECISIONS  # re-exported: the names a forward pass can compute in
+
 __all__ = ["PRECISIONS", "AutocastForward", "ConvGRUCell", "ConvLSTMCell", "FireNet", "FireNetInference",
            "E2VIDRecurrent", "build_network", "count_parameters", "inference_network"]
 
@@ -166,10 +168,6 @@ class FireNetInference(nn.Module):
         h2 = self._gru(self.grus[1], x, h2)
         x = self._residual(self.res[1], h2)
         return torch.sigmoid_(F.conv2d(x, self.pred_w, self.pred_b)), [h1, h2]
-
-
-PRECISIONS = ("float32", "bfloat16")
-"""Arithmetic of a reconstruction network's forward pass (:func:`inference_network`)."""
 
 
 class AutocastForward(nn.Module):
