@@ -612,7 +612,7 @@ def run_vio_sim_seeds(seeds: Sequence[int], jobs: int | None = None, **kwargs: A
     >>> [r.config.seed for r in runs], bool(runs[0].metrics["rmse_m"] != runs[1].metrics["rmse_m"])
     ([0, 1], True)
     """
-    from evio_lib.sim.jobs import check_jobs, default_jobs
+    from evio_lib.sim.jobs import map_in_workers
 
     if kwargs.get("out_dir") is not None:
         raise ValueError("run_vio_sim_seeds writes no files: every seed would write out_dir's trajectory.txt; call "
@@ -621,13 +621,7 @@ def run_vio_sim_seeds(seeds: Sequence[int], jobs: int | None = None, **kwargs: A
     bad = [s for s in seeds if isinstance(s, bool) or not isinstance(s, Integral) or s < 0]
     if bad:
         raise ValueError(f"seeds must be non-negative integers; got {bad[:3]}")
-    seeds = [int(s) for s in seeds]
-    jobs = min(check_jobs(default_jobs() if jobs is None else jobs), max(len(seeds), 1))
-    if jobs == 1:
-        return [run_vio_sim(seed=seed, **kwargs) for seed in seeds]
-    from joblib import Parallel, delayed
-
-    return Parallel(n_jobs=jobs)(delayed(run_vio_sim)(seed=seed, **kwargs) for seed in seeds)
+    return map_in_workers(run_vio_sim, [dict(kwargs, seed=int(seed)) for seed in seeds], jobs)
 
 
 # ==================================================================================================== command line

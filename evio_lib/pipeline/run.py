@@ -741,18 +741,16 @@ def run_pipelines(data: LoadedDataset, configs: Mapping[str, PipelineConfig], jo
     >>> data = load_dataset("boxes_like", duration=2.0)  # doctest: +SKIP
     >>> results = run_pipelines(data, {"SIFT": PipelineConfig(), "KLT": PipelineConfig(tracker="klt", features="fast")})  # doctest: +SKIP
     """
-    from evio_lib.sim.jobs import check_jobs, default_jobs
+    from evio_lib.sim.jobs import check_jobs, default_jobs, map_in_workers
 
     names = list(configs)
     jobs = min(check_jobs(default_jobs() if jobs is None else jobs), max(len(names), 1))
     if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
         raise ValueError(f"threads must be an integer >= 1 (threads per worker); got {threads!r}")
-    if jobs == 1:
+    if jobs == 1:  # here, with this process's thread settings
         return {name: run_pipeline(data, configs[name]) for name in names}
-    from joblib import Parallel, delayed
-
-    results = Parallel(n_jobs=jobs)(delayed(_run_in_worker)(data, configs[name], threads) for name in names)
-    return dict(zip(names, results))
+    calls = [dict(data=data, config=configs[name], threads=threads) for name in names]
+    return dict(zip(names, map_in_workers(_run_in_worker, calls, jobs)))
 
 
 def _run_in_worker(data: LoadedDataset, config: PipelineConfig, threads: int) -> PipelineResult:
