@@ -108,8 +108,7 @@ def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, w
     The motion is always the preset's whole trajectory (60 s boxes_like: gentle start, violent end; 40 s
     aerial_like), so a shorter duration is the start of the same recording, not a faster one; ``start`` > 0 takes a
     later stretch of the same motion (e.g. the violent end of boxes_like: ``start=50, duration=10``). ``jobs``:
-    processes
-    that render the APS frames (``simulate_sequence``; the result does not depend on it); None:
+    processes that render the APS frames (``simulate_sequence``; the result does not depend on it); None:
     ``evio_lib.sim.jobs.default_jobs()``, ``EVIO_JOBS`` or one per core, at most 4.
     """
     from evio_lib.sim.jobs import check_jobs

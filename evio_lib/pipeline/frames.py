@@ -7,8 +7,9 @@ textured boxes, 0.2 for the sparse aerial scene) or into adaptive windows (a win
 (:func:`evio_lib.events.create_reconstructor`: the shipped FireNet by default) with its recurrent state carried, and
 the frame's time is the window's last event (for time-bounded windows, the window's end). The frames come one at
 a time (a generator), so a long recording never holds all its frames in memory. A stretch without events yields
-no frame: the filter then propagates the IMU alone across it. Windows may also be held between a least and a greatest duration (``min_window_s``,
-``max_window_s``), so that fast motion does not flood the front-end and a slow stretch still gives frames.
+no frame: the filter then propagates the IMU alone across it. Windows may also be held between a least and a
+greatest duration (``min_window_s``, ``max_window_s``), so that fast motion does not flood the front-end and a slow
+stretch still gives frames.
 
 Motion-compensated event frames (``mc-events``, :func:`mc_event_frames`) need no network: each window's events are
 warped to its middle time with the gyroscope's rotation and counted (:mod:`evio_lib.events.motion_compensation`),

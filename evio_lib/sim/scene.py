@@ -440,6 +440,12 @@ class _CameraTables:
         self.footprint32 = self.footprint64.astype(np.float32)
 
 
+def _level_of_detail(tables: _CameraTables, w: np.ndarray, dtype: type) -> np.ndarray:
+    """Return the mip-map level per pixel, ``lod = max(footprint - 2 log2(lambda W), 0)`` in ``dtype`` (module docstring)."""
+    footprint = tables.footprint32 if dtype == np.float32 else tables.footprint64
+    return np.maximum(footprint - dtype(2.0) * np.log2(w), dtype(0.0))
+
+
 # ============================================================================================== the scene
 class Scene:
     """A set of textured planes with a ray-casting renderer.
@@ -617,9 +623,7 @@ class Scene:
         inv_w = dtype(1.0) / w
         col = np.minimum(np.maximum(col_w * inv_w, dtype(0.0)), np.take(spans[:, 0], slot))  # col = span_u S / W
         row = np.minimum(np.maximum(row_w * inv_w, dtype(0.0)), np.take(spans[:, 1], slot))  # row = span_v T / W
-        footprint = tables.footprint32 if dtype == np.float32 else tables.footprint64
-        lod = np.maximum(footprint - dtype(2.0) * np.log2(w), dtype(0.0))  # lod = footprint - 2 log2 W + c
-        intensity = self._atlas.sample(slot, col, row, lod, dtype)
+        intensity = self._atlas.sample(slot, col, row, _level_of_detail(tables, w, dtype), dtype)
         return intensity, w / np.take(scale, slot), slot
 
     def _shade_tables(self, frame: dict[str, np.ndarray], dtype: type) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -650,8 +654,7 @@ class Scene:
         columns, _, spans = self._shade_tables(frame, np.float32)
         w, col, row, slot = render_kernels.shade_slots(tables.x32, tables.y32, slot, np.ascontiguousarray(columns),
                                                        spans)
-        lod = np.maximum(tables.footprint32 - np.float32(2.0) * np.log2(w), np.float32(0.0))  # NumPy's log2
-        return self._atlas.sample_fast(slot, col, row, lod)
+        return self._atlas.sample_fast(slot, col, row, _level_of_detail(tables, w, np.float32))  # NumPy's log2
 
     # ------------------------------------------------------------------------------------------ public API
     def render_intensity(self, camera: Any, R_CtoG: np.ndarray, p_CinG: np.ndarray, supersample: int = 1
