@@ -441,7 +441,7 @@ class _CameraTables:
 
 
 def _level_of_detail(tables: _CameraTables, w: np.ndarray, dtype: type) -> np.ndarray:
-    """Return the mip-map level per pixel, ``lod = max(footprint - 2 log2(lambda W), 0)`` in ``dtype`` (module docstring)."""
+    """Return the mip-map level per pixel, ``lod = max(footprint - 2 log2(lambda W), 0)``, in ``dtype``."""
     footprint = tables.footprint32 if dtype == np.float32 else tables.footprint64
     return np.maximum(footprint - dtype(2.0) * np.log2(w), dtype(0.0))
 
