@@ -1,6 +1,8 @@
 """Benchmark: the CNN's inference modes (fp32 fused, bfloat16, int8) on what they are for, at one thread.
 
-For each mode of ``SuperPointDetector(inference=...)`` (the shipped network, ``create_detector("superpoint")``):
+For each mode of ``SuperPointDetector(inference=...)`` and each of ``--weights`` (default: the shipped network behind
+``create_detector("superpoint")``; e.g. ``--weights pretrained_detdesc_round1_gpu distilled_narrow`` compares the
+half-width distilled network with its teacher):
 
 1. speed: CPU milliseconds of ``detect_and_describe`` per 240 x 180 APS frame of ``boxes_like`` (one thread;
    network and post-processing), and frames per second;
@@ -13,7 +15,8 @@ For each mode of ``SuperPointDetector(inference=...)`` (the shipped network, ``c
 4. the pipeline: CNN features on APS frames, each ``--stretches`` entry PRESET:SEED:SECONDS (the first seconds of the
    preset's whole motion; default boxes_like:0:20), RMSE, % of distance and the real-time factor.
 
-Usage: python bench/cnn_inference_modes.py [--modes fused bf16 int8] [--n-images 20] [--pairs-per-image 2]
+Usage: python bench/cnn_inference_modes.py [--modes fused bf16 int8] [--weights NAME|PATH ...] [--n-images 20]
+                                           [--pairs-per-image 2]
                                            [--pool val] [--stretches boxes_like:0:20 boxes_like:1:20 ...]
 Measured figures: docs/speed.md#the-cnns-inference-modes.
 """
@@ -61,9 +64,16 @@ def _agreement(reference, other) -> tuple[float, float, float]:  # type: ignore[
     return float(np.mean(shares01)), float(np.mean(shares1)), desc
 
 
+def _label(weights: str, mode: str, several: bool) -> str:
+    return f"{weights}/{mode}" if several else mode
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--modes", nargs="+", default=["fused", "bf16", "int8"], choices=["eager", "fused", "bf16", "int8"])
+    parser.add_argument("--weights", nargs="+", default=[SUPERPOINT_DEFAULT_WEIGHTS],
+                        help="shipped weights names or checkpoint paths; agreement is measured against the first "
+                             "one's fused fp32 outputs (default: the shipped default network)")
     parser.add_argument("--n-images", type=int, default=20)
     parser.add_argument("--pairs-per-image", type=int, default=2)
     parser.add_argument("--pool", default="val", choices=["val", "test"])
@@ -75,34 +85,38 @@ def main() -> None:
     cv2.setNumThreads(1)
     warnings.simplefilter("ignore")  # torch.ao deprecation notices of the int8 path
     frames = _frames(args.speed_frames)
-    print(f"weights {SUPERPOINT_DEFAULT_WEIGHTS}; torch {torch.__version__}, 1 thread; {len(frames)} boxes_like "
+    several = len(args.weights) > 1
+    variants = [(w, mode) for w in args.weights for mode in args.modes]
+    print(f"weights {', '.join(args.weights)}; torch {torch.__version__}, 1 thread; {len(frames)} boxes_like "
           f"frames {frames[0].shape[1]}x{frames[0].shape[0]} for speed and agreement")
-    outputs, rows = {}, {}
-    for mode in args.modes:
-        det = SuperPointDetector(weights=SUPERPOINT_DEFAULT_WEIGHTS, inference=mode, max_keypoints=1000)
+    outputs = {}
+    reference = (args.weights[0], "fused")
+    for weights, mode in [reference] + variants if reference not in variants else variants:
+        det = SuperPointDetector(weights=weights, inference=mode, max_keypoints=1000)
         for image in frames[:3]:
             det.detect_and_describe(image)
         start = time.process_time()
-        outputs[mode] = [det.detect_and_describe(image) for image in frames]
+        outputs[weights, mode] = [det.detect_and_describe(image) for image in frames]
         ms = (time.process_time() - start) / len(frames) * 1e3
-        rows[mode] = {"ms": ms}
-        print(f"  {mode:6s} {ms:6.1f} ms CPU per frame ({1e3 / ms:5.1f} frames/s)", flush=True)
-    if "fused" in outputs:
-        for mode in args.modes:
-            if mode != "fused":
-                a01, a1, desc = _agreement(outputs["fused"], outputs[mode])
-                print(f"  {mode:6s} against fp32: {100 * a01:.1f} % of keypoints within 0.1 px, {100 * a1:.1f} % within "
-                      f"1 px; descriptors at the same keypoints differ by at most {desc:.4f}")
+        print(f"  {_label(weights, mode, several):6s} {ms:6.1f} ms CPU per frame ({1e3 / ms:5.1f} frames/s)",
+              flush=True)
+    for weights, mode in variants:
+        if (weights, mode) != reference:
+            a01, a1, desc = _agreement(outputs[reference], outputs[weights, mode])
+            print(f"  {_label(weights, mode, several):6s} against {_label(*reference, several)}: {100 * a01:.1f} % of "
+                  f"keypoints within 0.1 px, {100 * a1:.1f} % within 1 px; descriptors at the same keypoints differ "
+                  f"by at most {desc:.4f}")
     pairs = heldout_pairs(0, n_images=args.n_images, pairs_per_image=args.pairs_per_image, size=(240, 320),
                           pool=args.pool)
     settings = BenchmarkSettings.thesis_event_frames()
     print(f"\nheld-out homography benchmark, {args.pool} pool: {len(pairs)} pairs, event-frame settings (240x320)")
-    for mode in args.modes:
-        result = run_benchmark("superpoint", pairs, settings, name=mode,
-                               detector_options={"inference": mode, "weights": SUPERPOINT_DEFAULT_WEIGHTS})
+    for weights, mode in variants:
+        label = _label(weights, mode, several)
+        result = run_benchmark("superpoint", pairs, settings, name=label,
+                               detector_options={"inference": mode, "weights": weights})
         for split in result["homography"]:
             h = result["homography"][split]
-            print(f"  {mode:6s} {split:12s} correctness eps 1/3/5: "
+            print(f"  {label:6s} {split:12s} correctness eps 1/3/5: "
                   f"{' / '.join(f'{h[e]:.3f}' for e in sorted(h))}; matching score "
                   f"{result['matching_score'][split][3.0]:.3f}; repeatability {result['repeatability'][split][3.0]:.3f}",
                   flush=True)
@@ -114,14 +128,15 @@ def main() -> None:
     for stretch in args.stretches:
         preset, seed, seconds = stretch.split(":")
         data = load_dataset(preset, duration=min(PRESET_DURATIONS[preset], max(20.0, float(seconds))), seed=int(seed))
-        for mode in args.modes:
-            config = PipelineConfig(features="superpoint", detector_options=(("inference", mode),),
+        for weights, mode in variants:
+            config = PipelineConfig(features="superpoint", detector_options=(("inference", mode), ("weights", weights)),
                                     max_duration=float(seconds))
             result = run_pipeline(data, config)
             m = result.metrics
-            print(f"  {preset} seed {seed}, {float(seconds):g} s, {mode:6s}: RMSE {m['rmse_m']:.3f} m, "
-                  f"{m['percent_of_distance']:.2f} % of distance, {result.timings['realtime_factor']:.2f}x real time",
-                  flush=True)
+            print(f"  {preset} seed {seed}, {float(seconds):g} s, {_label(weights, mode, several):6s}: RMSE "
+                  f"{m['rmse_m']:.3f} m, {m['percent_of_distance']:.2f} % of distance, "
+                  f"{result.timings['realtime_factor']:.2f}x real time", flush=True)
+
 
 if __name__ == "__main__":
     main()

@@ -197,7 +197,7 @@ def add_table_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--duration", type=real(above=0.0), default=None,
                    help="seconds of each preset (default: the whole preset, 60 s boxes_like, 40 s aerial_like)")
     p.add_argument("--rows", nargs="+", default=None,
-                   help="only these rows: imu imu_bias sift_aps cnn_aps sift_events cnn_events klt_aps "
+                   help="only these rows: imu imu_bias sift_aps cnn_aps cnn_narrow_aps sift_events cnn_events klt_aps "
                         "klt_events sift_mc_events cnn_mc_events klt_mc_events klt_aps_mc_events cnn_events_trained")
     p.add_argument("--events-cnn", type=Path, default=None,
                    help="checkpoint of a CNN trained with event frames (the 'CNN trained with event frames' row)")

@@ -4,7 +4,8 @@ Rows (thesis Table 6, plus the KLT front-end of msckf_vio / OpenVINS as a baseli
 
 - IMU only, without bias correction (biases start at zero) and with it (biases start at the ground truth's at the
   first frame; the thesis estimated them by hand from a still stretch, the simulator knows them exactly);
-- SIFT on APS frames, the CNN (the shipped SuperPoint-style network) on APS frames, KLT + FAST on APS frames;
+- SIFT on APS frames, the CNN (the shipped SuperPoint-style network) on APS frames, the half-width network distilled
+  from it (``distilled_narrow``, not in the thesis) on APS frames, KLT + FAST on APS frames;
 - SIFT on event frames and the CNN on event frames (FireNet reconstructions of windows of n H W events, the
   thesis's n per preset);
 - the CNN trained with event frames, when a checkpoint is given (``events_cnn``); none is shipped yet, and the
@@ -53,6 +54,8 @@ TABLE_ROWS = (
     TableRow("imu_bias", "IMU only (bias correction)", (("imu_only", True), ("bias_init", "groundtruth"))),
     TableRow("sift_aps", "SIFT, APS frames", (("features", "sift"),)),
     TableRow("cnn_aps", "CNN, APS frames", (("features", "superpoint"),)),
+    TableRow("cnn_narrow_aps", "CNN (distilled, half width), APS frames",
+             (("features", "superpoint"), ("detector_options", (("weights", "distilled_narrow"),)))),
     TableRow("sift_events", "SIFT, event frames", (("features", "sift"), ("frames", "events"))),
     TableRow("cnn_events", "CNN, event frames", (("features", "superpoint"), ("frames", "events"))),
     TableRow("cnn_events_trained", "CNN trained with event frames, event frames",

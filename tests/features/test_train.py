@@ -47,12 +47,16 @@ def label_cache(tmp_path, monkeypatch):
 def test_every_shipped_config_loads_validates_and_chains():
     names = tr.available_configs()
     assert set(THESIS_VARIANTS) <= set(names)
-    assert len(names) == 25  # magicpoint + 6 real-image variants x {scratch, pre-trained} x {COCO-like, Events}
+    # magicpoint + 6 real-image variants x {scratch, pre-trained} x {COCO-like, Events}, + the distilled network
+    assert len(names) == 26
     for name in names:
         cfg = tr.load_config(name)
         assert cfg.name == name and cfg.description
         assert cfg.total_steps >= 1 and cfg.image_size[0] % 8 == 0
-        assert cfg.detector_only == (cfg.stage != "detdesc")
+        assert cfg.detector_only == (cfg.stage not in ("detdesc", "distill"))
+        if cfg.stage == "distill":  # its teacher is shipped weights: nothing to train first
+            assert tr.variant_dependencies(name) == [name] and cfg.event_frames is None
+            continue
         if name.startswith("pretrained_"):
             assert cfg.init_from == cfg.labels_from == tr.load_config(name.removeprefix("pretrained_")).labels_from
         if name.endswith("_events"):

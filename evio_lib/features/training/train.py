@@ -7,7 +7,11 @@ A training *variant* (thesis §3.2.5, Table 1) is one JSON file in ``evio_lib/fe
 * ``"detector"`` -- detector only, on the real-image pool labelled by homographic adaptation with the model of
   ``labels_from`` (thesis §3.2.5.2-3.2.5.3, "Detector (Round k)");
 * ``"detdesc"`` -- detector + descriptor on warped pairs of pool images with those labels, total loss
-  ``L = L_p(X, Y) + L_p(X', Y') + lambda L_d(D, D', S)`` (Eq. 8; thesis §3.2.5.4-3.2.5.5).
+  ``L = L_p(X, Y) + L_p(X', Y') + lambda L_d(D, D', S)`` (Eq. 8; thesis §3.2.5.4-3.2.5.5);
+* ``"distill"`` -- detector + descriptor of a (smaller) network trained to give the outputs of the trained network
+  ``labels_from`` (the teacher) on augmented pool images: ``L = L_det + lambda L_desc``, the per-cell KL divergence
+  of the 65-way softmaxes plus the descriptors' cosine distance (:mod:`evio_lib.features.training.distill`; not in
+  the thesis). Its validation precision and recall compare the network's keypoints with the teacher's.
 
 ``init_from`` starts from the weights of an earlier stage (the thesis's "pre-trained" variants; a detector-only
 checkpoint leaves the descriptor head at its seeded initialisation); without it the network starts from a seeded
@@ -59,7 +63,9 @@ from evio_lib.features.network import (
     load_checkpoint,
     logits_to_heatmap,
     pad_to_cells,
+    resolve_weights,
     save_checkpoint,
+    shipped_weights,
 )
 from evio_lib.features.training.augment import HOMOGRAPHIC_PAIR, HomographicConfig, PairSample
 from evio_lib.features.training.losses import descriptor_cell_stats, detector_loss, superpoint_loss
@@ -88,7 +94,7 @@ __all__ = [
     "main_train",
 ]
 
-STAGES = ("magicpoint", "detector", "detdesc")
+STAGES = ("magicpoint", "detector", "detdesc", "distill")
 #: Validation quantities that ``TrainConfig.select_on`` may name, and whether larger is better.
 SELECTION_METRICS = {"loss": False, "desc_nn_accuracy": True}
 CONFIG_DIR = Path(__file__).resolve().parents[1] / "configs"  # evio_lib/features/configs
@@ -125,12 +131,14 @@ class TrainConfig:
 
     Args:
         name: variant name (thesis Table 1 row, e.g. ``"pretrained_detdesc_round2"``); the run folder's name.
-        stage: ``"magicpoint"`` (synthetic shapes, detector only), ``"detector"`` (real images, detector only) or
-            ``"detdesc"`` (real warped pairs, detector + descriptor).
+        stage: ``"magicpoint"`` (synthetic shapes, detector only), ``"detector"`` (real images, detector only),
+            ``"detdesc"`` (real warped pairs, detector + descriptor) or ``"distill"`` (real images, detector +
+            descriptor learning the outputs of ``labels_from``).
         model: preset of ``superpoint.MODEL_CONFIGS`` ("full" = thesis architecture, "narrow") or a config dict.
         init_from: variant name or ``.pt`` path whose weights initialise the network ("pre-trained"), or None.
         labels_from: variant name or ``.pt`` path of the model whose homographic adaptation labels the real
-            images (required for "detector" and "detdesc", unused for "magicpoint").
+            images (required for "detector" and "detdesc", unused for "magicpoint"); for "distill" the teacher
+            whose outputs the network learns (a detector + descriptor checkpoint).
         n_homographies: homographies per image in the label export (thesis §3.2.5.2: 100).
         label_threshold: keypoint threshold of the exported heatmap (SuperPoint: 0.015).
         label_max_keypoints: keep only the strongest this many label points per image (None: all above the threshold).
@@ -140,7 +148,7 @@ class TrainConfig:
         max_steps: total optimiser steps (overrides ``epochs``).
         lr: Adam learning rate (other Adam parameters at their defaults, as in the thesis).
         lambda_d: weight of the positive pairs in the descriptor hinge loss (Eq. 12).
-        lambda_loss: weight lambda of the descriptor loss in Eq. 8.
+        lambda_loss: weight lambda of the descriptor loss in Eq. 8 (of the descriptor term for "distill").
         seed: seed of the initialisation, the data order, the augmentation and the label choice.
         pool_seed: seed of the real-image pool (crops, render poses) and of the label export's homographies.
         render_zoom: rendered pool scenes are drawn this many times larger before the random crop (``datasets.image_pool``),
@@ -305,7 +313,7 @@ class TrainConfig:
     @property
     def detector_only(self) -> bool:
         """Return True for the detector-only stages (MagicPoint and the detector rounds)."""
-        return self.stage != "detdesc"
+        return self.stage not in ("detdesc", "distill")
 
     @property
     def steps_per_epoch(self) -> int:
@@ -440,10 +448,16 @@ def checkpoint_path(reference: str | Path, checkpoint_dir: str | Path | None = N
     return root / str(reference) / (_BEST if which == "best" else _LAST)
 
 
+def _is_shipped_weights(reference: str) -> bool:
+    """Return True when a reference names shipped weights (``evio_lib/weights/NAME.pt``) and no variant config."""
+    return reference in shipped_weights() and reference not in available_configs()
+
+
 def variant_dependencies(name: str, **overrides: Any) -> list[str]:
     """Return the variants that must be trained before ``name``, in training order, ending with ``name`` itself.
 
-    Follows ``labels_from`` and ``init_from`` through the shipped configs (``.pt`` paths end the chain).
+    Follows ``labels_from`` and ``init_from`` through the shipped configs (``.pt`` paths and the names of shipped
+    weights end the chain).
 
     >>> variant_dependencies("pretrained_detdesc_round2")
     ['magicpoint', 'detdesc_round1', 'pretrained_detdesc_round2']
@@ -457,7 +471,7 @@ def variant_dependencies(name: str, **overrides: Any) -> list[str]:
             raise ValueError(f"config chain has a cycle: {' -> '.join(stack + (variant,))}")
         config = load_config(variant, **overrides)
         for ref in (config.labels_from, config.init_from):
-            if ref is not None and Path(ref).suffix not in (".pt", ".pth"):
+            if ref is not None and Path(ref).suffix not in (".pt", ".pth") and not _is_shipped_weights(ref):
                 visit(ref, stack + (variant,))
         order.append(variant)
 
@@ -660,6 +674,12 @@ def _datasets(config: TrainConfig, progress: bool) -> tuple[Dataset, Dataset]:
         return train, val
     from evio_lib.features.training.datasets import RealImages
 
+    if config.stage == "distill":  # no labels: the teacher's outputs on each (augmented) image are the targets
+        _teacher_path(config)  # a missing teacher fails before the pool is rendered
+        train = RealImages(training_images(config, "train", progress=progress), split="train", seed=config.seed,
+                           augment=config.augment)
+        val = RealImages(training_images(config, "val"), split="val", seed=config.seed, augment=False)
+        return train, val
     labels = export_labels(config, progress=progress)
     pairs = config.stage == "detdesc"
     warps = config.pair_homographic()
@@ -710,6 +730,20 @@ def build_training_model(config: TrainConfig) -> SuperPointNet:
 
 
 # ---------------------------------------------------------------------------------------------- losses and validation
+def _teacher_path(config: TrainConfig) -> Path:
+    """Return the teacher checkpoint of a distill config (its ``labels_from``), refusing a missing file.
+
+    Besides a variant name or a ``.pt`` path, the teacher may be the name of shipped weights (``evio_lib/weights/``).
+    """
+    path = checkpoint_path(str(config.labels_from), config.checkpoint_dir)
+    if not path.is_file() and _is_shipped_weights(str(config.labels_from)):
+        return resolve_weights(str(config.labels_from))
+    if not path.is_file():
+        raise FileNotFoundError(f"the teacher checkpoint {path} (labels_from of {config.name!r}) was not found: "
+                                f"train variant {config.labels_from!r} first or give a .pt path")
+    return path
+
+
 def _batch_loss(model: SuperPointNet, batch: Sequence[torch.Tensor], config: TrainConfig, generator: torch.Generator,
                 device: torch.device, descriptor_stats: bool = False
                 ) -> tuple[torch.Tensor, dict[str, Any], dict[str, torch.Tensor]]:
@@ -719,6 +753,14 @@ def _batch_loss(model: SuperPointNet, batch: Sequence[torch.Tensor], config: Tra
     ``desc_negative_dot`` and ``desc_nn_accuracy`` (:func:`~evio_lib.features.training.losses.descriptor_cell_stats`).
     """
     tensors = [t.to(device) for t in batch]
+    if config.stage == "distill":
+        from evio_lib.features.training.distill import distillation_loss, teacher_forward
+
+        image = tensors[0]
+        teacher = teacher_forward(_teacher_path(config), device)(image)
+        out = model(image)
+        loss, parts = distillation_loss(out, teacher, config.lambda_loss)  # L = L_det + lambda L_desc
+        return loss, dict(parts), {**out, "teacher_logits": teacher["logits"]}
     if isinstance(batch, PairSample):
         image, kmap, mask, wimage, wkmap, wmask, H = tensors
         b = image.shape[0]
@@ -742,7 +784,11 @@ def _batch_loss(model: SuperPointNet, batch: Sequence[torch.Tensor], config: Tra
 
 @torch.no_grad()
 def _validate(model: SuperPointNet, data: Dataset, config: TrainConfig, device: torch.device) -> dict[str, float]:
-    """Return the validation loss terms and precision/recall (exact and within 1 px) on the val set."""
+    """Return the validation loss terms and precision/recall (exact and within 1 px) on the val set.
+
+    The "distill" stage has no labels: its precision and recall compare the network's keypoints with the teacher's
+    (the same threshold and NMS).
+    """
     was_training = model.training
     model.eval()
     generator = torch.Generator().manual_seed(_VAL_SEED)
@@ -758,11 +804,18 @@ def _validate(model: SuperPointNet, data: Dataset, config: TrainConfig, device: 
             sums[key] = sums.get(key, 0.0) + float(value)
             counted[key] = counted.get(key, 0) + 1
         heat = logits_to_heatmap(out["logits"]).cpu()
+        teacher_heat = logits_to_heatmap(out["teacher_logits"]).cpu() if "teacher_logits" in out else None
         for i in range(heat.shape[0]):  # loop over images: NMS'd detections vs labels
             kp, _ = extract_keypoints(heat[i], _VAL_THRESHOLD, _VAL_NMS, border=0, max_keypoints=None)
             pred = keypoints_to_map(kp.numpy(), heat.shape[1:])
+            if teacher_heat is None:
+                labels = batch[1][i].numpy()
+            else:  # distill: the teacher's detections are the labels
+                teacher_kp, _ = extract_keypoints(teacher_heat[i], _VAL_THRESHOLD, _VAL_NMS, border=0,
+                                                  max_keypoints=None)
+                labels = keypoints_to_map(teacher_kp.numpy(), heat.shape[1:])
             for row, tol in enumerate((0.0, 1.0)):
-                c = detection_counts(pred, batch[1][i].numpy(), valid_mask=batch[2][i].numpy(), tolerance=tol)
+                c = detection_counts(pred, labels, valid_mask=batch[2][i].numpy(), tolerance=tol)
                 counts[row] += [int(c.correct_predictions[0]), int(c.predictions[0]), int(c.found_labels[0]), int(c.labels[0])]
     model.train(was_training)
     result = {k: v / counted[k] for k, v in sums.items()}
