@@ -32,6 +32,7 @@ CONFIGS = {
     "sift_aps": PipelineConfig(features="sift"),
     "klt_aps": PipelineConfig(tracker="klt", features="fast"),
     "cnn_aps": PipelineConfig(features="superpoint"),
+    "cnn_narrow_aps": PipelineConfig(features="superpoint", detector_options=(("weights", "distilled_narrow"),)),
     "sift_events": PipelineConfig(frames="events", features="sift"),
     "klt_events": PipelineConfig(frames="events", tracker="klt", features="fast"),
     "cnn_events": PipelineConfig(frames="events", features="superpoint"),
@@ -56,7 +57,7 @@ def main() -> None:
     data = load_dataset(args.preset, duration=args.duration, seed=args.seed, need_events=need_events)
     print(f"{args.preset}, seed {args.seed}: {args.process:g} s processed of {args.duration:g} s simulated, "
           f"{args.threads} thread(s)")
-    header = (f"{'config':<12} {'frames':>6} {'recon':>7} {'detect':>7} {'match':>7} {'ransac':>7} {'filter':>7} "
+    header = (f"{'config':<14} {'frames':>6} {'recon':>7} {'detect':>7} {'match':>7} {'ransac':>7} {'filter':>7} "
               f"{'total ms/frame':>15} {'fps':>6} {'x real time':>11} | {'RMSE [m]':>8}")
     print(header)
     print("-" * len(header))
@@ -65,7 +66,7 @@ def main() -> None:
         result = run_pipeline(data, config)
         tm, k = result.timings, len(result.t)
         per = {s: 1e3 * tm[s] / k for s in ("reconstruction", "detection", "matching", "ransac", "filter", "total")}
-        print(f"{name:<12} {k:>6} {per['reconstruction']:>7.1f} {per['detection']:>7.1f} {per['matching']:>7.1f} "
+        print(f"{name:<14} {k:>6} {per['reconstruction']:>7.1f} {per['detection']:>7.1f} {per['matching']:>7.1f} "
               f"{per['ransac']:>7.1f} {per['filter']:>7.1f} {per['total']:>15.1f} {1e3 / per['total']:>6.1f} "
               f"{tm['realtime_factor']:>11.2f} | {result.metrics.get('rmse_m', np.nan):>8.3f}", flush=True)
 

@@ -23,7 +23,8 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                         "mc-events: event windows warped with the gyroscope's rotation and counted (no network); "
                         "aps+events, aps+mc-events: both streams, each with its own tracker, fused by the filter")
     p.add_argument("--features", default="sift",
-                   help="feature detector: sift (default), superpoint (the shipped CNN), orb, fast, ...")
+                   help="feature detector: sift (default), superpoint (the shipped CNN), distilled_narrow (the "
+                        "half-width CNN distilled from it, 3x faster), orb, fast, ...")
     p.add_argument("--weights", type=Path, default=None,
                    help="a CNN checkpoint for --features superpoint (default: the shipped network)")
     p.add_argument("--cnn-inference", choices=["auto", "fused", "bf16", "int8"], default=None,
