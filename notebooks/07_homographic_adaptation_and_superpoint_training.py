@@ -493,9 +493,11 @@ for name in chain[1:]:
 #
 # The project ships two networks trained this way, `pretrained_detdesc_round2_cpu` (the chain above on this CPU) and
 # `pretrained_detdesc_round1_gpu` (a GPU run); their training history and benchmark results are in
-# [docs/features_training.md](../docs/features_training.md), and lesson 08 evaluates them. One lesson of that history
-# is checkable here: the collapse of §3. The cell below measures the two cosines and the retrieval of every shipped
-# network on validation pairs, which none of them was trained on.
+# [docs/features_training.md](../docs/features_training.md), and lesson 08 evaluates them. A third shipped network,
+# `distilled_narrow`, was not trained this way: it has half the channels and learned to give the GPU network's
+# outputs (knowledge distillation, lesson 08). One lesson of that history is checkable here: the collapse of §3. The
+# cell below measures the two cosines and the retrieval of every shipped network on validation pairs, which none of
+# them was trained on.
 
 # %%
 val_cfg = training.load_config("pretrained_detdesc_round2")

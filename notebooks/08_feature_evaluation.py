@@ -78,6 +78,7 @@ from evio_lib.features.evaluation.evaluate import (
 from evio_lib.features.evaluation.hpatches import resize_pair
 from evio_lib.features.network import shipped_weights
 from evio_lib.geometry.homography import warp_points
+from evio_lib.sim.jobs import map_in_workers
 from evio_lib.sim.presets import SimulationConfig, simulate_sequence
 
 FAST = os.environ.get("EVIO_FAST", "0") == "1"  # CI sets EVIO_FAST=1: a handful of pairs, three detectors
@@ -329,7 +330,8 @@ assert all(f.min() >= 0 and f.max() <= 1 and f.max() > 0 for f in frames)
 #
 # `run_benchmark(detector, pairs, settings)` repeats sections 2 and 3 for every pair and averages per split. The
 # rows are every classical detector and — when trained weights are shipped in `evio_lib/weights/` — the
-# project's CNN (one row per shipped weights file).
+# project's CNN (one row per shipped weights file). The runs are independent, so full mode spreads them over one
+# worker process per core (`map_in_workers`); the tables are the same as when they run one after the other.
 #
 # *Sizes.* The full benchmark (58 held-out images x 5 pairs x 2 splits = 580 pairs, like HPatches) is run from the
 # command line; its results, with those of this notebook's full mode, are in
@@ -342,10 +344,13 @@ assert all(f.min() >= 0 and f.max() <= 1 and f.max() > 0 for f in frames)
 #
 # This notebook runs a subset: 8 held-out images x 2 pairs per split (about 30 pairs once the stripe textures are
 # left out; the exact count is printed below) and 8 event-frame pairs, all six classical detectors; in fast mode (CI)
-# 2 images x 1 pair per split and 2 event-frame pairs with three detectors. The CNN rows are the two networks shipped
-# with the library: `pretrained_detdesc_round1_gpu` (trained on a GPU, one round of homographic adaptation) and
-# `pretrained_detdesc_round2_cpu` (trained on this CPU, two rounds); notebook 07 and
-# [docs/features_training.md](../docs/features_training.md) tell how.
+# 2 images x 1 pair per split and 2 event-frame pairs with three detectors. The CNN rows are the three networks
+# shipped with the library: `pretrained_detdesc_round1_gpu` (trained on a GPU, one round of homographic adaptation),
+# `pretrained_detdesc_round2_cpu` (trained on this CPU, two rounds; notebook 07 and
+# [docs/features_training.md](../docs/features_training.md) tell how) and `distilled_narrow`, a network with half the
+# channels (about a quarter of the multiply-adds) trained to give the outputs of the first one (knowledge
+# distillation, not in the thesis; [the configs' README](../evio_lib/features/configs/README.md) tells how). Its
+# speed is in section 8.
 # With so few pairs a single pair moves a homography score by several hundredths; read the tables as trends, not
 # as final results.
 
@@ -370,13 +375,15 @@ assert len(bench_pairs) == 4 if FAST else 25 <= len(bench_pairs) <= 32
 
 # %%
 event_settings = BenchmarkSettings.thesis_event_frames()
-rows, event_rows = [], []
-start = time.perf_counter()
+calls = []  # two benchmark runs per detector: the held-out pairs, then the event-frame pairs
 for name in classical + [w for w, _ in cnn]:
     options = dict(cnn).get(name) if name not in classical else None
     detector = "superpoint" if options else name
-    rows.append(run_benchmark(detector, bench_pairs, settings, name=name, detector_options=options))
-    event_rows.append(run_benchmark(detector, event_pairs, event_settings, name=name, detector_options=options))
+    calls += [dict(detector=detector, pairs=bench_pairs, settings=settings, name=name, detector_options=options),
+              dict(detector=detector, pairs=event_pairs, settings=event_settings, name=name, detector_options=options)]
+start = time.perf_counter()
+results = map_in_workers(run_benchmark, calls, jobs=1 if FAST else None)  # full mode: one process per core
+rows, event_rows = results[0::2], results[1::2]
 print(f"benchmark of {len(rows)} detectors on {len(bench_pairs) + len(event_pairs)} pairs: "
       f"{time.perf_counter() - start:.1f} s")
 
@@ -576,14 +583,9 @@ if cnn:
 # every detector on a few viewpoint pairs.
 
 # %%
-diag_detectors = {"sift": create_detector("sift", max_keypoints=settings.homography_keypoints,
-                                          nms_radius=settings.homography_nms)}
-if not FAST:
-    diag_detectors["harris"] = create_detector("harris", max_keypoints=settings.homography_keypoints,
-                                               nms_radius=settings.homography_nms)
-for w, options in cnn:
-    diag_detectors[w] = create_detector("superpoint", max_keypoints=settings.homography_keypoints,
-                                        nms_radius=settings.homography_nms, **options)
+# row name -> (detector name, its options); diagnose_pairs creates each at the homography task's settings
+diag_detectors = {"sift": ("sift", None)} | ({} if FAST else {"harris": ("harris", None)})
+diag_detectors |= {w: ("superpoint", options) for w, options in cnn}
 
 # the oracle by hand on the pair of section 3, with SIFT's matches from there
 err_k = np.linalg.norm(warp_points(large.H, g1.keypoints[matches[:, 0]]) - g2.keypoints[matches[:, 1]], axis=1)
@@ -599,7 +601,9 @@ assert np.isclose(diag.corner_error_oracle, corner_error(H_oracle, large.H, larg
 # %%
 diag_pairs = heldout_pairs(SEED, n_images=3 if FAST else 12, pairs_per_image=2, splits=("viewpoint",))
 # diagnose_pairs runs diagnose_matches on every pair; one row per pair, columns: the fields of MatchDiagnosis
-diagnoses = {name: diagnose_pairs(detector, diag_pairs, settings) for name, detector in diag_detectors.items()}
+calls = [dict(detector=detector, pairs=diag_pairs, settings=settings, detector_options=options)
+         for detector, options in diag_detectors.values()]
+diagnoses = dict(zip(diag_detectors, map_in_workers(diagnose_pairs, calls, jobs=1 if FAST else None)))
 
 lines = ["| detector | correct matches | localisation error (px) | RANSAC correct, ε = 3 | oracle correct, ε = 3 |",
          "|---|---|---|---|---|"]
