@@ -494,10 +494,12 @@ for name in chain[1:]:
 # The project ships two networks trained this way, `pretrained_detdesc_round2_cpu` (the chain above on this CPU) and
 # `pretrained_detdesc_round1_gpu` (a GPU run); their training history and benchmark results are in
 # [docs/features_training.md](../docs/features_training.md), and lesson 08 evaluates them. A third shipped network,
-# `distilled_narrow`, was not trained this way: it has half the channels and learned to give the GPU network's
-# outputs (knowledge distillation, lesson 08). One lesson of that history is checkable here: the collapse of §3. The
-# cell below measures the two cosines and the retrieval of every shipped network on validation pairs, which none of
-# them was trained on.
+# `distilled_narrow`, was not trained this way. It has half the channels, and learned on augmented pool images to
+# give the GPU network's outputs: per 8 x 8 cell the same softmax over the 65 channels and descriptors pointing the
+# same way (knowledge distillation, the `"distill"` stage; `evio_lib/features/training/distill.py`). One lesson of
+# that history is checkable here: the collapse of §3. The cell below measures the two cosines and the retrieval of
+# every shipped network on validation pairs. None of them was trained on these images (the distilled network's
+# checkpoint was chosen by its loss on validation images).
 
 # %%
 val_cfg = training.load_config("pretrained_detdesc_round2")

@@ -4,8 +4,8 @@ Rows (thesis Table 6, plus the KLT front-end of msckf_vio / OpenVINS as a baseli
 
 - IMU only, without bias correction (biases start at zero) and with it (biases start at the ground truth's at the
   first frame; the thesis estimated them by hand from a still stretch, the simulator knows them exactly);
-- SIFT on APS frames, the CNN (the shipped SuperPoint-style network) on APS frames, the half-width network distilled
-  from it (``distilled_narrow``, not in the thesis) on APS frames, KLT + FAST on APS frames;
+- SIFT on APS frames, the CNN (the shipped SuperPoint-style network) on APS frames, KLT + FAST on APS frames; when
+  named, the half-width network distilled from the CNN (``distilled_narrow``, not in the thesis) on APS frames;
 - SIFT on event frames and the CNN on event frames (FireNet reconstructions of windows of n H W events, the
   thesis's n per preset);
 - the CNN trained with event frames, when a checkpoint is given (``events_cnn``); none is shipped yet, and the
@@ -33,7 +33,8 @@ import numpy as np
 
 from evio_lib.pipeline.dataset import PRESET_DURATIONS, PRESETS, check_preset_duration
 
-__all__ = ["TABLE_ROWS", "TableRow", "table_rows", "table_job", "run_table", "aggregate", "format_table6"]
+__all__ = ["TABLE_ROWS", "OPTIONAL_ROWS", "TableRow", "table_rows", "table_job", "run_table", "aggregate",
+           "format_table6"]
 
 
 @dataclass(frozen=True)
@@ -74,8 +75,13 @@ TABLE_ROWS = (
 )
 
 
+#: Rows run only when named (``keys``): beside the thesis's configurations, not part of the default table.
+OPTIONAL_ROWS = ("cnn_narrow_aps",)
+
+
 def table_rows(keys: Sequence[str] | None = None, events_cnn: str | None = None) -> list[TableRow]:
-    """Return the rows to run: ``keys`` (default all) in table order; the events-trained CNN row only with a checkpoint."""
+    """Return the rows to run: ``keys`` (default all but :data:`OPTIONAL_ROWS`) in table order; the events-trained
+    CNN row only with a checkpoint."""
     known = [r.key for r in TABLE_ROWS]
     if keys is not None:
         unknown = [k for k in keys if k not in known]
@@ -84,6 +90,8 @@ def table_rows(keys: Sequence[str] | None = None, events_cnn: str | None = None)
     rows = []
     for row in TABLE_ROWS:
         if keys is not None and row.key not in keys:
+            continue
+        if keys is None and row.key in OPTIONAL_ROWS:
             continue
         if row.key == "cnn_events_trained":
             if events_cnn is None:

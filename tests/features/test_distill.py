@@ -84,7 +84,6 @@ def test_student_learns_the_teacher_and_resumes_bit_identically(tmp_path, teache
     # the student's outputs move towards the teacher's on the held-out images
     assert last["loss"] < 0.5 * first["loss"], (first, last)
     assert last["detector"] < first["detector"] and last["descriptor"] < first["descriptor"]
-    assert {"precision", "recall", "precision_1px", "recall_1px"} <= set(last)
     # an interrupted run resumed from last.pt equals the uninterrupted one
     part = tr.train(tiny_distill(tmp_path / "b", teacher_file, max_steps=15, **common), progress=False)
     resumed = tr.train(tiny_distill(tmp_path / "b", teacher_file, max_steps=40, **common), progress=False,
@@ -109,10 +108,55 @@ def test_a_teacher_equal_to_the_student_gives_perfect_agreement(tmp_path):
     assert metrics["precision"] == metrics["recall"] == 1.0
 
 
-def test_missing_teacher_is_named_before_any_work(tmp_path):
+def test_unusable_teachers_are_refused_before_anything_is_written(tmp_path):
     config = tiny_distill(tmp_path, tmp_path / "absent.pt")
-    with pytest.raises(FileNotFoundError, match=r"teacher checkpoint .*absent.pt \(labels_from of 'tiny_distill'\)"):
+    with pytest.raises(FileNotFoundError, match=r"labels_from \(the teacher\) checkpoint .*absent.pt not found"):
         tr.train(config, progress=False)
+    detector_only = save_checkpoint(SuperPointNet(**TINY, detector_only=True, seed=0), tmp_path / "det.pt")
+    with pytest.raises(ValueError, match="detector-only"):
+        tr.train(tiny_distill(tmp_path, detector_only), progress=False)
+    wide = save_checkpoint(SuperPointNet(**dict(TINY, descriptor_dim=32), seed=0), tmp_path / "wide.pt")
+    with pytest.raises(ValueError, match=r"32-D descriptors and the student 16-D; set the config's model "
+                                         r"descriptor_dim to 32"):
+        tr.train(tiny_distill(tmp_path, wide), progress=False)
+    assert not (tmp_path / "runs").exists()  # no run folder left behind
+    with pytest.raises(ValueError, match="select_on must be 'loss' for stage 'distill'"):
+        tiny_distill(tmp_path, wide, select_on="desc_nn_accuracy")
+
+
+def test_resume_refuses_a_changed_teacher(tmp_path):
+    teacher = save_checkpoint(SuperPointNet(**TINY, seed=11).eval(), tmp_path / "teacher.pt")
+    tr.train(tiny_distill(tmp_path, teacher, max_steps=1, checkpoint_every=1), progress=False)
+    save_checkpoint(SuperPointNet(**TINY, seed=12).eval(), teacher)  # another network under the same name
+    with pytest.raises(ValueError, match="cannot resume .*a different teacher"):
+        tr.train(tiny_distill(tmp_path, teacher, max_steps=2, checkpoint_every=1), progress=False, resume=True)
+
+
+def test_teacher_forward_reloads_a_rewritten_file(tmp_path):
+    path = save_checkpoint(SuperPointNet(**TINY, seed=1).eval(), tmp_path / "t.pt")
+    x = torch.rand(1, 1, 16, 16, generator=torch.Generator().manual_seed(0))
+    before = teacher_forward(path)(x)["logits"]
+    save_checkpoint(SuperPointNet(**TINY, seed=2).eval(), path)
+    after = teacher_forward(path)(x)["logits"]
+    assert not torch.equal(before, after)
+
+
+def test_references_to_checkpoints_resolve_shipped_weights_for_every_stage(tmp_path):
+    """init_from / labels_from may name shipped weights; a variant config of the same name wins over them."""
+    path = tr._existing_checkpoint("pretrained_detdesc_round1_gpu", str(tmp_path), "init_from")
+    assert path.name == "pretrained_detdesc_round1_gpu.pt" and path.is_file()
+    shipped_name = "pretrained_detdesc_round1_gpu"
+    config = tr.load_config({"name": "p", "stage": "detdesc", "model": "full", "init_from": shipped_name,
+                             "labels_from": shipped_name, "checkpoint_dir": str(tmp_path)})
+    assert tr.variant_dependencies("distilled_narrow") == ["distilled_narrow"]
+    model = tr.build_training_model(config)  # "pre-trained" from the shipped weights
+    shipped = load_checkpoint(path)["state_dict"]
+    assert torch.equal(model.state_dict()["encoder.0.conv.weight"], shipped["encoder.0.conv.weight"])
+    # distilled_narrow is both a config and shipped weights: the name means the variant's own run
+    with pytest.raises(FileNotFoundError, match="train variant 'distilled_narrow' first"):
+        tr._existing_checkpoint("distilled_narrow", str(tmp_path), "init_from")
+    with pytest.raises(FileNotFoundError, match=r"init_from checkpoint .*nothing.pt not found \(expected a "):
+        tr._existing_checkpoint(str(tmp_path / "nothing.pt"), str(tmp_path), "init_from")
 
 
 def test_the_shipped_teacher_is_named_by_its_weights():

@@ -19,8 +19,10 @@ rounds of homographic adaptation, the DetDesc stage) for the smaller network: th
 2-core CPU and its result is a different detector; distillation reuses what the shipped network learned and aims at
 its outputs, so the pipeline's behaviour (thresholds, keypoint counts, descriptor distances) carries over.
 
-The teacher runs BN-folded in float32 (:func:`~evio_lib.features.network.inference.inference_model` "fused", the same
-numbers on every CPU), without gradients; it is loaded once per process and checkpoint file.
+The loss covers the whole image, the black borders of a warped image included: the teacher's responses there are as
+much a part of its behaviour as anywhere else. The teacher runs BN-folded in float32
+(:func:`~evio_lib.features.network.inference.inference_model` "fused"; no bfloat16 rounding, whatever the CPU), without
+gradients; it is loaded once per process and version of its checkpoint file.
 """
 from __future__ import annotations
 
@@ -72,7 +74,8 @@ def distillation_loss(student: dict[str, torch.Tensor], teacher: dict[str, torch
 
 
 @functools.lru_cache(maxsize=2)
-def _teacher(path: str, modified_ns: int, device: str) -> Callable[[torch.Tensor], dict[str, torch.Tensor]]:
+def _teacher(path: str, version: tuple[int, int, int], device: str
+             ) -> Callable[[torch.Tensor], dict[str, torch.Tensor]]:
     """Return the fused fp32 forward of the checkpoint at ``path`` (cached per file version and device)."""
     model = load_model(path, device=device)
     if model.descriptor_dim == 0:
@@ -84,13 +87,14 @@ def teacher_forward(path: str | Path, device: torch.device | str = "cpu"
                     ) -> Callable[[torch.Tensor], dict[str, torch.Tensor]]:
     """Return the teacher's forward pass: (B, 1, H, W) in [0, 1] -> {"logits", "descriptors"} without gradients.
 
-    ``path`` is a SuperPoint checkpoint (``train.checkpoint_path(config.labels_from)``). The BN-folded float32
-    network is built once per file version and device and kept for the life of the process.
+    ``path`` is a SuperPoint checkpoint (the distill config's ``labels_from``). The BN-folded float32 network is built
+    once per file version (inode, size, modification time) and device and kept for the life of the process.
     """
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"teacher checkpoint {path} not found (the distill stage's labels_from)")
-    forward = _teacher(str(path.resolve()), path.stat().st_mtime_ns, str(torch.device(device)))
+    stat = path.stat()  # a rewritten file (new inode, size or time) is loaded again
+    forward = _teacher(str(path.resolve()), (stat.st_ino, stat.st_size, stat.st_mtime_ns), str(torch.device(device)))
 
     def run(images: torch.Tensor) -> dict[str, torch.Tensor]:
         with torch.no_grad():

@@ -262,6 +262,8 @@ class TrainConfig:
             self.pair_homographic()  # validates the fields and their values
         if self.select_on not in SELECTION_METRICS:
             raise _bad("select_on", self.select_on, f"one of {sorted(SELECTION_METRICS)}")
+        if self.stage == "distill" and self.select_on != "loss":
+            raise _bad("select_on", self.select_on, "'loss' for stage 'distill' (it measures no descriptor retrieval)")
         _int("snapshot_every", self.snapshot_every, 1, allow_none=True)
         _int("n_train_images", self.n_train_images, 1)
         _int("n_val_images", self.n_val_images, 1)
@@ -449,8 +451,31 @@ def checkpoint_path(reference: str | Path, checkpoint_dir: str | Path | None = N
 
 
 def _is_shipped_weights(reference: str) -> bool:
-    """Return True when a reference names shipped weights (``evio_lib/weights/NAME.pt``) and no variant config."""
+    """Return True when a reference names shipped weights (``evio_lib/weights/NAME.pt``) and no variant config.
+
+    A variant config of the same name wins: ``init_from: "distilled_narrow"`` means that variant's own run
+    (``runs/features/distilled_narrow/best.pt``), trained first by ``--chain``, not the shipped file.
+    """
     return reference in shipped_weights() and reference not in available_configs()
+
+
+def _existing_checkpoint(reference: str, checkpoint_dir: str | None, role: str) -> Path:
+    """Return the checkpoint file of an ``init_from`` / ``labels_from`` reference, refusing a missing one.
+
+    A ``.pt`` path is used as it is; a name is a variant's ``<checkpoint_dir>/<name>/best.pt``, or else shipped
+    weights (:func:`_is_shipped_weights`). ``role`` names the field in the error.
+    """
+    path = checkpoint_path(reference, checkpoint_dir)
+    if path.is_file():
+        return path
+    if Path(reference).suffix in (".pt", ".pth"):
+        raise FileNotFoundError(f"{role} checkpoint {path} not found (expected a checkpoint file written by "
+                                "features-train or save_checkpoint)")
+    if _is_shipped_weights(reference):
+        return resolve_weights(reference)
+    raise FileNotFoundError(f"{role} checkpoint {path} not found: train variant {reference!r} first "
+                            f"(python -m evio_lib features-train {reference}), or name shipped weights "
+                            f"({', '.join(shipped_weights()) or 'none'}) or a .pt path")
 
 
 def variant_dependencies(name: str, **overrides: Any) -> list[str]:
@@ -613,10 +638,7 @@ def export_labels(
     config = load_config(config) if not isinstance(config, TrainConfig) else config
     if config.labels_from is None:
         raise ValueError(f"labels_from must be set to export labels; variant {config.name!r} (stage {config.stage}) has none")
-    path = checkpoint_path(config.labels_from, config.checkpoint_dir)
-    if not path.is_file():
-        raise FileNotFoundError(f"labels_from checkpoint {path} not found: train variant {config.labels_from!r} first "
-                                f"(python -m evio_lib features-train {config.labels_from})")
+    path = _existing_checkpoint(config.labels_from, config.checkpoint_dir, "labels_from")
     device = _resolve_device(config.device)
     heatmaps = _heatmap_function(load_model(path), device)
     stem = Path(config.labels_from).stem if Path(config.labels_from).suffix else config.labels_from
@@ -675,7 +697,6 @@ def _datasets(config: TrainConfig, progress: bool) -> tuple[Dataset, Dataset]:
     from evio_lib.features.training.datasets import RealImages
 
     if config.stage == "distill":  # no labels: the teacher's outputs on each (augmented) image are the targets
-        _teacher_path(config)  # a missing teacher fails before the pool is rendered
         train = RealImages(training_images(config, "train", progress=progress), split="train", seed=config.seed,
                            augment=config.augment)
         val = RealImages(training_images(config, "val"), split="val", seed=config.seed, augment=False)
@@ -711,9 +732,7 @@ def build_training_model(config: TrainConfig) -> SuperPointNet:
     model = build_model(config.model, seed=config.seed, **overrides)
     if config.init_from is None:
         return model
-    path = checkpoint_path(config.init_from, config.checkpoint_dir)
-    if not path.is_file():
-        raise FileNotFoundError(f"init_from checkpoint {path} not found: train variant {config.init_from!r} first")
+    path = _existing_checkpoint(config.init_from, config.checkpoint_dir, "init_from")
     checkpoint = load_checkpoint(path)
     source = {k: v for k, v in checkpoint["model_config"].items() if k != "detector_only"}
     target = {k: v for k, v in model.config.items() if k != "detector_only"}
@@ -735,13 +754,28 @@ def _teacher_path(config: TrainConfig) -> Path:
 
     Besides a variant name or a ``.pt`` path, the teacher may be the name of shipped weights (``evio_lib/weights/``).
     """
-    path = checkpoint_path(str(config.labels_from), config.checkpoint_dir)
-    if not path.is_file() and _is_shipped_weights(str(config.labels_from)):
-        return resolve_weights(str(config.labels_from))
-    if not path.is_file():
-        raise FileNotFoundError(f"the teacher checkpoint {path} (labels_from of {config.name!r}) was not found: "
-                                f"train variant {config.labels_from!r} first or give a .pt path")
-    return path
+    return _existing_checkpoint(str(config.labels_from), config.checkpoint_dir, "labels_from (the teacher)")
+
+
+def _check_teacher(config: TrainConfig) -> str:
+    """Return the SHA-1 digest of a distill config's teacher after checking that it can teach this student.
+
+    Refuses (one line, before any pool is rendered or folder written) a missing file, a detector-only teacher and a
+    descriptor length that differs from the student's (``model``'s ``descriptor_dim``).
+    """
+    from evio_lib.features.network import load_model
+
+    path = _teacher_path(config)
+    teacher = load_model(path)
+    if teacher.descriptor_dim == 0:
+        raise ValueError(f"the teacher {path} (labels_from) is a detector-only network; distillation needs a "
+                         "detector + descriptor checkpoint")
+    student = build_model(config.model, seed=None, detector_only=False)
+    if student.descriptor_dim != teacher.descriptor_dim:
+        raise ValueError(f"the teacher {path} has {teacher.descriptor_dim}-D descriptors and the student "
+                         f"{student.descriptor_dim}-D; set the config's model descriptor_dim to "
+                         f"{teacher.descriptor_dim}")
+    return _file_digest(path)
 
 
 def _batch_loss(model: SuperPointNet, batch: Sequence[torch.Tensor], config: TrainConfig, generator: torch.Generator,
@@ -921,6 +955,8 @@ def _train(config: TrainConfig, progress: bool, resume: bool) -> TrainResult:
     step, train_loss, validation = 0, [], []
     best_step: int | None = None
     best_metrics: dict[str, float] | None = None
+    # distill: the teacher checked (and fingerprinted) before anything is rendered or written
+    teacher = _check_teacher(config) if config.stage == "distill" else None
     if resume and last_path.is_file():
         checkpoint = load_checkpoint(last_path, map_location="cpu")
         # a field added after the checkpoint was written counts as its default value
@@ -932,6 +968,11 @@ def _train(config: TrainConfig, progress: bool, resume: bool) -> TrainResult:
         if changed:
             raise ValueError(f"cannot resume {last_path}: the config differs in {changed}; only "
                              f"{sorted(_RESUME_FREE)} may change (or train without resume to start over)")
+        saved_teacher = checkpoint["metadata"].get("teacher_sha1")
+        if teacher is not None and saved_teacher is not None and saved_teacher != teacher:
+            raise ValueError(f"cannot resume {last_path}: its teacher was the file with SHA-1 {saved_teacher}..., "
+                             f"and {_teacher_path(config)} is now {teacher}... (a different teacher); train "
+                             "without resume to start over")
         from evio_lib.io.checkpoint import load_state
 
         load_state(model, checkpoint["state_dict"], last_path,  # one line naming the file
@@ -951,7 +992,8 @@ def _train(config: TrainConfig, progress: bool, resume: bool) -> TrainResult:
     total = config.total_steps
 
     def save_last() -> None:
-        save_checkpoint(model, last_path, {"variant": config.name, "stage": config.stage, "config": config.to_dict()},
+        save_checkpoint(model, last_path, {"variant": config.name, "stage": config.stage, "config": config.to_dict(),
+                                           **({"teacher_sha1": teacher} if teacher else {})},
                         optimizer=optimizer.state_dict(), step=step, train_loss=list(train_loss),
                         validation=[dict(v) for v in validation], best_step=best_step,
                         best_metrics=dict(best_metrics or {}), rng=_rng_state(device))
@@ -967,7 +1009,8 @@ def _train(config: TrainConfig, progress: bool, resume: bool) -> TrainResult:
             best_step, best_metrics = step, metrics
             save_checkpoint(model, best_path, {"variant": config.name, "stage": config.stage, "step": step,
                                                "validation": metrics, "config": config.to_dict(),
-                                               "description": config.description})
+                                               "description": config.description,
+                                               **({"teacher_sha1": teacher} if teacher else {})})
 
     bar = None
     if progress and step < total:
