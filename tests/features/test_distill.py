@@ -12,12 +12,7 @@ from evio_lib.features.training.distill import distillation_loss, teacher_forwar
 TINY = {"encoder_channels": [8, 8, 8, 8, 16, 16, 16, 16], "head_channels": 16, "descriptor_dim": 16}
 
 
-@pytest.fixture(autouse=True)
-def one_torch_thread():
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")  # tests/features/conftest.py
 
 
 @pytest.fixture

@@ -27,13 +27,7 @@ def tiny_magicpoint(tmp_path: Path, **changes) -> tr.TrainConfig:
     return tr.load_config(values)
 
 
-@pytest.fixture(autouse=True)
-def one_torch_thread():
-    """Tiny convolutions run faster on one thread (and a loaded 2-core machine thrashes with two)."""
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")  # tests/features/conftest.py
 
 
 @pytest.fixture
