@@ -65,9 +65,8 @@ def _agreement(reference, other) -> tuple[float, float, float]:  # type: ignore[
 
 
 def _label(weights: str, mode: str, several: bool) -> str:
-    """Return the row name of a (weights, mode) variant, padded so that the rows line up."""
-    name = f"{weights}/{mode}" if several else mode
-    return f"{name:<{40 if several else 6}}"
+    """Return the row name of a (weights, mode) variant: "weights/mode" when several networks are compared."""
+    return f"{weights}/{mode}" if several else mode
 
 
 def main() -> None:
@@ -88,6 +87,7 @@ def main() -> None:
     warnings.simplefilter("ignore")  # torch.ao deprecation notices of the int8 path
     frames = _frames(args.speed_frames)
     several = len(args.weights) > 1
+    width = max(len(_label(w, m, several)) for w in args.weights for m in args.modes + ["fused"])  # rows line up
     variants = [(w, mode) for w in args.weights for mode in args.modes]
     print(f"weights {', '.join(args.weights)}; torch {torch.__version__}, 1 thread; {len(frames)} boxes_like "
           f"frames {frames[0].shape[1]}x{frames[0].shape[0]} for speed and agreement")
@@ -100,12 +100,12 @@ def main() -> None:
         start = time.process_time()
         outputs[weights, mode] = [det.detect_and_describe(image) for image in frames]
         ms = (time.process_time() - start) / len(frames) * 1e3
-        print(f"  {_label(weights, mode, several)} {ms:6.1f} ms CPU per frame ({1e3 / ms:5.1f} frames/s)",
+        print(f"  {_label(weights, mode, several):<{width}} {ms:6.1f} ms CPU per frame ({1e3 / ms:5.1f} frames/s)",
               flush=True)
     for weights, mode in variants:
         if (weights, mode) != reference:
             a01, a1, desc = _agreement(outputs[reference], outputs[weights, mode])
-            print(f"  {_label(weights, mode, several)} against {_label(*reference, several).strip()}: {100 * a01:.1f} % of "
+            print(f"  {_label(weights, mode, several):<{width}} against {_label(*reference, several)}: {100 * a01:.1f} % of "
                   f"keypoints within 0.1 px, {100 * a1:.1f} % within 1 px; descriptors at the same keypoints differ "
                   f"by at most {desc:.4f}")
     pairs = heldout_pairs(0, n_images=args.n_images, pairs_per_image=args.pairs_per_image, size=(240, 320),
@@ -113,12 +113,12 @@ def main() -> None:
     settings = BenchmarkSettings.thesis_event_frames()
     print(f"\nheld-out homography benchmark, {args.pool} pool: {len(pairs)} pairs, event-frame settings (240x320)")
     for weights, mode in variants:
-        label = _label(weights, mode, several)  # padded
-        result = run_benchmark("superpoint", pairs, settings, name=label.strip(),
+        label = _label(weights, mode, several)
+        result = run_benchmark("superpoint", pairs, settings, name=label,
                                detector_options={"inference": mode, "weights": weights})
         for split in result["homography"]:
             h = result["homography"][split]
-            print(f"  {label} {split:12s} correctness eps 1/3/5: "
+            print(f"  {label:<{width}} {split:12s} correctness eps 1/3/5: "
                   f"{' / '.join(f'{h[e]:.3f}' for e in sorted(h))}; matching score "
                   f"{result['matching_score'][split][3.0]:.3f}; repeatability {result['repeatability'][split][3.0]:.3f}",
                   flush=True)
@@ -135,7 +135,7 @@ def main() -> None:
                                     max_duration=float(seconds))
             result = run_pipeline(data, config)
             m = result.metrics
-            print(f"  {preset} seed {seed}, {float(seconds):g} s, {_label(weights, mode, several).strip()}: RMSE "
+            print(f"  {preset} seed {seed}, {float(seconds):g} s, {_label(weights, mode, several)}: RMSE "
                   f"{m['rmse_m']:.3f} m, {m['percent_of_distance']:.2f} % of distance, "
                   f"{result.timings['realtime_factor']:.2f}x real time", flush=True)
 

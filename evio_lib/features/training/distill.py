@@ -35,7 +35,7 @@ import torch.nn.functional as F
 
 from evio_lib.features.network import SuperPointNet, inference_model, load_model
 
-__all__ = ["distillation_loss", "teacher_forward"]
+__all__ = ["distillation_loss", "load_teacher", "teacher_forward"]
 
 
 def distillation_loss(student: dict[str, torch.Tensor], teacher: dict[str, torch.Tensor],
@@ -73,14 +73,20 @@ def distillation_loss(student: dict[str, torch.Tensor], teacher: dict[str, torch
     return detector + lambda_loss * descriptor, {"detector": detector, "descriptor": descriptor}
 
 
+def load_teacher(path: str | Path, device: torch.device | str = "cpu") -> SuperPointNet:
+    """Return the network stored at ``path``, refusing a detector-only one (a teacher needs both heads)."""
+    model = load_model(path, device=device)
+    if model.descriptor_dim == 0:
+        raise ValueError(f"the teacher {path} is a detector-only network; distillation needs a detector + descriptor "
+                         "checkpoint")
+    return model
+
+
 @functools.lru_cache(maxsize=2)
 def _teacher(path: str, version: tuple[int, int, int], device: str
              ) -> Callable[[torch.Tensor], dict[str, torch.Tensor]]:
     """Return the fused fp32 forward of the checkpoint at ``path`` (cached per file version and device)."""
-    model = load_model(path, device=device)
-    if model.descriptor_dim == 0:
-        raise ValueError(f"the teacher {path} is a detector-only network; distillation needs detector and descriptor")
-    return inference_model(model, "fused")
+    return inference_model(load_teacher(path, device), "fused")
 
 
 def teacher_forward(path: str | Path, device: torch.device | str = "cpu"

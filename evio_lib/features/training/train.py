@@ -757,20 +757,16 @@ def _teacher_path(config: TrainConfig) -> Path:
     return _existing_checkpoint(str(config.labels_from), config.checkpoint_dir, "labels_from (the teacher)")
 
 
-def _check_teacher(config: TrainConfig) -> str:
-    """Return the SHA-1 digest of a distill config's teacher after checking that it can teach this student.
+def _check_teacher(config: TrainConfig, student: SuperPointNet) -> str:
+    """Return the SHA-1 digest of a distill config's teacher after checking that it can teach ``student``.
 
     Refuses (one line, before any pool is rendered or folder written) a missing file, a detector-only teacher and a
     descriptor length that differs from the student's (``model``'s ``descriptor_dim``).
     """
-    from evio_lib.features.network import load_model
+    from evio_lib.features.training.distill import load_teacher
 
     path = _teacher_path(config)
-    teacher = load_model(path)
-    if teacher.descriptor_dim == 0:
-        raise ValueError(f"the teacher {path} (labels_from) is a detector-only network; distillation needs a "
-                         "detector + descriptor checkpoint")
-    student = build_model(config.model, seed=None, detector_only=False)
+    teacher = load_teacher(path)
     if student.descriptor_dim != teacher.descriptor_dim:
         raise ValueError(f"the teacher {path} has {teacher.descriptor_dim}-D descriptors and the student "
                          f"{student.descriptor_dim}-D; set the config's model descriptor_dim to "
@@ -956,7 +952,7 @@ def _train(config: TrainConfig, progress: bool, resume: bool) -> TrainResult:
     best_step: int | None = None
     best_metrics: dict[str, float] | None = None
     # distill: the teacher checked (and fingerprinted) before anything is rendered or written
-    teacher = _check_teacher(config) if config.stage == "distill" else None
+    teacher = _check_teacher(config, model) if config.stage == "distill" else None
     if resume and last_path.is_file():
         checkpoint = load_checkpoint(last_path, map_location="cpu")
         # a field added after the checkpoint was written counts as its default value
