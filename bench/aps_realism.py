@@ -4,10 +4,11 @@
    kernel N = [[1, -2, 1], [-2, 4, -2], [1, -2, 1]]), averaged over the flattest half of each image (the pixels with
    the smallest gradient, so that edges do not count as noise), median over frames, in grey levels (DN, 0-255). It is
    run on the real frames of ECD slider_depth (``../shared/data/real/ecd_slider_depth_slice/images``), on the
-   simulated frames of both presets as shipped, and on frames simulated without noise (the estimator's floor: what
-   texture alone gives).
+   simulated frames of both presets as shipped (the noise matched to the real frames since 2026-11-27), on frames
+   simulated with another noise (``--read-noise``, ``--shot-noise``; default: the model used before, read noise 0.01
+   and shot-noise scale 0.003) and without noise (the estimator's floor: what texture alone gives).
 2. With ``--pipeline``: the whole preset is simulated again (frames only, same seed, so the same motion, scene and
-   IMU) with a lower APS noise (``--read-noise``, ``--shot-noise``), and SIFT and KLT on APS frames run on both.
+   IMU) with that other noise, and SIFT and KLT on APS frames run on both.
 
 Usage: python bench/aps_realism.py [--pipeline --preset boxes_like --seed 3]
 Measured figures: docs/pipeline.md, "APS realism".
@@ -49,11 +50,13 @@ def describe(name: str, frames) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--pipeline", action="store_true", help="also run SIFT and KLT on lower-noise APS frames")
+    parser.add_argument("--pipeline", action="store_true", help="also run SIFT and KLT on the other noise's frames")
     parser.add_argument("--preset", default="boxes_like", choices=["boxes_like", "aerial_like"])
     parser.add_argument("--seed", type=int, default=3, help="the pipeline comparison's seed (default 3: validation)")
-    parser.add_argument("--read-noise", type=float, default=0.001, help="read noise of the lower-noise frames")
-    parser.add_argument("--shot-noise", type=float, default=5e-5, help="shot-noise scale of the lower-noise frames")
+    parser.add_argument("--read-noise", type=float, default=0.01,
+                        help="read noise of the other frames (default 0.01: the model before 2026-11-27)")
+    parser.add_argument("--shot-noise", type=float, default=0.003,
+                        help="shot-noise scale of the other frames (default 0.003: the model before 2026-11-27)")
     args = parser.parse_args()
     if REAL.is_dir():
         describe("real DAVIS240C, ECD slider_depth", (cv2.imread(str(f), cv2.IMREAD_GRAYSCALE)
@@ -61,7 +64,7 @@ def main() -> None:
     for preset in ("boxes_like", "aerial_like"):
         describe(f"simulated {preset}, as shipped", load_dataset(preset, duration=5.0).sequence.frames[::4])
     for label, aps in (("no noise", ApsParams(read_noise_sigma=0.0, shot_noise_scale=0.0)),
-                       ("lower noise", ApsParams(read_noise_sigma=args.read_noise, shot_noise_scale=args.shot_noise))):
+                       ("other noise", ApsParams(read_noise_sigma=args.read_noise, shot_noise_scale=args.shot_noise))):
         config = SimulationConfig(preset="boxes_like", duration=2.0, trajectory_duration=60.0, seed=0, aps=aps)
         describe(f"simulated boxes_like, {label}", simulate_sequence(config, jobs=1).frames[::4])
     if not args.pipeline:
@@ -70,12 +73,12 @@ def main() -> None:
     shipped = load_dataset(args.preset, seed=args.seed)
     config = SimulationConfig(preset=args.preset, duration=full, trajectory_duration=full, seed=args.seed,
                               aps=ApsParams(read_noise_sigma=args.read_noise, shot_noise_scale=args.shot_noise))
-    quieter = dataclasses.replace(shipped, sequence=simulate_sequence(config))
-    if not np.array_equal(quieter.sequence.imu.gyro, shipped.sequence.imu.gyro):
+    other = dataclasses.replace(shipped, sequence=simulate_sequence(config))
+    if not np.array_equal(other.sequence.imu.gyro, shipped.sequence.imu.gyro):
         raise SystemExit("the re-simulated recording has another IMU: the comparison would not be like for like")
     for name, pipeline in (("KLT + FAST", PipelineConfig(tracker="klt", features="fast", seed=args.seed)),
                            ("SIFT", PipelineConfig(features="sift", seed=args.seed))):
-        for label, data in (("as shipped", shipped), ("lower noise", quieter)):
+        for label, data in (("as shipped", shipped), ("other noise", other)):
             r = run_pipeline(data, pipeline)
             m = r.metrics
             print(f"{name:<11} {label:<12} {m['percent_of_distance']:6.3f} % of distance, RMSE {m['rmse_m']:.3f} m "

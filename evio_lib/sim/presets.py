@@ -15,6 +15,9 @@ growing violent) and ``aerial_like`` (a downward camera over sparse terrain at ~
 """
 from __future__ import annotations
 
+import dataclasses
+import hashlib
+import json
 import time
 import warnings
 from dataclasses import asdict, dataclass, field
@@ -37,7 +40,8 @@ from evio_lib.sim.trajectory import trajectory_from_preset
 PRESETS = ("boxes_like", "aerial_like")
 
 __all__ = ["PRESETS", "MAX_RECORDING_DURATION_S", "CameraPoseTable", "SimulationConfig", "simulate_sequence",
-           "simulation_cache_path", "simulate_sequence_cached"]
+           "simulation_cache_path", "simulate_sequence_cached",
+           "sensor_models_digest"]
 
 #: Longest recording with events or frames that one simulation makes, seconds (ten minutes). The presets make about
 #: 0.35 M events/s on average and up to 1 M/s in fast motion (13 B each) plus 24 frames/s of 43 KB, all held in memory:
@@ -285,8 +289,6 @@ def _exposure_chunk(config: SimulationConfig, times: np.ndarray) -> np.ndarray:
     The scene and the motion are made again from the config (0.3 s; the scene pickles to 80 MB, too much to send),
     once per recording in each worker.
     """
-    import json
-
     key = json.dumps([config.preset, config.seed, config.motion_duration(), asdict(config.extrinsics)],
                      default=lambda value: np.asarray(value).tolist())
     if key not in _WORKER_WORLD:  # a worker renders several chunks of one recording: the world is made once
@@ -348,6 +350,19 @@ def _collect_frames(pending: Iterator[np.ndarray], config: SimulationConfig, tim
     return frames
 
 
+def sensor_models_digest(config: SimulationConfig) -> str:
+    """Return 8 hex digits that name every setting of a simulated recording but which sensors were simulated.
+
+    Cached recordings carry it in their file names, so that a recording made with other sensor models (an earlier
+    version of the simulator's defaults, e.g. the APS noise before 2026-11-27) is never read back as if it were
+    current; the events and the frames-only recordings of one setting share it (a recording with events also serves
+    a run that needs only the frames).
+    """
+    settings = asdict(dataclasses.replace(config, with_events=True, with_frames=True))
+    text = json.dumps(settings, sort_keys=True, default=lambda value: np.asarray(value).tolist())
+    return hashlib.sha1(text.encode("utf-8")).hexdigest()[:8]
+
+
 def simulation_cache_path(config: SimulationConfig) -> Path:
     """Return the cache file of ``config``'s recording: ``<cache>/sequences/<preset>_<sha1 of the config>.npz``.
 
@@ -356,9 +371,6 @@ def simulation_cache_path(config: SimulationConfig) -> Path:
     two configs share a file only when they are equal, and equal configs give equal recordings (every random
     stream is seeded by the config).
     """
-    import hashlib
-    import json
-
     from evio_lib.features.training.datasets import default_cache_dir  # the project's one cache folder
 
     fields = json.dumps(asdict(config), sort_keys=True, default=lambda value: np.asarray(value).tolist())

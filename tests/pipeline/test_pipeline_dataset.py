@@ -8,13 +8,31 @@ from evio_lib.pipeline.dataset import load_dataset, read_kalibr_extrinsics, sequ
 
 
 def test_preset_is_cached_and_read_back_identical(boxes_aps):
-    files = list(sequence_cache_dir().glob("boxes_like_d3_seed0_frames.npz"))
+    files = list(sequence_cache_dir().glob("boxes_like_d3_seed0_m*_frames.npz"))
     assert len(files) == 1
     again = load_dataset("boxes_like", duration=3.0)
     np.testing.assert_array_equal(again.sequence.frames, boxes_aps.sequence.frames)
     np.testing.assert_array_equal(again.sequence.imu.accel, boxes_aps.sequence.imu.accel)
     assert boxes_aps.kind == "preset" and boxes_aps.notes[0].startswith("extrinsics: from the recording")
     np.testing.assert_allclose(boxes_aps.R_CtoI, boxes_aps.sequence.R_CtoI)
+
+
+def test_a_recording_cached_with_other_sensor_models_is_not_read_back(boxes_aps):
+    """The cache name carries a digest of the sensor models: a file of the same preset, duration and seed made with
+    another APS noise (an older simulator) is a different name; the events and frames-only recordings share it."""
+    import dataclasses
+
+    from evio_lib.sim.aps import ApsParams
+    from evio_lib.sim.presets import SimulationConfig, sensor_models_digest
+
+    config = SimulationConfig(preset="boxes_like", duration=3.0, trajectory_duration=60.0, seed=0, with_events=False)
+    digest = sensor_models_digest(config)
+    assert [f.name for f in sequence_cache_dir().glob("boxes_like_d3_seed0_m*_frames.npz")] == [
+        f"boxes_like_d3_seed0_m{digest}_frames.npz"]
+    assert sensor_models_digest(dataclasses.replace(config, with_events=True)) == digest
+    noisier = dataclasses.replace(config, aps=ApsParams(read_noise_sigma=0.01, shot_noise_scale=0.003))
+    assert sensor_models_digest(noisier) != digest
+    assert sensor_models_digest(dataclasses.replace(config, seed=1)) != digest
 
 
 def test_preset_duration_is_the_start_of_the_whole_motion(boxes_aps):
@@ -33,7 +51,7 @@ def test_preset_start_takes_a_later_stretch_of_the_same_motion(boxes_aps):
     k = np.searchsorted(full.t, gt.t[0])
     np.testing.assert_allclose(full.t[k:k + 50], gt.t[:50], atol=1e-9)
     np.testing.assert_allclose(full.p_BinG[k:k + 50], gt.p_BinG[:50], atol=1e-9)
-    assert list(sequence_cache_dir().glob("boxes_like_d1_seed0_start2_frames.npz"))
+    assert list(sequence_cache_dir().glob("boxes_like_d1_seed0_start2_m*_frames.npz"))
     with pytest.raises(ValueError, match=r"start of boxes_like must be in \[0, 60\) s"):
         load_dataset("boxes_like", start=60.0)
     with pytest.raises(ValueError, match=r"ends after its motion"):

@@ -119,7 +119,7 @@ def test_clipping_gain_and_dtype():
 
 
 def test_noise_statistics_and_seeded_determinism():
-    params = ApsParams(gamma=1.0)  # read 0.01 + shot 0.003 per unit signal
+    params = ApsParams(gamma=1.0, read_noise_sigma=0.01, shot_noise_scale=0.003)  # stronger than the defaults
     exposure = np.full((200, 200), 0.25)
     frame = aps_sensor_response(exposure, params, np.random.default_rng(7)).astype(np.float64) / 255.0
     expected_sigma = np.sqrt(0.003 * 0.25 + 0.01**2)  # sqrt(k S + sigma_read^2)
