@@ -11,7 +11,7 @@ Printed per configuration: tracks, observations, the median and 95th percentile 
 observations, the share of observations off by more than 3 px, and the median error by track age.
 
 Usage: python bench/track_accuracy.py [--preset aerial_like] [--duration 15] [--start 5] [--seconds 3]
-       [--configs sift cnn klt]
+       [--configs sift cnn klt sift_gap2 cnn_gap2]
 Measured figures: docs/pipeline.md.
 """
 import argparse
@@ -31,6 +31,8 @@ CONFIGS = {
     "sift": PipelineConfig(features="sift"),
     "cnn": PipelineConfig(features="superpoint"),
     "klt": PipelineConfig(tracker="klt", features="fast"),
+    "sift_gap2": PipelineConfig(features="sift", track_gap=2),
+    "cnn_gap2": PipelineConfig(features="superpoint", track_gap=2),
 }
 
 

@@ -104,6 +104,8 @@ BAD_INPUTS = [
     ("run boxes_like --max-window 0", "--max-window must be > 0; got 0"),
     ("run boxes_like --frames mc-events --min-window 0.2 --max-window 0.1", "(0.1) must be greater than"),
     ("run boxes_like --frames mc", "--frames: invalid choice: 'mc'"),
+    ("run boxes_like --track-gap -1", "--track-gap must be >= 0; got -1"),
+    ("run boxes_like --track-gap 1.5", "--track-gap"),
     ("run boxes_like --frames events --reconstructor-precision float16",
      "--reconstructor-precision: invalid choice: 'float16'"),
     ("reconstruct boxes_like --out {d}/rec --precision int8", "--precision: invalid choice: 'int8'"),

@@ -41,7 +41,7 @@ _POSITIVE = (
 _POSITIVE_OR_INF = (
     "accel_full_scale", "gyro_full_scale", "imu_max_gap", "imu_max_bridged_gap", "max_normalized_coordinate",
 )
-_INTEGER_MIN = {"max_camera_states": 2, "min_track_length": 2, "triangulation_max_iterations": 1}
+_INTEGER_MIN = {"max_camera_states": 2, "min_track_length": 2, "triangulation_max_iterations": 1, "max_track_gap": 0}
 _BOOLEAN = ("marginalize_third", "chi2_gating", "observability_constrained", "imu_only")
 
 
@@ -73,6 +73,11 @@ class MsckfConfig:
             without them, so that one jumped observation (a descriptor match to a similar-looking place) costs one
             observation instead of poisoning, or losing, the whole track. The chi-square gate then tests what is
             left.
+        max_track_gap: images of its stream a track may miss and still continue [0]. With 0 a track ends at the first
+            image without it and is used then; with g > 0 it is kept (its observations need not come from
+            consecutive clones) until g images in a row lack it, so a front-end that finds a feature again after a
+            missed detection (``FrontendConfig.max_gap_frames``) continues one track instead of two short ones.
+            The update of such a track comes g images later.
         chi2_gating, chi2_probability: per-feature chi-square (Mahalanobis) gating and its probability [0.95],
             applied to ALL of a feature's observations in the window (dof 2M - 3) even when a prune uses only
             some. A gate also throws away correct data, and which data depends on the residual: the kept
@@ -148,6 +153,7 @@ class MsckfConfig:
     chi2_probability: float = _param(0.95, "", "chi-square gating probability (quantile)")
     observation_outlier_px: float | None = _param(None, "px", "drop a track's observations reprojecting farther "
                                                               "than this after triangulation (None: off)")
+    max_track_gap: int = _param(0, "", "images of its stream a track may miss and continue (0: ends at the first)")
     # triangulation (inverse-depth Gauss-Newton, thesis §3.3.7)
     triangulation_max_iterations: int = _param(10, "", "Gauss-Newton iterations at most")
     triangulation_tolerance: float = _param(1e-7, "", "stop when the update norm falls below this")

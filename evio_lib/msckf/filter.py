@@ -288,6 +288,8 @@ class Msckf:
         self.rejections: Counter[str] = Counter()
         self.tracks: dict[int, list[tuple[int, NDArray[np.float64], NDArray[np.float64]]]] = {}
         self._track_stream: dict[int, int] = {}  # the frame stream of each track (one stream: all 0)
+        self._track_last_image: dict[int, int] = {}  # the stream's image count when each track was last observed
+        self._stream_images: Counter[int] = Counter()  # images processed per stream
         self._next_camera_id = max(state.camera_ids, default=-1) + 1
         self._tracking_rate = 1.0
         self._imu_t = np.zeros(0)
@@ -533,6 +535,7 @@ class Msckf:
         if self.config.imu_only:
             self.tracks.clear()
             self._track_stream.clear()
+            self._track_last_image.clear()
         else:
             self._add_observations(camera_id, ids, xy, whiten, stream)
             lost = self._collect_lost_features(ids, stream)
@@ -665,6 +668,9 @@ class Msckf:
         rate (share of known ids)."""
         tracked = 0
         tracks = self.tracks
+        self._stream_images[stream] += 1
+        image = self._stream_images[stream]
+        last_image = self._track_last_image
         W_all = [self._iso_whiten] * ids.shape[0] if whiten is None else whiten
         for fid, z, W in zip(ids.tolist(), xy, W_all):
             track = tracks.get(fid)
@@ -674,14 +680,18 @@ class Msckf:
             else:
                 track.append((camera_id, z, W))
                 tracked += 1
+            last_image[fid] = image
         self._tracking_rate = tracked / ids.shape[0] if ids.shape[0] else 0.0
 
     def _collect_lost_features(self, ids: NDArray[np.int64], stream: int = 0) -> list[_FeatureUse]:
-        """Remove the tracks of ``stream`` that ended (not in ``ids``); return those long enough to be used (all
-        their observations)."""
+        """Remove the tracks of ``stream`` that ended (missing from more than ``config.max_track_gap`` of its images
+        in a row: with 0, not in ``ids``); return those long enough to be used (all their observations)."""
         current = set(ids.tolist())
         streams = self._track_stream
-        lost = [fid for fid in self.tracks if fid not in current and streams[fid] == stream]
+        last_image = self._track_last_image
+        oldest = self._stream_images[stream] - self.config.max_track_gap  # last seen before this image: ended
+        lost = [fid for fid in self.tracks
+                if fid not in current and streams[fid] == stream and last_image[fid] < oldest]
         if not lost:
             return []
         pos = self._window_positions()
@@ -689,6 +699,7 @@ class Msckf:
         for fid in lost:
             track = self.tracks.pop(fid)
             del streams[fid]
+            del last_image[fid]
             if len(track) < self.config.min_track_length:
                 self.rejections["too_few_observations"] += 1
                 continue
@@ -769,6 +780,7 @@ class Msckf:
         for fid in [fid for fid, track in self.tracks.items() if not track]:
             del self.tracks[fid]
             del self._track_stream[fid]
+            del self._track_last_image[fid]
 
     # ------------------------------------------------------------------------------------------------ the update
     def _window_positions(self) -> dict[int, int]:

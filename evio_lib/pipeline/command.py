@@ -73,6 +73,9 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--outlier-px", type=real(above=0.0), default=None, metavar="PX",
                    help="drop a track's observations that reproject farther than PX pixels from its triangulated "
                         "point, and keep the rest of the track (default: off)")
+    p.add_argument("--track-gap", type=integer(minimum=0), default=0, metavar="FRAMES",
+                   help="descriptor tracker: keep a lost track for FRAMES frames and continue it, with its id, when "
+                        "the feature is matched again (default 0: a missed detection ends the track)")
     p.add_argument("--extrinsics", type=Path, default=None,
                    help="a Kalibr YAML with T_cam_imu, overriding the recording's extrinsics")
     p.add_argument("--calib", type=Path, default=None,
@@ -153,7 +156,7 @@ def main_run(args: argparse.Namespace) -> int:
                                 min_window_s=args.min_window, max_window_s=args.max_window, init=args.init,
                                 bias_init=_bias(args.bias_init), imu_only=args.imu_only, oc=not args.no_oc,
                                 zupt=not args.no_zupt, max_duration=args.max_duration, seed=args.seed,
-                                observation_outlier_px=args.outlier_px)
+                                observation_outlier_px=args.outlier_px, track_gap=args.track_gap)
     except ValueError as error:  # the message names the config field; the user typed the option
         raise as_option_error(error, _OPTIONS) from None
     start = time.perf_counter()
@@ -187,7 +190,8 @@ _OPTIONS = {"reconstructor": "--reconstructor", "reconstructor_precision": "--re
             "bias_init": "--bias-init", "max_duration": "--max-duration", "window_fraction": "--window-fraction",
             "min_window_s": "--min-window", "max_window_s": "--max-window",
             "max_features": "--max-features", "init": "--init", "frames": "--frames", "seed": "--seed",
-            "method": "--tracker", "observation_outlier_px": "--outlier-px"}
+            "method": "--tracker", "observation_outlier_px": "--outlier-px",
+            "track_gap": "--track-gap"}
 
 
 def add_table_arguments(p: argparse.ArgumentParser) -> None:

@@ -107,6 +107,9 @@ class PipelineConfig:
         zupt: detect standstill and apply zero-velocity updates there (module docstring).
         observation_outlier_px: the filter drops a track's observations that reproject farther than this after
             triangulation and keeps the rest (``MsckfConfig.observation_outlier_px``; None: off).
+        track_gap: frames a descriptor track may miss and still continue with its id
+            (``FrontendConfig.max_gap_frames`` and ``MsckfConfig.max_track_gap``; 0: a missed detection ends the
+            track). KLT never searches for a lost patch, so its runs ignore it.
     """
 
     frames: str = "aps"
@@ -130,6 +133,7 @@ class PipelineConfig:
     seed: int = 0
     zupt: bool = True
     observation_outlier_px: float | None = None
+    track_gap: int = 0
 
     def __post_init__(self) -> None:
         if self.frames not in FRAME_SOURCES:
@@ -182,6 +186,9 @@ class PipelineConfig:
             raise ValueError(f"pixel_noise_px must be > 0; got {self.pixel_noise_px!r}")
         FrontendConfig(method=self.tracker, max_features=self.max_features, ratio=self.match_ratio,
                        seed=self.seed)  # validates those
+        if isinstance(self.track_gap, bool) or not isinstance(self.track_gap, (int, np.integer)) or self.track_gap < 0:
+            raise ValueError(f"track_gap must be an integer >= 0 (frames); got {self.track_gap!r}")
+        object.__setattr__(self, "track_gap", int(self.track_gap))
 
     def window_bounds(self) -> tuple[float, float | None]:
         """Return (least, greatest) window duration in s of the event source (the source's defaults for None)."""
@@ -196,7 +203,12 @@ class PipelineConfig:
         """Return the front-end's configuration."""
         detector = self.features if self.tracker == "descriptor" or self.features != "sift" else None
         return FrontendConfig(method=self.tracker, detector=detector, detector_options=self.detector_options,
-                              max_features=self.max_features, ratio=self.match_ratio, seed=self.seed)
+                              max_features=self.max_features, ratio=self.match_ratio, seed=self.seed,
+                              max_gap_frames=self.effective_track_gap())
+
+    def effective_track_gap(self) -> int:
+        """Return the frames a track may miss: ``track_gap`` for the descriptor tracker, 0 for KLT."""
+        return self.track_gap if self.tracker == "descriptor" else 0
 
     def label(self) -> str:
         """Return a short name, e.g. 'SIFT on APS frames' or 'IMU only'."""
@@ -409,7 +421,8 @@ def msckf_config_for(config: PipelineConfig, data: LoadedDataset) -> MsckfConfig
     cfg = MsckfConfig().with_imu_noise(data.noise)
     changes: dict[str, Any] = dict(pixel_noise_sigma=config.pixel_noise_px, focal_length_px=math.sqrt(cam.fx * cam.fy),
                                    observability_constrained=config.oc, imu_only=config.imu_only,
-                                   observation_outlier_px=config.observation_outlier_px)
+                                   observation_outlier_px=config.observation_outlier_px,
+                                   max_track_gap=config.effective_track_gap())
     if gravity is not None:
         changes["gravity_G"] = tuple(float(g) for g in gravity)
     return dataclasses.replace(cfg, **changes)

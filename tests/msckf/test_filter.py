@@ -624,6 +624,54 @@ def test_two_frame_streams_keep_their_own_tracks_and_both_constrain_the_trajecto
         f2.process_image(t0 + 0.02, ids0[:3], xy0[:3], stream=-1)
 
 
+# ---------------------------------------------------------------- tracks with gaps
+def test_a_track_gap_keeps_tracks_whole_across_missed_observations():
+    """30 % of the observations dropped at random (missed detections): with max_track_gap = 0 a track ends at its
+    first missing image, so tracks fall apart into pieces too short to use; with max_track_gap = 2 each update of a
+    track holds exactly its observations in the window, from non-consecutive cameras, gaps of at most 2 images, and
+    more observations reach the updates. The truth is the frame list (camera id k = frame k)."""
+    traj, imu, frames, cfg, state = simulation(seed=5, duration=4.0, life=(10, 30))
+    rng = np.random.default_rng(7)
+    holed = []
+    for t, ids, xy in frames:
+        keep = rng.random(ids.shape[0]) > 0.3
+        holed.append((t, ids[keep], xy[keep]))
+    by_camera = [{tuple(z): int(i) for i, z in zip(ids, xy)} for _, ids, xy in holed]
+    seen_at: dict[int, list[int]] = {}
+    for k, (_, ids, _) in enumerate(holed):
+        for fid in ids.tolist():
+            seen_at.setdefault(fid, []).append(k)
+    used, gapped, errors = {}, {}, {}
+    for gap in (0, 2):
+        f = Msckf(dataclasses.replace(cfg, max_track_gap=gap), state)
+        update = f._update
+        counts = {"obs": 0, "gapped": 0}
+
+        def checked_update(uses, f=f, update=update, counts=counts, gap=gap):
+            window = f.state.camera_ids
+            for u in uses:
+                cams = [window[j] for j in u.window_idx]
+                fid = by_camera[cams[0]][tuple(u.xy[0])]
+                assert all(by_camera[c].get(tuple(z)) == fid for c, z in zip(cams, u.xy))  # its own observations
+                assert set(cams) <= set(seen_at[fid])
+                steps = np.diff(cams)
+                assert np.all(steps >= 1) and np.all(steps <= gap + 1)
+                counts["gapped"] += int(np.any(steps > 1))
+                counts["obs"] += int(np.count_nonzero(u.involved))
+            return update(uses)
+
+        f._update = checked_update
+        outputs = f.run(imu.t, imu.gyro, imu.accel, holed)
+        assert_finite(outputs)
+        used[gap], gapped[gap] = counts["obs"], counts["gapped"]
+        errors[gap] = position_errors(traj, outputs)
+    assert gapped[0] == 0 and gapped[2] > 50
+    assert used[2] > 1.2 * used[0]  # measured: 2 787 against 2 185
+    assert errors[2].max() < 0.1 and np.sqrt(np.mean(errors[2] ** 2)) < np.sqrt(np.mean(errors[0] ** 2))
+    with pytest.raises(ValueError, match="max_track_gap must be an integer >= 0"):
+        MsckfConfig(max_track_gap=-1)
+
+
 # ---------------------------------------------------------------- per-observation outliers
 def test_outlier_observations_are_dropped_and_the_track_kept():
     """A track with one observation jumped by 12 px: the option drops that observation and triangulates the rest

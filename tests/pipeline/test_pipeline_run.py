@@ -107,6 +107,8 @@ def test_static_initialisation_refuses_a_moving_start(boxes_aps):
     (dict(tracker="sift"), "method must be one of"),
     (dict(frames="events", reconstructor="learned"), r"reconstructor must be one of \['direct', 'high_pass'"),
     (dict(frames="events", reconstructor="no/such.pt"), "or a reconstruct-train checkpoint file; got 'no/such.pt'"),
+    (dict(track_gap=-1), r"track_gap must be an integer >= 0 \(frames\); got -1"),
+    (dict(track_gap=1.0), "track_gap must be an integer"),
 ])
 def test_bad_configs_are_refused(changes, message):
     with pytest.raises(ValueError, match=message):
@@ -224,6 +226,18 @@ def test_event_frames_with_a_time_cap_give_frames_in_a_still_stretch(boxes_event
     inside = lambda times: np.count_nonzero((np.asarray(times) > 0.62) & (np.asarray(times) < 0.88))  # noqa: E731
     assert inside(capped) >= 4 and inside(plain) <= 1
     assert np.all(np.diff(capped) <= 0.05 + 1e-9)
+
+
+def test_a_track_gap_reaches_the_tracker_and_the_filter(boxes_aps):
+    """track_gap = 2: the descriptor tracker revives tracks and the filter keeps them whole, so tracks get longer;
+    KLT ignores it (it never searches for a lost patch)."""
+    plain = run_pipeline(boxes_aps, PipelineConfig(features="sift"))
+    gap = run_pipeline(boxes_aps, PipelineConfig(features="sift", track_gap=2))
+    assert plain.tracking["revived"].sum() == 0 and gap.tracking["revived"].mean() > 3
+    assert np.mean(gap.track_lengths) > np.mean(plain.track_lengths)
+    assert gap.metrics["rmse_m"] < 0.3 and np.isfinite(gap.p_IinG).all()
+    klt = PipelineConfig(tracker="klt", features="fast", track_gap=2)
+    assert klt.frontend_config().max_gap_frames == 0 and klt.effective_track_gap() == 0
 
 
 def test_two_frame_streams_in_one_run(boxes_events):
