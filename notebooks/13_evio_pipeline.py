@@ -208,7 +208,7 @@ assert (seq.camera.width, seq.camera.height) == (240, 180) and abs(box_times[0] 
 assert np.all(np.abs(np.diff(box_times) - 0.04) < 0.005)  # frames about 40 ms apart
 assert box_stats["total"][1:].min() >= 50  # the grid is refilled to about N = 60 features
 assert 0.2 < box_stats["tracked"][1:].mean() / box_stats["total"][1:].mean() < 0.9
-assert box_stats["rejected_ransac"][1:].mean() > 0.3 * box_stats["tracked"][1:].mean()
+assert 0 < box_stats["rejected_ransac"][1:].mean() < box_stats["tracked"][1:].mean() / 3
 assert PipelineConfig().match_ratio is None and frontend_config.ratio is None  # no ratio test in the pipeline
 
 # %% [markdown]
@@ -216,10 +216,10 @@ assert PipelineConfig().match_ratio is None and frontend_config.ratio is None  #
 # rest are new detections filling cells that lost theirs. In this repetitive, low-resolution room many SIFT
 # descriptors have a near twin: the pipeline matches without Lowe's ratio test (which keeps a match only when its
 # descriptor distance is below, say, 0.8 times that of the second-best candidate; the pipeline measured better
-# without it, see `PipelineConfig.match_ratio`), and two-point RANSAC then rejects a large share of the candidate matches (more than
-# 0.3 per continued track here). Short tracks are the price: the MSCKF uses a track only once it has at least
-# three observations (`min_track_length` of the filter's `MsckfConfig`, notebook 11; asserted in section 2), and
-# gains most from long tracks.
+# without it, see `PipelineConfig.match_ratio`), and two-point RANSAC then rejects the candidate matches that do not
+# fit the gyro's rotation and one translation (here fewer than one for every three continued tracks). Every track
+# that ends is a loss: the MSCKF uses a track only once it has at least three observations (`min_track_length` of
+# the filter's `MsckfConfig`, notebook 11; asserted in section 2), and gains most from long tracks.
 #
 # **Two-point RANSAC by hand.** Match *every* SIFT detection of the last two frames (no search window, only Lowe's
 # ratio test at 0.8, so some wrong matches get through) and let two-point RANSAC, given the gyro's rotation, decide.
@@ -624,10 +624,9 @@ assert track_length["KLT + FAST"] > 3 * track_length["SIFT"]
 
 # %% [markdown]
 # The two front-ends differ most in how long they keep a feature: optical flow follows a patch from frame to frame
-# and keeps it for many frames, while SIFT loses most tracks after a frame or two (more than 3x shorter on average
-# here). Long tracks give the MSCKF more views per feature and therefore more parallax per update.
+# and keeps it for many frames, while SIFT's tracks last a few frames (more than 3x shorter on average here). Long tracks give the MSCKF more views per feature and therefore more parallax per update.
 #
-# Why are SIFT's tracks so short? A descriptor tracker can only continue a feature that the detector finds *again*
+# Why are SIFT's tracks shorter? A descriptor tracker can only continue a feature that the detector finds *again*
 # in the next frame. `evio_lib.frontend.redetection` measures exactly that: it carries every keypoint of one frame
 # into the next with optical flow and asks whether the detector fired within 2 px of it, and whether the guided
 # nearest descriptor is that very point. SIFT against the project's CNN, on a few consecutive frame pairs:
@@ -642,19 +641,26 @@ for name in ("sift", "superpoint"):
     found = [redetection(detector, seq.frames[k], seq.frames[k + 1]) for k in pair_starts]
     redetect[name] = (np.mean([r.rate for r in found]), np.mean([r.match_rate for r in found]))
     print(f"{name:>10}: re-detected within 2 px {redetect[name][0]:.2f}, guided match correct {redetect[name][1]:.2f}")
-assert redetect["sift"][0] < 0.5 and redetect["superpoint"][0] > 1.5 * redetect["sift"][0]
-assert redetect["sift"][1] > 0.7 and redetect["superpoint"][1] > 0.9
+assert 0.5 < redetect["sift"][0] < 0.9 and redetect["superpoint"][0] < 1.2 * redetect["sift"][0]
+assert redetect["sift"][1] > 0.9 and redetect["superpoint"][1] > 0.9
 box_ratio = box_stats["tracked"][1:].mean() / box_stats["total"][1:].mean()  # continued share, section 1b
-assert slider_ratio is None or slider_ratio > 1.5 * box_ratio  # real slider frames: far more continued
+print(f"share of features continued from the previous frame: simulated room {box_ratio:.2f}"
+      + ("" if slider_ratio is None else f", real slider {slider_ratio:.2f}"))
+assert slider_ratio is None or abs(slider_ratio - box_ratio) < 0.15  # about the same on real and simulated frames
 
 # %% [markdown]
-# On these noisy 240 x 180 simulated frames SIFT fires again at fewer than half of its points (the others move to
-# other places of the texture), so most of its tracks must end, however good the matching: when the point *is* found
-# again, the guided nearest descriptor picks it more than 70 % of the time. The CNN, trained for repeatable points,
-# finds its points again more than 1.5x as often; this is the thesis's argument for a learned detector, and
-# `docs/pipeline.md` measures it over more frames. On the real slider frames above SIFT kept far more of its tracks
-# (when the slice is present: more than 1.5x the share continued in the room, section 1b): the simulator's APS
-# frames (sensor noise and blur at the DAVIS's quality) are harder on SIFT than those real ones.
+# SIFT fires again at more than half of its points, but not at all of them: the rest move to other places of the
+# texture, and their tracks must end however good the matching is, for when the point *is* found again the guided
+# nearest descriptor picks it more than 90 % of the time. So a track is lost to a missed detection, not to a wrong
+# match. The CNN, trained for repeatable points, does not re-detect clearly more often than SIFT on these frames
+# (less than 1.2x SIFT's rate): the thesis's argument for a learned detector does not show here. On the real slider
+# frames of section 1a SIFT continued about the same share of its features as in the simulated room (within 0.15,
+# when the slice is present): the simulator's APS noise is matched to those real frames (`docs/pipeline.md`).
+#
+# A tracker can also keep looking for a point it missed: `PipelineConfig(track_gap=2)` (`run --track-gap 2`) keeps a
+# lost track for two frames, predicts where its point went with the gyro's rotation and continues the track, with
+# its id, when its last descriptor is matched again; the filter keeps such a track open meanwhile. It is not the
+# default: `docs/pipeline.md` measures what it gives and costs.
 #
 # ### 2b. The sparse aerial scene
 #

@@ -318,13 +318,18 @@ class DescriptorTracker(FeatureTracker):
         """Return (D, 3, 3) rotations from each dormant track's last frame to the current one, R R_dormant."""
         return self._dormant_R if R is None else np.einsum("ij,djk->dik", R, self._dormant_R)
 
+    @staticmethod
+    def _rotate_bearings(xy: NDArray[np.float64], rotations: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Return g_k = R_k f_k / (R_k f_k)_z for f_k = [x_k, y_k, 1], each point with its own rotation (NaN when
+        the rotation turns it behind the camera), as :func:`compensate_rotation` does with one rotation."""
+        g = np.einsum("kij,kj->ki", rotations, np.concatenate([xy, np.ones((xy.shape[0], 1))], axis=1))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(g[:, 2:3] > 1e-9, g[:, :2] / g[:, 2:3], np.nan)
+
     def _predict_dormant(self, rotations: NDArray[np.float64]) -> NDArray[np.float64]:
         """Return the (D, 2) pixels where the dormant tracks move under their own rotations (as :meth:`_predict`)."""
-        f = np.concatenate([self._dormant_xy, np.ones((self._dormant_xy.shape[0], 1))], axis=1)
-        g = np.einsum("dij,dj->di", rotations, f)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            xy = g[:, :2] / g[:, 2:3]
-        ahead = g[:, 2] > 1e-9
+        xy = self._rotate_bearings(self._dormant_xy, rotations)
+        ahead = np.isfinite(xy).all(axis=1)
         predicted = self._dormant_pixels.copy()
         if ahead.any():
             predicted[ahead] = self.camera.normalized_to_pixels(xy[ahead])
@@ -370,10 +375,7 @@ class DescriptorTracker(FeatureTracker):
             active = ~revived_pairs
             g_prev[active] = compensate_rotation(self._xy[pairs[active, 0]], R)
             k = pairs[revived_pairs, 0] - n_active
-            f = np.concatenate([self._dormant_xy[k], np.ones((k.shape[0], 1))], axis=1)
-            g = np.einsum("dij,dj->di", dormant_R[k], f)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                g_prev[revived_pairs] = np.where(g[:, 2:3] > 1e-9, g[:, :2] / g[:, 2:3], np.nan)
+            g_prev[revived_pairs] = self._rotate_bearings(self._dormant_xy[k], dormant_R[k])
             inliers, degenerate = self._ransac(g_prev, xy_all[pairs[:, 1]], None)
         else:
             inliers, degenerate = self._ransac(self._xy[pairs[:, 0]], xy_all[pairs[:, 1]], R)

@@ -54,6 +54,8 @@ TABLE_ROWS = (
     TableRow("imu", "IMU only (no bias correction)", (("imu_only", True),)),
     TableRow("imu_bias", "IMU only (bias correction)", (("imu_only", True), ("bias_init", "groundtruth"))),
     TableRow("sift_aps", "SIFT, APS frames", (("features", "sift"),)),
+    TableRow("sift_aps_gap2", "SIFT, APS frames, tracks surviving 2 missed frames",
+             (("features", "sift"), ("track_gap", 2))),
     TableRow("cnn_aps", "CNN, APS frames", (("features", "superpoint"),)),
     TableRow("cnn_narrow_aps", "CNN (distilled, half width), APS frames",
              (("features", "superpoint"), ("detector_options", (("weights", "distilled_narrow"),)))),
@@ -76,7 +78,7 @@ TABLE_ROWS = (
 
 
 #: Rows run only when named (``keys``): beside the thesis's configurations, not part of the default table.
-OPTIONAL_ROWS = ("cnn_narrow_aps",)
+OPTIONAL_ROWS = ("cnn_narrow_aps", "sift_aps_gap2")
 
 
 def table_rows(keys: Sequence[str] | None = None, events_cnn: str | None = None) -> list[TableRow]:

@@ -233,6 +233,7 @@ def test_a_track_gap_reaches_the_tracker_and_the_filter(boxes_aps):
     KLT ignores it (it never searches for a lost patch)."""
     plain = run_pipeline(boxes_aps, PipelineConfig(features="sift"))
     gap = run_pipeline(boxes_aps, PipelineConfig(features="sift", track_gap=2))
+    assert plain.config.track_gap == 0  # the default
     assert plain.tracking["revived"].sum() == 0 and gap.tracking["revived"].mean() > 3
     assert np.mean(gap.track_lengths) > np.mean(plain.track_lengths)
     assert gap.metrics["rmse_m"] < 0.3 and np.isfinite(gap.p_IinG).all()
