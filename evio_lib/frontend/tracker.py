@@ -19,11 +19,11 @@ descriptor tracker keeps a lost track for g frames ("dormant": its last descript
 gyroscope's rotation since then) and matches it like the others: predicted by that rotation, within the same
 ``match_radius_px`` (a radius that grew with the gap, as the translation's flow adds up, let more wrong matches
 through on noisy frames: on the tests' frames with the APS noise of the simulator before 2026-11-27, 10 % against
-4 % of the revived tracks more than 3 px from their point; with today's noise neither has any), and
-checked by the same two-point RANSAC with its own rotation removed (for a translation direction that changes little over a few frames,
-the epipolar constraint t . (g1 x f2) = 0 holds for the longer baseline too). A revived track keeps its id, so the
-MSCKF (``MsckfConfig.max_track_gap`` = g) continues one track instead of starting a second one. The output of every frame
-(:class:`TrackedFrame`) holds ids and undistorted normalised coordinates, the input of
+4 % of the revived tracks more than 3 px from their point; with today's noise neither has any), and checked by
+the same two-point RANSAC with its own rotation removed (for a translation direction that changes little over a
+few frames, the epipolar constraint t . (g1 x f2) = 0 holds for the longer baseline too). A revived track keeps its
+id, so the MSCKF (``MsckfConfig.max_track_gap`` = g) continues one track instead of starting a second one. The
+output of every frame (:class:`TrackedFrame`) holds ids and undistorted normalised coordinates, the input of
 ``evio_lib.msckf.filter.Msckf.process_image``, and per-frame statistics for plots.
 
 :class:`evio_lib.frontend.klt.KltTracker` (pyramidal Lucas-Kanade optical flow with FAST detections, the front-end of
@@ -198,13 +198,17 @@ class FeatureTracker(ABC):
         the rotation turns behind the camera keep their previous pixel."""
         if R is None or self.num_tracks == 0:
             return self._pixels.copy()
-        g = compensate_rotation(self._xy, R)  # g = R f / (R f)_z
+        return self._project_or_keep(compensate_rotation(self._xy, R), self._pixels)  # g = R f / (R f)_z
+
+    def _project_or_keep(self, g: NDArray[np.float64], pixels: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Return the pixels of the rotated bearings g, keeping ``pixels`` where g is behind the camera (NaN) or
+        projects absurdly far."""
         ahead = np.isfinite(g).all(axis=1)
-        predicted = self._pixels.copy()
+        predicted = pixels.copy()
         if ahead.any():
             predicted[ahead] = self.camera.normalized_to_pixels(g[ahead])
         far = ~np.isfinite(predicted).all(axis=1) | (np.abs(predicted) > 1e6).any(axis=1)
-        predicted[far] = self._pixels[far]
+        predicted[far] = pixels[far]
         return predicted
 
     def _ransac(self, xy_prev: NDArray[np.float64], xy_curr: NDArray[np.float64],
@@ -328,14 +332,7 @@ class DescriptorTracker(FeatureTracker):
 
     def _predict_dormant(self, rotations: NDArray[np.float64]) -> NDArray[np.float64]:
         """Return the (D, 2) pixels where the dormant tracks move under their own rotations (as :meth:`_predict`)."""
-        xy = self._rotate_bearings(self._dormant_xy, rotations)
-        ahead = np.isfinite(xy).all(axis=1)
-        predicted = self._dormant_pixels.copy()
-        if ahead.any():
-            predicted[ahead] = self.camera.normalized_to_pixels(xy[ahead])
-        far = ~np.isfinite(predicted).all(axis=1) | (np.abs(predicted) > 1e6).any(axis=1)
-        predicted[far] = self._dormant_pixels[far]
-        return predicted
+        return self._project_or_keep(self._rotate_bearings(self._dormant_xy, rotations), self._dormant_pixels)
 
     def process(self, image: ArrayLike, t: float, R_prev_to_curr: ArrayLike | None = None) -> TrackedFrame:
         img, t, R = self._check_input(image, t, R_prev_to_curr)
@@ -376,7 +373,9 @@ class DescriptorTracker(FeatureTracker):
             g_prev[active] = compensate_rotation(self._xy[pairs[active, 0]], R)
             k = pairs[revived_pairs, 0] - n_active
             g_prev[revived_pairs] = self._rotate_bearings(self._dormant_xy[k], dormant_R[k])
-            inliers, degenerate = self._ransac(g_prev, xy_all[pairs[:, 1]], None)
+            ahead = np.isfinite(g_prev).all(axis=1)  # a bearing turned behind the camera is no match (as in RANSAC)
+            inliers = np.zeros(pairs.shape[0], bool)
+            inliers[ahead], degenerate = self._ransac(g_prev[ahead], xy_all[pairs[ahead, 1]], None)
         else:
             inliers, degenerate = self._ransac(self._xy[pairs[:, 0]], xy_all[pairs[:, 1]], R)
         t_ransac = time.perf_counter() - start

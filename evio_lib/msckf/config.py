@@ -75,9 +75,9 @@ class MsckfConfig:
             left.
         max_track_gap: images of its stream a track may miss and still continue [0]. With 0 a track ends at the first
             image without it and is used then; with g > 0 it is kept (its observations need not come from
-            consecutive clones) until g images in a row lack it, so a front-end that finds a feature again after a
-            missed detection (``FrontendConfig.max_gap_frames``) continues one track instead of two short ones.
-            The update of such a track comes g images later.
+            consecutive clones) until more than g images in a row lack it, so a front-end that finds a feature
+            again after a missed detection (``FrontendConfig.max_gap_frames``) continues one track instead of two
+            short ones. The update of such a track comes g images later.
         chi2_gating, chi2_probability: per-feature chi-square (Mahalanobis) gating and its probability [0.95],
             applied to ALL of a feature's observations in the window (dof 2M - 3) even when a prune uses only
             some. A gate also throws away correct data, and which data depends on the residual: the kept

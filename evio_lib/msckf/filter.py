@@ -537,6 +537,7 @@ class Msckf:
             self._track_stream.clear()
             self._track_last_image.clear()
         else:
+            self._stream_images[stream] += 1  # the clock of max_track_gap: images of this stream so far
             self._add_observations(camera_id, ids, xy, whiten, stream)
             lost = self._collect_lost_features(ids, stream)
             pruned = self._collect_pruned_features(remove)
@@ -668,8 +669,7 @@ class Msckf:
         rate (share of known ids)."""
         tracked = 0
         tracks = self.tracks
-        self._stream_images[stream] += 1
-        image = self._stream_images[stream]
+        image = self._stream_images[stream]  # this image's number in its stream (counted in _process_image)
         last_image = self._track_last_image
         W_all = [self._iso_whiten] * ids.shape[0] if whiten is None else whiten
         for fid, z, W in zip(ids.tolist(), xy, W_all):

@@ -76,7 +76,7 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--track-gap", type=integer(minimum=0), default=0, metavar="FRAMES",
                    help="descriptor tracker: keep a lost track for FRAMES frames and continue it, with its id, when "
                         "the feature is matched again (default 0: a missed detection ends the track, as in the "
-                        "thesis; 2 measured best for SIFT, docs/pipeline.md)")
+                        "thesis; 2 measured best for SIFT, docs/pipeline.md; not with --tracker klt)")
     p.add_argument("--extrinsics", type=Path, default=None,
                    help="a Kalibr YAML with T_cam_imu, overriding the recording's extrinsics")
     p.add_argument("--calib", type=Path, default=None,

@@ -5,8 +5,8 @@ plus the camera-IMU extrinsics and IMU noise model the filter needs, and notes s
 
 - A preset name (``boxes_like``, ``aerial_like``) is simulated on first use and cached as ``.npz`` under the project's
   cache folder (``features.training.datasets.default_cache_dir() / "sequences"``), keyed by preset, duration, seed,
-  start, a digest of the sensor models (:func:`evio_lib.sim.presets.sensor_models_digest`) and whether events were
-  simulated; the sidecar knows the extrinsics and the IMU noise exactly.
+  start, a digest of every other setting (:func:`evio_lib.sim.presets.recording_settings_digest`: the sensor models)
+  and whether events were simulated; the sidecar knows the extrinsics and the IMU noise exactly.
 - An ECD folder (``events.txt`` [+ ``images.txt``, ``imu.txt``, ``calib.txt``, ``groundtruth.txt``]): extrinsics from
   the evio sidecar when present, else camera = IMU frame (the DAVIS chip's own IMU; about a centimetre off in reality),
   said in the notes. IMU noise from the sidecar, else the DAVIS's MPU-6150 model of :class:`ImuNoiseParams`.
@@ -116,7 +116,7 @@ def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, w
 
     jobs = None if jobs is None else check_jobs(jobs)  # refused even when the recording is in the cache
     from evio_lib.io.cache import check_cache_file_writable, load_cached_sequence, store_sequence_npz
-    from evio_lib.sim.presets import SimulationConfig, sensor_models_digest, simulate_sequence
+    from evio_lib.sim.presets import SimulationConfig, recording_settings_digest, simulate_sequence
 
     full = PRESET_DURATIONS[preset] if preset in PRESETS else None
     start = check_preset_start(preset, start)
@@ -127,7 +127,7 @@ def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, w
     config = SimulationConfig(preset=preset, duration=duration, trajectory_duration=full, seed=seed,
                               with_events=with_events, start_time=start)
     stem = sequence_cache_dir() / (f"{preset}_d{duration:g}_seed{seed}" + (f"_start{start:g}" if start else "")
-                                   + f"_m{sensor_models_digest(config)}")
+                                   + f"_m{recording_settings_digest(config)}")
     path = stem.with_name(stem.name + ("_events.npz" if with_events else "_frames.npz"))
     # a recording simulated with events also serves a run that needs only the frames (the same seed gives the same
     # frames, IMU and ground truth with or without events)

@@ -109,8 +109,8 @@ class PipelineConfig:
             triangulation and keeps the rest (``MsckfConfig.observation_outlier_px``; None: off).
         track_gap: frames a descriptor track may miss and still continue with its id
             (``FrontendConfig.max_gap_frames`` and ``MsckfConfig.max_track_gap``; 0: a missed detection ends the
-            track, the thesis's tracker and the default). KLT never searches for a lost patch, so its runs ignore
-            it. Measured on the validation seeds 3-5 of both whole presets (docs/pipeline.md): 2 gives SIFT on APS
+            track, the thesis's tracker and the default). KLT never searches for a lost patch: with it the gap
+            must be 0. Measured on the validation seeds 3-5 of both whole presets (docs/pipeline.md): 2 gives SIFT on APS
             frames tracks of 4.3-4.9 frames on boxes_like instead of 2.9-3.4 and a lower second-half RMSE on all
             six recordings, but it is not the default: the CNN diverged with it on one of them, and the gentle start
             of a recording gets worse.
@@ -193,6 +193,9 @@ class PipelineConfig:
         if isinstance(self.track_gap, bool) or not isinstance(self.track_gap, (int, np.integer)) or self.track_gap < 0:
             raise ValueError(f"track_gap must be an integer >= 0 (frames); got {self.track_gap!r}")
         object.__setattr__(self, "track_gap", int(self.track_gap))
+        if self.track_gap and self.tracker != "descriptor":
+            raise ValueError(f"track_gap applies to the descriptor tracker (KLT follows each patch and never "
+                             f"searches for a lost one); got {self.track_gap} with tracker {self.tracker!r}")
 
     def window_bounds(self) -> tuple[float, float | None]:
         """Return (least, greatest) window duration in s of the event source (the source's defaults for None)."""
@@ -208,11 +211,7 @@ class PipelineConfig:
         detector = self.features if self.tracker == "descriptor" or self.features != "sift" else None
         return FrontendConfig(method=self.tracker, detector=detector, detector_options=self.detector_options,
                               max_features=self.max_features, ratio=self.match_ratio, seed=self.seed,
-                              max_gap_frames=self.effective_track_gap())
-
-    def effective_track_gap(self) -> int:
-        """Return the frames a track may miss: ``track_gap`` for the descriptor tracker, 0 for KLT."""
-        return self.track_gap if self.tracker == "descriptor" else 0
+                              max_gap_frames=self.track_gap)
 
     def label(self) -> str:
         """Return a short name, e.g. 'SIFT on APS frames' or 'IMU only'."""
@@ -225,7 +224,7 @@ class PipelineConfig:
         names = {"aps": "APS frames", "mc-events": "motion-compensated event frames",
                  "events": f"event frames ({self.reconstructor})"}
         source = " + ".join(names[s] for s in frame_streams(self.frames))
-        return f"{name} on {source}"
+        return f"{name} on {source}" + (f", track gap {self.track_gap}" if self.track_gap else "")
 
 
 @dataclass(eq=False)
@@ -426,7 +425,7 @@ def msckf_config_for(config: PipelineConfig, data: LoadedDataset) -> MsckfConfig
     changes: dict[str, Any] = dict(pixel_noise_sigma=config.pixel_noise_px, focal_length_px=math.sqrt(cam.fx * cam.fy),
                                    observability_constrained=config.oc, imu_only=config.imu_only,
                                    observation_outlier_px=config.observation_outlier_px,
-                                   max_track_gap=config.effective_track_gap())
+                                   max_track_gap=config.track_gap)
     if gravity is not None:
         changes["gravity_G"] = tuple(float(g) for g in gravity)
     return dataclasses.replace(cfg, **changes)

@@ -41,7 +41,7 @@ PRESETS = ("boxes_like", "aerial_like")
 
 __all__ = ["PRESETS", "MAX_RECORDING_DURATION_S", "CameraPoseTable", "SimulationConfig", "simulate_sequence",
            "simulation_cache_path", "simulate_sequence_cached",
-           "sensor_models_digest"]
+           "recording_settings_digest"]
 
 #: Longest recording with events or frames that one simulation makes, seconds (ten minutes). The presets make about
 #: 0.35 M events/s on average and up to 1 M/s in fast motion (13 B each) plus 24 frames/s of 43 KB, all held in memory:
@@ -350,17 +350,21 @@ def _collect_frames(pending: Iterator[np.ndarray], config: SimulationConfig, tim
     return frames
 
 
-def sensor_models_digest(config: SimulationConfig) -> str:
+def _settings_digest(settings: dict, length: int) -> str:
+    """Return the first ``length`` hex digits of the SHA-1 of the settings as sorted JSON (arrays as lists)."""
+    text = json.dumps(settings, sort_keys=True, default=lambda value: np.asarray(value).tolist())
+    return hashlib.sha1(text.encode("utf-8")).hexdigest()[:length]
+
+
+def recording_settings_digest(config: SimulationConfig) -> str:
     """Return 8 hex digits that name every setting of a simulated recording but which sensors were simulated.
 
-    Cached recordings carry it in their file names, so that a recording made with other sensor models (an earlier
-    version of the simulator's defaults, e.g. the APS noise before 2026-11-27) is never read back as if it were
-    current; the events and the frames-only recordings of one setting share it (a recording with events also serves
-    a run that needs only the frames).
+    Cached preset recordings carry it in their file names, so that a recording made with other settings (e.g. the
+    APS noise of the simulator before 2026-11-27) is never read back as if it were current; the events and the
+    frames-only recordings of one setting share it (a recording with events also serves a run that needs only the
+    frames).
     """
-    settings = asdict(dataclasses.replace(config, with_events=True, with_frames=True))
-    text = json.dumps(settings, sort_keys=True, default=lambda value: np.asarray(value).tolist())
-    return hashlib.sha1(text.encode("utf-8")).hexdigest()[:8]
+    return _settings_digest(asdict(dataclasses.replace(config, with_events=True, with_frames=True)), 8)
 
 
 def simulation_cache_path(config: SimulationConfig) -> Path:
@@ -373,9 +377,7 @@ def simulation_cache_path(config: SimulationConfig) -> Path:
     """
     from evio_lib.features.training.datasets import default_cache_dir  # the project's one cache folder
 
-    fields = json.dumps(asdict(config), sort_keys=True, default=lambda value: np.asarray(value).tolist())
-    digest = hashlib.sha1(fields.encode("utf-8")).hexdigest()[:16]
-    return default_cache_dir() / "sequences" / f"{config.preset}_{digest}.npz"
+    return default_cache_dir() / "sequences" / f"{config.preset}_{_settings_digest(asdict(config), 16)}.npz"
 
 
 def simulate_sequence_cached(config: SimulationConfig, progress: bool = False, jobs: int | None = None) -> Sequence:

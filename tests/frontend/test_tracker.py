@@ -17,6 +17,7 @@ from evio_lib.frontend import (
     create_tracker,
     stats_table,
 )
+from evio_lib.features.base import FeatureDetector, Features
 from evio_lib.geometry.camera import PinholeRadtan
 from evio_lib.geometry.epipolar import sampson_distance
 from evio_lib.geometry.rotation import skew
@@ -195,7 +196,43 @@ def test_a_dormant_track_is_forgotten_after_max_gap_frames(gentle):
                                       + table["dropped"])
         np.testing.assert_array_equal(table["lost"][1:], table["total"][:-1] - table["tracked"][1:]
                                       + table["revived"][1:])
+        for k in range(1, len(out)):  # revived: continued tracks that were not in the previous frame
+            older = set(out[k].ids[out[k].ages > 1].tolist())
+            assert table["revived"][k] == len(older - set(out[k - 1].ids.tolist()))
     assert ids4[1] == 0 and ids4[2] >= 5
+
+
+class _ScriptedDetector(FeatureDetector):
+    """Returns the features scripted for each call, whatever the image (a controlled test of the bookkeeping)."""
+
+    name = "scripted"
+
+    def __init__(self, script):
+        super().__init__()
+        self.script = list(script)
+
+    def detect_and_describe(self, image):
+        keypoints, descriptors = self.script.pop(0)
+        n = len(keypoints)
+        return Features(np.reshape(keypoints, (n, 2)), np.linspace(1.0, 0.5, n), np.reshape(descriptors, (n, 2)))
+
+
+def test_a_rotation_that_turns_tracks_behind_the_camera_ends_them_also_with_dormant_ones():
+    """A point is missed in frame 1 (dormant); in frame 2 a 150 deg turn puts it and the continued point behind the
+    camera: their predictions keep the old pixels, the detections there match, and both are rejected as RANSAC
+    rejects a bearing turned behind the camera, without an error; the statistics still add up."""
+    cam = PinholeRadtan(fx=100.0, fy=100.0, cx=31.5, cy=23.5, width=64, height=48)
+    a, b = ([30.0, 20.0], [1.0, 0.0]), ([10.0, 10.0], [0.0, 1.0])
+    script = [([a[0], b[0]], [a[1], b[1]]), ([a[0]], [a[1]]), ([a[0], b[0]], [a[1], b[1]])]
+    tracker = DescriptorTracker(cam, FrontendConfig(max_gap_frames=2, max_features=20),
+                                detector=_ScriptedDetector(script))
+    turn = np.array([[np.cos(2.6), 0.0, np.sin(2.6)], [0.0, 1.0, 0.0], [-np.sin(2.6), 0.0, np.cos(2.6)]])
+    frames = [tracker.process(np.zeros((48, 64), np.float32), 0.1 * k, R)
+              for k, R in enumerate([None, np.eye(3), turn])]
+    assert frames[1].stats.tracked == 1 and frames[1].stats.lost == 1  # b went dormant
+    last = frames[2].stats
+    assert last.candidates == 2 and last.rejected_ransac == 2 and last.tracked == last.revived == 0
+    assert last.new == 2 and not set(frames[2].ids) & set(frames[0].ids)
 
 
 def test_the_gyro_prior_keeps_klt_tracks_under_fast_rotation():

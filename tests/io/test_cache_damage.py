@@ -49,10 +49,11 @@ def test_a_damaged_recording_cache_is_simulated_again_with_a_note(private_cache,
     from evio_lib.pipeline.dataset import sequence_cache_dir, simulate_preset
 
     fresh = simulate_preset("boxes_like", 0.2, seed=0)
-    (path,) = sequence_cache_dir().glob("boxes_like_d0.2_seed0_frames.npz")
+    (path,) = sequence_cache_dir().glob("boxes_like_d0.2_seed0_m*_frames.npz")
     _damage(path, how)
     if how in ("empty", "truncated", "end_cut"):
-        with pytest.raises(CacheError, match=r"boxes_like_d0.2_seed0_frames.npz: (the file is empty|not a readable "
+        with pytest.raises(CacheError, match=r"boxes_like_d0.2_seed0_m[0-9a-f]{8}_frames.npz: (the file is empty|not a "
+                                             r"readable "
                                              r"npz file .*truncated or damaged)"):
             load_sequence_npz(path)
     capsys.readouterr()
@@ -114,9 +115,13 @@ def test_a_folder_where_the_recording_cache_goes_is_named(private_cache):
     """A folder in the cache's place (made by hand or by another tool) is named, never a temporary file's error."""
     from evio_lib.pipeline.dataset import sequence_cache_dir, simulate_preset
 
-    blocker = sequence_cache_dir() / "boxes_like_d0.5_seed0_frames.npz"
+    from evio_lib.sim.presets import SimulationConfig, recording_settings_digest
+
+    digest = recording_settings_digest(SimulationConfig(preset="boxes_like", duration=0.5, trajectory_duration=60.0))
+    blocker = sequence_cache_dir() / f"boxes_like_d0.5_seed0_m{digest}_frames.npz"
     blocker.mkdir(parents=True)
-    with pytest.raises(ValueError, match=r"the recording cache .*boxes_like_d0.5_seed0_frames.npz is a folder, where "
+    with pytest.raises(ValueError, match=r"the recording cache .*boxes_like_d0.5_seed0_m[0-9a-f]{8}_frames.npz is a "
+                                         r"folder, where "
                                          r"the simulated recording is to be stored; remove it"):
         simulate_preset("boxes_like", 0.5)
     assert blocker.is_dir() and list(blocker.parent.iterdir()) == [blocker]

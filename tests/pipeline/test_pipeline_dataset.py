@@ -17,22 +17,23 @@ def test_preset_is_cached_and_read_back_identical(boxes_aps):
     np.testing.assert_allclose(boxes_aps.R_CtoI, boxes_aps.sequence.R_CtoI)
 
 
-def test_a_recording_cached_with_other_sensor_models_is_not_read_back(boxes_aps):
-    """The cache name carries a digest of the sensor models: a file of the same preset, duration and seed made with
-    another APS noise (an older simulator) is a different name; the events and frames-only recordings share it."""
+def test_cache_names_carry_a_digest_of_every_setting(boxes_aps):
+    """The cache name carries a digest of every setting but which sensors were simulated: a recording of the same
+    preset, duration and seed made with another APS noise (an older simulator) has another name, so it is never read
+    back; the events and the frames-only recordings share it."""
     import dataclasses
 
     from evio_lib.sim.aps import ApsParams
-    from evio_lib.sim.presets import SimulationConfig, sensor_models_digest
+    from evio_lib.sim.presets import SimulationConfig, recording_settings_digest
 
     config = SimulationConfig(preset="boxes_like", duration=3.0, trajectory_duration=60.0, seed=0, with_events=False)
-    digest = sensor_models_digest(config)
+    digest = recording_settings_digest(config)
     assert [f.name for f in sequence_cache_dir().glob("boxes_like_d3_seed0_m*_frames.npz")] == [
         f"boxes_like_d3_seed0_m{digest}_frames.npz"]
-    assert sensor_models_digest(dataclasses.replace(config, with_events=True)) == digest
+    assert recording_settings_digest(dataclasses.replace(config, with_events=True)) == digest
     noisier = dataclasses.replace(config, aps=ApsParams(read_noise_sigma=0.01, shot_noise_scale=0.003))
-    assert sensor_models_digest(noisier) != digest
-    assert sensor_models_digest(dataclasses.replace(config, seed=1)) != digest
+    assert recording_settings_digest(noisier) != digest
+    assert recording_settings_digest(dataclasses.replace(config, seed=1)) != digest
 
 
 def test_preset_duration_is_the_start_of_the_whole_motion(boxes_aps):
@@ -152,7 +153,7 @@ def test_euroc_folder_reads_extrinsics_and_noise(real_data_dir):
 def test_a_recording_with_events_serves_a_frames_only_run(boxes_events):
     """The events cache is reused for an APS run (same seed: same frames and IMU), not simulated again."""
     frames_only = load_dataset("boxes_like", duration=1.5)
-    assert not (sequence_cache_dir() / "boxes_like_d1.5_seed0_frames.npz").exists()
+    assert not list(sequence_cache_dir().glob("boxes_like_d1.5_seed0_*frames.npz"))
     np.testing.assert_array_equal(frames_only.sequence.frames, boxes_events.sequence.frames)
     np.testing.assert_array_equal(frames_only.sequence.imu.gyro, boxes_events.sequence.imu.gyro)
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from evio_lib.pipeline.dataset import LoadedDataset
-from evio_lib.pipeline.run import PipelineConfig, run_pipeline
+from evio_lib.pipeline.run import PipelineConfig, msckf_config_for, run_pipeline
 from evio_lib.sequence import ImuSamples
 
 
@@ -109,6 +109,7 @@ def test_static_initialisation_refuses_a_moving_start(boxes_aps):
     (dict(frames="events", reconstructor="no/such.pt"), "or a reconstruct-train checkpoint file; got 'no/such.pt'"),
     (dict(track_gap=-1), r"track_gap must be an integer >= 0 \(frames\); got -1"),
     (dict(track_gap=1.0), "track_gap must be an integer"),
+    (dict(tracker="klt", features="fast", track_gap=2), "track_gap applies to the descriptor tracker"),
 ])
 def test_bad_configs_are_refused(changes, message):
     with pytest.raises(ValueError, match=message):
@@ -230,15 +231,16 @@ def test_event_frames_with_a_time_cap_give_frames_in_a_still_stretch(boxes_event
 
 def test_a_track_gap_reaches_the_tracker_and_the_filter(boxes_aps):
     """track_gap = 2: the descriptor tracker revives tracks and the filter keeps them whole, so tracks get longer;
-    KLT ignores it (it never searches for a lost patch)."""
+    the label says so; KLT refuses it (it never searches for a lost patch: test_bad_configs_are_refused)."""
     plain = run_pipeline(boxes_aps, PipelineConfig(features="sift"))
     gap = run_pipeline(boxes_aps, PipelineConfig(features="sift", track_gap=2))
     assert plain.config.track_gap == 0  # the default
     assert plain.tracking["revived"].sum() == 0 and gap.tracking["revived"].mean() > 3
     assert np.mean(gap.track_lengths) > np.mean(plain.track_lengths)
     assert gap.metrics["rmse_m"] < 0.3 and np.isfinite(gap.p_IinG).all()
-    klt = PipelineConfig(tracker="klt", features="fast", track_gap=2)
-    assert klt.frontend_config().max_gap_frames == 0 and klt.effective_track_gap() == 0
+    assert msckf_config_for(gap.config, boxes_aps).max_track_gap == 2  # the filter keeps the tracks open
+    assert gap.config.frontend_config().max_gap_frames == 2
+    assert gap.config.label() == "SIFT on APS frames, track gap 2" and plain.config.label() == "SIFT on APS frames"
 
 
 def test_two_frame_streams_in_one_run(boxes_events):

@@ -94,7 +94,7 @@ def simulated_eval_sequence(stretch: str, duration: float | None = None, seed: i
         seed: the simulation seed.
         cache: keep the events and frames in ``data/cache`` (git-ignored) for the next call.
     """
-    from evio_lib.sim.presets import SimulationConfig, _pose_function, sensor_models_digest, simulate_sequence
+    from evio_lib.sim.presets import SimulationConfig, _pose_function, recording_settings_digest, simulate_sequence
     from evio_lib.sim.scene import scene_from_preset
     from evio_lib.sim.trajectory import trajectory_from_preset
 
@@ -105,7 +105,7 @@ def simulated_eval_sequence(stretch: str, duration: float | None = None, seed: i
     config = SimulationConfig(preset=preset, duration=duration, start_time=start, trajectory_duration=motion, seed=seed)
     from evio_lib.features.training.datasets import default_cache_dir  # the project's one cache folder ($EVIO_CACHE_DIR)
 
-    name = f"reconstruction_eval_{stretch}_{duration:g}s_seed{seed}_m{sensor_models_digest(config)}.npz"
+    name = f"reconstruction_eval_{stretch}_{duration:g}s_seed{seed}_m{recording_settings_digest(config)}.npz"
     path = default_cache_dir() / name
     from evio_lib.io.cache import CacheError, discard_damaged_cache, load_npz_arrays
 
