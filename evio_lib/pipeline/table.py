@@ -68,6 +68,8 @@ TABLE_ROWS = (
              (("tracker", "klt"), ("features", "fast"), ("frames", "events"))),
     TableRow("sift_mc_events", "SIFT, motion-compensated event frames",
              (("features", "sift"), ("frames", "mc-events"))),
+    TableRow("sift_mc_events_gap2", "SIFT, motion-compensated event frames, tracks surviving 2 missed frames",
+             (("features", "sift"), ("frames", "mc-events"), ("track_gap", 2))),
     TableRow("cnn_mc_events", "CNN, motion-compensated event frames",
              (("features", "superpoint"), ("frames", "mc-events"))),
     TableRow("klt_mc_events", "KLT + FAST, motion-compensated event frames",
@@ -78,7 +80,7 @@ TABLE_ROWS = (
 
 
 #: Rows run only when named (``keys``): beside the thesis's configurations, not part of the default table.
-OPTIONAL_ROWS = ("cnn_narrow_aps", "sift_aps_gap2")
+OPTIONAL_ROWS = ("cnn_narrow_aps", "sift_aps_gap2", "sift_mc_events_gap2")
 
 
 def table_rows(keys: Sequence[str] | None = None, events_cnn: str | None = None) -> list[TableRow]:
