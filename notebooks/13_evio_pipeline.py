@@ -624,7 +624,8 @@ assert track_length["KLT + FAST"] > 3 * track_length["SIFT"]
 
 # %% [markdown]
 # The two front-ends differ most in how long they keep a feature: optical flow follows a patch from frame to frame
-# and keeps it for many frames, while SIFT's tracks last a few frames (more than 3x shorter on average here). Long tracks give the MSCKF more views per feature and therefore more parallax per update.
+# and keeps it for many frames, while SIFT's tracks last a few frames (more than 3x shorter on average here). Long
+# tracks give the MSCKF more views per feature and therefore more parallax per update.
 #
 # Why are SIFT's tracks shorter? A descriptor tracker can only continue a feature that the detector finds *again*
 # in the next frame. `evio_lib.frontend.redetection` measures exactly that: it carries every keypoint of one frame
