@@ -344,7 +344,7 @@ class DescriptorTracker(FeatureTracker):
 
         # the pool of tracks searched for: the previous frame's, then the dormant ones
         n_active, n_dormant = self.num_tracks, int(self._dormant_ids.shape[0])
-        dormant_R = self._dormant_rotations(R) if n_dormant else self._dormant_R
+        dormant_R = self._dormant_rotations(R)
         pool_descriptors = self._descriptors
         if n_dormant:
             pool_descriptors = (self._dormant_descriptors if self._descriptors is None or n_active == 0
