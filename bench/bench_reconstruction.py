@@ -47,6 +47,7 @@ def main() -> None:
                            rng.choice([-1, 1], n)) for k in range(args.frames)]
     methods = {name: create_reconstructor(name, w, h) for name in ("direct", "high_pass", "firenet")}
     methods["firenet (bfloat16)"] = create_reconstructor("firenet", w, h, precision="bfloat16")
+    methods["firenet (int8)"] = create_reconstructor("firenet", w, h, precision="int8")
     with tempfile.TemporaryDirectory() as folder:  # a random-weight E2VID-style UNet, loaded the way users load one
         path = Path(folder) / "e2vid_random.pt"
         torch.save({"format": "evio-reconstructor-v1", "architecture": "e2vid", "network_options": {}, "num_bins": 5,

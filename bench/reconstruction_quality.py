@@ -2,7 +2,7 @@
 slider_depth frames (see evio_lib.events.reconstruction.evaluation for the protocol and the normalisation).
 
 Usage:  python bench/reconstruction_quality.py [--methods direct high_pass firenet] [--max-frames 12]
-                                              [--split test|val] [--precision float32|bfloat16]
+                                              [--split test|val] [--precision float32|bfloat16|int8]
 
 The first run simulates the three held-out stretches (0.4 s each, seed 101; several minutes) and caches them in data/cache.
 """

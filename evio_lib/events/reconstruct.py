@@ -34,7 +34,7 @@ __all__ = ["PRECISIONS", "Reconstructor", "LogIntegrator", "LearnedReconstructor
            "reconstruct_at_times"]
 
 #: A network's arithmetic (``precision=`` of the learned reconstructors; the classical ones have none to choose).
-PRECISIONS = ("float32", "bfloat16")
+PRECISIONS = ("float32", "bfloat16", "int8")
 
 WEIGHTS_DIR = Path(__file__).resolve().parents[1] / "weights"
 #: Shipped learned reconstructors: name -> checkpoint file in evio_lib/weights/.
@@ -171,7 +171,8 @@ class LearnedReconstructor(Reconstructor):
         self.net.to(self.device).eval()
         # the forward pass used: FireNetInference on CPU (same outputs within ~1e-6, ~1.2-1.5x faster), else the net;
         # precision="bfloat16": the net under autocast (1.35x the frames/s on 2 threads, 1.56x on one, on this AVX-512
-        # machine with native bfloat16; images a few 1e-3 off, the same SSIM within 0.001: docs/reconstruction.md)
+        # machine with native bfloat16; images a few 1e-3 off, the same SSIM within 0.001: docs/reconstruction.md);
+        # "int8": FireNet with int8 convolutions (quantized.FireNetInt8; calibrated once per process, ~4 s)
         self.forward = inference_network(self.net, precision)
         self.precision = precision
         self.checkpoint = path
@@ -215,7 +216,7 @@ def create_reconstructor(name: str = "firenet", width: int = 240, height: int = 
     """Return a reconstructor by name for a width x height sensor (DAVIS240C by default).
 
     Names: ``direct`` (options: contrast, cutoff_hz), ``high_pass`` (contrast, cutoff_hz = 0.06, per_event_decay = 0.06),
-    ``firenet`` (the shipped network; options: device, threads, precision = ``float32`` or ``bfloat16``), ``learned``
+    ``firenet`` (the shipped network; options: device, threads, precision = one of :data:`PRECISIONS`), ``learned``
     with ``checkpoint=PATH`` (any checkpoint, e.g. an ``e2vid`` run of ``reconstruct-train``; the same options).
     ``precision`` is checked for every name; ``direct`` and ``high_pass`` compute in float64 whatever it says.
 
@@ -257,7 +258,7 @@ def reconstructor_by_name_or_file(method: str, width: int, height: int, what: st
                                   precision: str | None = None) -> Reconstructor:
     """Return the reconstructor named ``method`` (:func:`available_reconstructors`), else the one in the
     reconstruct-train checkpoint file ``method``; ``what`` names the setting in the error for anything else.
-    ``precision`` (``float32`` or ``bfloat16``) applies to networks; the classical methods ignore it."""
+    ``precision`` (one of :data:`PRECISIONS`) applies to networks; the classical methods ignore it."""
     options = {} if precision is None else {"precision": precision}
     if method in available_reconstructors():
         return create_reconstructor(method, width, height, **options)

@@ -391,26 +391,27 @@ def voxel_grid(events: np.ndarray, width: int, height: int, num_bins: int = 5, n
         raise ValueError(f"num_bins must be a positive integer; got {num_bins!r}")
     num_bins = int(num_bins)
     pix = _pixel_index(events, w, h)
-    grid = np.zeros(num_bins * h * w, dtype=np.float64)
-    if events.size:
-        t = events["t"]
-        t0 = float(t[0]) if t_start is None else float(t_start)
-        t1 = float(t[-1]) if t_end is None else float(t_end)
-        span = t1 - t0
-        if span < 0:
-            raise ValueError(f"t_end must be >= t_start; got t_start={t0}, t_end={t1}")
-        t_star = (t - t0) * ((num_bins - 1) / span) if span > 0 else np.zeros(t.size)
-        np.clip(t_star, 0.0, num_bins - 1, out=t_star)
-        lower = t_star.astype(np.int64)                # floor, as t* >= 0
-        p = events["p"].astype(np.float64)
-        w_upper = p * (t_star - lower)                 # p (t* - b), the share of bin b + 1
-        idx = lower * (h * w) + pix
-        # bin B - 1 has no upper neighbour: its share (zero, since t* = B - 1 exactly there) lands in a spare bin
-        grid = np.bincount(idx, weights=p - w_upper, minlength=(num_bins + 1) * h * w)
-        grid += np.bincount(idx + h * w, weights=w_upper, minlength=(num_bins + 1) * h * w)
-        grid = grid[:num_bins * h * w]
-    grid = grid.astype(np.float32).reshape(num_bins, h, w)
-    return normalize_voxel_grid(grid) if normalize else grid
+    hw = h * w
+    if events.size == 0:
+        return np.zeros((num_bins, h, w), np.float32)
+    t = events["t"]
+    t0 = float(t[0]) if t_start is None else float(t_start)
+    t1 = float(t[-1]) if t_end is None else float(t_end)
+    span = t1 - t0
+    if span < 0:
+        raise ValueError(f"t_end must be >= t_start; got t_start={t0}, t_end={t1}")
+    t_star = (t - t0) * ((num_bins - 1) / span) if span > 0 else np.zeros(t.size)
+    np.clip(t_star, 0.0, num_bins - 1, out=t_star)
+    lower = t_star.astype(np.int64)                    # floor, as t* >= 0
+    p = events["p"].astype(np.float64)
+    w_upper = p * (t_star - lower)                     # p (t* - b), the share of bin b + 1
+    idx = lower * hw + pix
+    # both shares in one bincount (each large temporary costs more than the sums: fresh pages); bin B - 1 has no
+    # upper neighbour: its share (zero, since t* = B - 1 exactly there) lands in a spare bin
+    grid = np.bincount(np.concatenate([idx, idx + hw]), weights=np.concatenate([p - w_upper, w_upper]),
+                       minlength=(num_bins + 1) * hw)
+    grid = grid[:num_bins * hw].astype(np.float32).reshape(num_bins, h, w)
+    return _normalize_in_place(grid) if normalize else grid
 
 
 def normalize_voxel_grid(grid: np.ndarray) -> np.ndarray:
@@ -421,14 +422,16 @@ def normalize_voxel_grid(grid: np.ndarray) -> np.ndarray:
     >>> normalize_voxel_grid(np.array([[0.0, 1.0, 3.0]], np.float32)).tolist()
     [[0.0, -1.0, 1.0]]
     """
-    grid = np.asarray(grid, dtype=np.float32)
-    out = grid.copy()
+    return _normalize_in_place(np.array(grid, dtype=np.float32))
+
+
+def _normalize_in_place(grid: np.ndarray) -> np.ndarray:
+    """:func:`normalize_voxel_grid` on a float32 ``grid`` it may overwrite; returns it."""
     nonzero = grid != 0
-    n = int(nonzero.sum())
-    if n == 0:
-        return out
     values = grid[nonzero]
+    if values.size == 0:
+        return grid
     mean = float(values.mean())
     std = float(values.std())
-    out[nonzero] = (values - mean) / std if (n > 1 and std > 0) else values - mean
-    return out
+    grid[nonzero] = (values - mean) / std if (values.size > 1 and std > 0) else values - mean
+    return grid

@@ -89,8 +89,9 @@ class PipelineConfig:
             tracks continue (the second-best match anywhere in the repetitive room is often close) and the error is
             17.9 % of the distance; with the test off (guided window + mutual check + two-point RANSAC), 3.6 %.
         reconstructor: event frames only: a reconstructor name ('firenet', 'high_pass', 'direct').
-        reconstructor_precision: event frames only: a network's arithmetic, 'float32' (default) or 'bfloat16' (1.35x
-            FireNet's frames per second on two threads of a CPU with native bfloat16, the same SSIM within 0.001;
+        reconstructor_precision: event frames only: a network's arithmetic, 'float32' (default), 'bfloat16' (1.35x
+            FireNet's frames per second on two threads of a CPU with native bfloat16, the same SSIM within 0.001) or
+            'int8' (FireNet only: int8 convolutions, 2.5x on two threads and 3x on one, SSIM within 0.01;
             docs/reconstruction.md); direct and high_pass ignore it.
         window_fraction: event frames only: n of N_e = n H W; None: the thesis's n for the preset (0.7 / 0.2) for
             reconstructed frames, 1.0 for every recording for motion-compensated ones (``MC_WINDOW_FRACTION``).
@@ -176,7 +177,7 @@ class PipelineConfig:
         from evio_lib.events.reconstruct import PRECISIONS
 
         if self.reconstructor_precision not in PRECISIONS:
-            raise ValueError(f"reconstructor_precision must be {' or '.join(PRECISIONS)}; got "
+            raise ValueError(f"reconstructor_precision must be one of {', '.join(PRECISIONS)}; got "
                              f"{self.reconstructor_precision!r}")
         if self.max_duration is not None and not (math.isfinite(self.max_duration) and self.max_duration > 0):
             raise ValueError(f"max_duration must be None or a number of seconds > 0; got {self.max_duration!r}")

@@ -299,15 +299,17 @@ def test_run_pipelines_in_workers_equals_runs_one_by_one(boxes_aps):
 
 
 def test_reconstructor_precision_reaches_the_network(boxes_events):
-    """bfloat16 FireNet frames: a run close to float32's but not the same numbers; a bad precision is one error."""
+    """bfloat16 and int8 FireNet frames: close to float32's but not the same numbers; a bad precision is one error."""
     from evio_lib.pipeline.frames import event_frames
 
     frames = {precision: [image for _, image, _ in event_frames(boxes_events.sequence, "firenet", t_end=0.3,
                                                                  precision=precision)]
-              for precision in ("float32", "bfloat16")}
-    assert len(frames["float32"]) == len(frames["bfloat16"]) >= 3
+              for precision in ("float32", "bfloat16", "int8")}
+    assert len(frames["float32"]) == len(frames["bfloat16"]) == len(frames["int8"]) >= 3
     difference = max(float(np.abs(a - b).max()) for a, b in zip(frames["float32"], frames["bfloat16"]))
     assert 0 < difference < 0.05
+    int8_difference = [float(np.abs(a - b).mean()) for a, b in zip(frames["float32"], frames["int8"])]
+    assert 0 < max(int8_difference) < 0.02
     config = PipelineConfig(frames="events", tracker="klt", features="fast", reconstructor_precision="bfloat16",
                             max_duration=0.6)
     result = run_pipeline(boxes_events, config)
@@ -315,5 +317,5 @@ def test_reconstructor_precision_reaches_the_network(boxes_events):
     high_pass = PipelineConfig(frames="events", reconstructor="high_pass", reconstructor_precision="bfloat16",
                                max_duration=0.3)  # the classical methods ignore it
     assert len(run_pipeline(boxes_events, high_pass).t) > 0
-    with pytest.raises(ValueError, match="reconstructor_precision must be float32 or bfloat16; got 'int8'"):
-        PipelineConfig(frames="events", reconstructor_precision="int8")
+    with pytest.raises(ValueError, match="reconstructor_precision must be one of float32, bfloat16, int8; got 'int4'"):
+        PipelineConfig(frames="events", reconstructor_precision="int4")

@@ -228,7 +228,7 @@ def quality_table(methods: Sequence[str], stretches: Sequence[str] = tuple(EVAL_
     """Return rows {method, sequence, mse, ssim, frames}: every method (a reconstructor's name or a reconstruct-train
     checkpoint file) on every held-out stretch (at the thesis's n),
     the blurred APS frames for reference, and the real slider frames (EVREAL protocol) when the real data is present.
-    ``precision``: the networks' arithmetic (``float32`` or ``bfloat16``; None: each reconstructor's default)."""
+    ``precision``: the networks' arithmetic (one of ``PRECISIONS``; None: each reconstructor's default)."""
     rows = []
     for stretch in stretches:
         sequence = simulated_eval_sequence(stretch, duration=duration, seed=seed)

@@ -195,10 +195,17 @@ def inference_network(net: nn.Module, precision: str = "float32") -> nn.Module:
 
     float32: a :class:`FireNetInference` for a FireNet on the CPU (outputs within ~1e-6), else ``net`` itself.
     bfloat16: :class:`AutocastForward` around ``net`` (the eager network: oneDNN's bfloat16 convolutions are fastest
-    in its default memory layout). The network's own parameters and state_dict are not changed.
+    in its default memory layout).
+    int8: a FireNet on the CPU only, :func:`evio_lib.events.reconstruction.quantized.int8_forward` (int8
+    convolutions, calibrated once per process; compiled pointwise kernels).
+    The network's own parameters and state_dict are not changed.
     """
     if precision not in PRECISIONS:
         raise ValueError(f"precision must be one of {', '.join(PRECISIONS)}; got {precision!r}")
+    if precision == "int8":
+        from evio_lib.events.reconstruction.quantized import int8_forward
+
+        return int8_forward(net)
     if precision == "bfloat16":
         return AutocastForward(net).eval()
     if type(net) is FireNet and all(p.device.type == "cpu" for p in net.parameters()):

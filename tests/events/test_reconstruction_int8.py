@@ -1,0 +1,170 @@
+"""FireNet with int8 convolutions (``precision="int8"``): against a fake-quantised float reference, against float32,
+and its refusals."""
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+import torch
+from torch.nn import functional as F
+
+from evio_lib.events.array import make_events
+from evio_lib.events.reconstruct import create_reconstructor
+from evio_lib.events.reconstruction import quantized_kernels
+from evio_lib.events.reconstruction.nets import E2VIDRecurrent, FireNet, FireNetInference
+from evio_lib.events.reconstruction.quantized import (RANGE_NAMES, FireNetInt8, Int8Ranges, calibrate_firenet,
+                                                      calibration_voxels, int8_forward)
+
+
+@pytest.fixture(scope="module")
+def firenet() -> FireNet:
+    return create_reconstructor("firenet", 64, 64).net
+
+
+@pytest.fixture(scope="module")
+def voxels() -> np.ndarray:
+    """Eight windows of one validation-split sequence of the training-set generator (64 x 64)."""
+    return calibration_voxels(1, seed=3)[0][:8]
+
+
+@pytest.fixture(scope="module")
+def ranges(firenet, voxels) -> Int8Ranges:
+    return calibrate_firenet(firenet, [voxels])
+
+
+def _run(forward, voxels: np.ndarray, state=None) -> tuple[np.ndarray, list]:
+    images = []
+    with torch.inference_mode():
+        for window in torch.from_numpy(np.ascontiguousarray(voxels)):
+            image, state = forward(window[None], state)
+            images.append(image[0, 0].float().numpy().copy())
+    return np.stack(images), state
+
+
+def test_tanh_and_sigmoid_of_the_kernels_match_numpy():
+    x = np.linspace(-12.0, 12.0, 20001).astype(np.float32)
+    tanh = np.array([quantized_kernels._tanh(np.float32(v)) for v in x[::7]])
+    sigmoid = np.array([quantized_kernels._sigmoid(np.float32(v)) for v in x[::7]])
+    np.testing.assert_allclose(tanh, np.tanh(x[::7].astype(np.float64)), atol=1e-6)
+    np.testing.assert_allclose(sigmoid, 1.0 / (1.0 + np.exp(-x[::7].astype(np.float64))), atol=1e-6)
+
+
+def _fake_quant(x: torch.Tensor, scale_zero: tuple[float, int]) -> torch.Tensor:
+    scale, zero = scale_zero
+    return (torch.clamp(torch.round(x / scale) + zero, 0, 255) - zero) * scale
+
+
+def _weights(weight: torch.Tensor) -> torch.Tensor:
+    """Per-output-channel 7-bit weights, as FireNetInt8 stores them."""
+    scale = weight.abs().amax(dim=(1, 2, 3), keepdim=True).clamp_min(1e-12) / 63
+    return torch.round(weight / scale) * scale
+
+
+def _reference_forward(net: FireNet, r: Int8Ranges):
+    """FireNetInt8's arithmetic written with float tensors: every quantised value rounded where the int8 path rounds."""
+    sz = r.scale_zero_point
+    state_q = (2.0 / 255, 128)  # the fixed range [-1, 1]
+
+    def conv(x, weight, bias=None):
+        return F.conv2d(x, _weights(weight.detach()), None if bias is None else bias.detach(), padding=weight.shape[-1] // 2)
+
+    def forward(voxels, state):
+        h_all = state if state is not None else [None, None]
+        x = _fake_quant(F.relu(conv(_fake_quant(voxels, sz("voxels")), net.head.weight, net.head.bias)), sz("head"))
+        new = []
+        for i, (cell, res) in enumerate(((net.gru1, net.res1), (net.gru2, net.res2)), start=1):
+            c = cell.hidden_channels
+            xc, hc = slice(0, cell.gates.in_channels - c), slice(cell.gates.in_channels - c, None)
+            w_x = torch.cat([cell.gates.weight[:, xc], cell.candidate.weight[:, xc]])
+            fx = _fake_quant(conv(x, w_x, torch.cat([cell.gates.bias, cell.candidate.bias])), sz(f"gru{i}_x"))
+            h = h_all[i - 1]
+            if h is None:
+                h_new = torch.sigmoid(fx[:, :c]) * torch.tanh(fx[:, 2 * c:])
+            else:
+                ah = _fake_quant(conv(_fake_quant(h, state_q), cell.gates.weight[:, hc]), sz(f"gru{i}_h"))
+                z, r_gate = torch.sigmoid(fx[:, :c] + ah[:, :c]), torch.sigmoid(fx[:, c:2 * c] + ah[:, c:])
+                arh = _fake_quant(conv(_fake_quant(r_gate * h, state_q), cell.candidate.weight[:, hc]), sz(f"gru{i}_rh"))
+                h_new = h + z * (torch.tanh(fx[:, 2 * c:] + arh) - h)
+            new.append(h_new)
+            a = _fake_quant(F.relu(conv(_fake_quant(h_new, state_q), res.conv1.weight, res.conv1.bias)), sz(f"res{i}_a"))
+            x = F.relu(h_new + _fake_quant(conv(a, res.conv2.weight, res.conv2.bias), sz(f"res{i}_b")))
+            if i == 1:
+                x = _fake_quant(x, sz("res1_out"))
+        return torch.sigmoid(net.pred(x)), new
+
+    return forward
+
+
+def test_int8_forward_matches_a_fake_quantised_float_reference(firenet, voxels, ranges):
+    """The int8 kernels, the fused pointwise steps and the wiring against float arithmetic that rounds at the same
+    places: equal up to rare one-level rounding flips (float sums against exact int32 ones)."""
+    int8_images, _ = _run(FireNetInt8(firenet, ranges), voxels)
+    reference, _ = _run(_reference_forward(firenet, ranges), voxels)
+    float_images, _ = _run(FireNetInference(firenet), voxels)
+    to_reference = np.abs(int8_images - reference)
+    to_float = np.abs(int8_images - float_images)
+    assert to_reference.mean() < 1e-3 and np.median(to_reference) < 1e-5
+    assert to_float.mean() > 5 * to_reference.mean()  # the reference models the rounding, float32 does not
+
+
+def test_int8_stays_close_to_float32_over_a_whole_sequence(firenet):
+    sequence = calibration_voxels(1, seed=4)[0]  # 40 windows from an empty state, not the calibration data
+    ranges = calibrate_firenet(firenet, calibration_voxels(2, seed=0))
+    int8_images, (h1, h2) = _run(FireNetInt8(firenet, ranges), sequence)
+    float_images, _ = _run(FireNetInference(firenet), sequence)
+    assert int8_images.dtype == np.float32 and 0.0 <= int8_images.min() and int8_images.max() <= 1.0
+    assert h1.dtype == h2.dtype == torch.float32 and h1.shape == (1, 16, 64, 64)
+    difference = np.abs(int8_images - float_images)
+    assert difference.mean() < 0.01 and difference.mean(axis=(1, 2)).max() < 0.01
+
+
+def test_the_state_is_exchangeable_with_the_float_networks(firenet, voxels, ranges):
+    int8 = FireNetInt8(firenet, ranges)
+    _, float_state = _run(firenet, voxels[:4])
+    images, int8_state = _run(int8, voxels[4:], float_state)       # float state into int8
+    assert np.isfinite(images).all()
+    contiguous = [h.contiguous() for h in int8_state]                # any memory layout
+    images_again, _ = _run(int8, voxels[4:5], contiguous)
+    images_float, _ = _run(firenet, voxels[4:5], int8_state)         # int8 state into FireNet
+    assert np.isfinite(images_again).all() and np.abs(images_again - images_float).mean() < 0.02
+
+
+def test_ranges_are_checked_and_the_state_range_is_fixed(firenet, voxels):
+    good = {name: (-1.0, 1.0) for name in RANGE_NAMES}
+    with pytest.raises(ValueError, match="missing \\['res2_b'\\]"):
+        Int8Ranges({k: v for k, v in good.items() if k != "res2_b"})
+    with pytest.raises(ValueError, match="'head' must be finite with lo <= hi"):
+        Int8Ranges({**good, "head": (2.0, 1.0)})
+    with pytest.raises(ValueError, match="at least one voxel-grid sequence"):
+        calibrate_firenet(firenet, [])
+    with pytest.raises(ValueError, match=r"must be \(L, 5, H, W\)"):
+        calibrate_firenet(firenet, [voxels[:, :3]])
+    first = calibrate_firenet(firenet, [voxels])
+    assert first == calibrate_firenet(firenet, [voxels])               # deterministic
+    assert first.ranges["res1_a"][0] == 0.0 and first.ranges["head"][0] == 0.0  # after a ReLU
+    assert first.ranges["voxels"][0] < 0 < first.ranges["voxels"][1]
+
+
+def test_int8_is_refused_for_other_networks_and_devices(firenet):
+    with pytest.raises(ValueError, match="precision int8 runs a FireNet on the CPU only; got a E2VIDRecurrent"):
+        int8_forward(E2VIDRecurrent(num_encoders=1, base_channels=4))
+    with pytest.raises(TypeError, match="FireNetInt8 needs a FireNet"):
+        FireNetInt8(E2VIDRecurrent(num_encoders=1, base_channels=4), None)
+
+
+def test_create_reconstructor_int8_at_an_odd_size_without_warnings():
+    rng = np.random.default_rng(2)
+    n = 3000
+    windows = [make_events(np.sort(rng.uniform(k, k + 1, n)), rng.integers(0, 37, n), rng.integers(0, 23, n),
+                           rng.choice([-1, 1], n)) for k in range(4)]
+    images = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")                                  # PyTorch's deprecation notice stays inside
+        for precision in ("float32", "int8"):
+            rec = create_reconstructor("firenet", 37, 23, precision=precision)
+            images[precision] = np.stack([rec.reconstruct(w) for w in windows])
+    assert images["int8"].shape == (4, 23, 37) and images["int8"].dtype == np.float32
+    difference = np.abs(images["int8"] - images["float32"])
+    assert 0 < difference.mean() < 0.03
+    assert create_reconstructor("firenet", 37, 23, precision="int8").forward.ranges is rec.forward.ranges  # once
