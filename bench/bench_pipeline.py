@@ -36,6 +36,9 @@ CONFIGS = {
     "sift_events": PipelineConfig(frames="events", features="sift"),
     "klt_events": PipelineConfig(frames="events", tracker="klt", features="fast"),
     "cnn_events": PipelineConfig(frames="events", features="superpoint"),
+    "sift_events_int8": PipelineConfig(frames="events", features="sift", reconstructor_precision="int8"),
+    "klt_events_int8": PipelineConfig(frames="events", tracker="klt", features="fast", reconstructor_precision="int8"),
+    "cnn_events_int8": PipelineConfig(frames="events", features="superpoint", reconstructor_precision="int8"),
     "sift_mc": PipelineConfig(frames="mc-events", features="sift"),
     "cnn_mc": PipelineConfig(frames="mc-events", features="superpoint"),
     "klt_mc": PipelineConfig(frames="mc-events", tracker="klt", features="fast"),
@@ -57,7 +60,7 @@ def main() -> None:
     data = load_dataset(args.preset, duration=args.duration, seed=args.seed, need_events=need_events)
     print(f"{args.preset}, seed {args.seed}: {args.process:g} s processed of {args.duration:g} s simulated, "
           f"{args.threads} thread(s)")
-    header = (f"{'config':<14} {'frames':>6} {'recon':>7} {'detect':>7} {'match':>7} {'ransac':>7} {'filter':>7} "
+    header = (f"{'config':<17} {'frames':>6} {'recon':>7} {'detect':>7} {'match':>7} {'ransac':>7} {'filter':>7} "
               f"{'total ms/frame':>15} {'fps':>6} {'x real time':>11} | {'RMSE [m]':>8}")
     print(header)
     print("-" * len(header))
@@ -66,7 +69,7 @@ def main() -> None:
         result = run_pipeline(data, config)
         tm, k = result.timings, len(result.t)
         per = {s: 1e3 * tm[s] / k for s in ("reconstruction", "detection", "matching", "ransac", "filter", "total")}
-        print(f"{name:<14} {k:>6} {per['reconstruction']:>7.1f} {per['detection']:>7.1f} {per['matching']:>7.1f} "
+        print(f"{name:<17} {k:>6} {per['reconstruction']:>7.1f} {per['detection']:>7.1f} {per['matching']:>7.1f} "
               f"{per['ransac']:>7.1f} {per['filter']:>7.1f} {per['total']:>15.1f} {1e3 / per['total']:>6.1f} "
               f"{tm['realtime_factor']:>11.2f} | {result.metrics.get('rmse_m', np.nan):>8.3f}", flush=True)
 

@@ -167,4 +167,18 @@ def test_create_reconstructor_int8_at_an_odd_size_without_warnings():
     assert images["int8"].shape == (4, 23, 37) and images["int8"].dtype == np.float32
     difference = np.abs(images["int8"] - images["float32"])
     assert 0 < difference.mean() < 0.03
-    assert create_reconstructor("firenet", 37, 23, precision="int8").forward.ranges is rec.forward.ranges  # once
+    assert create_reconstructor("firenet", 37, 23, precision="int8").forward.ranges == rec.forward.ranges
+
+
+def test_the_shipped_checkpoint_stores_the_int8_calibration_of_its_own_weights(firenet):
+    """tools/ship_reconstructor.py stores ``int8_ranges``; they must be what a calibration of the shipped weights
+    gives now, and ranges stored for other weights are not used."""
+    from evio_lib.events.reconstruct import shipped_checkpoint
+    from evio_lib.events.reconstruction.quantized import stored_ranges, weights_digest
+
+    stored = torch.load(shipped_checkpoint("firenet"), map_location="cpu", weights_only=True)["int8_ranges"]
+    assert stored == stored_ranges(firenet)
+    assert int8_forward(firenet, stored).ranges.ranges == {k: tuple(v) for k, v in stored["ranges"].items()}
+    foreign = {"weights_sha1": "0" * 40, "ranges": {name: [-1.0, 1.0] for name in RANGE_NAMES}}
+    assert int8_forward(firenet, foreign).ranges.ranges != {k: tuple(v) for k, v in foreign["ranges"].items()}
+    assert stored["weights_sha1"] == weights_digest(firenet)

@@ -190,14 +190,15 @@ class AutocastForward(nn.Module):
         return image.float(), state
 
 
-def inference_network(net: nn.Module, precision: str = "float32") -> nn.Module:
+def inference_network(net: nn.Module, precision: str = "float32", int8_ranges: dict | None = None) -> nn.Module:
     """Return the fastest forward pass for ``net`` in ``precision`` (one of :data:`PRECISIONS`).
 
     float32: a :class:`FireNetInference` for a FireNet on the CPU (outputs within ~1e-6), else ``net`` itself.
     bfloat16: :class:`AutocastForward` around ``net`` (the eager network: oneDNN's bfloat16 convolutions are fastest
     in its default memory layout).
     int8: a FireNet on the CPU only, :func:`evio_lib.events.reconstruction.quantized.int8_forward` (int8
-    convolutions, calibrated once per process; compiled pointwise kernels).
+    convolutions; compiled pointwise kernels), with ``int8_ranges`` (a checkpoint's stored calibration, used when it
+    matches the weights) or a calibration once per process.
     The network's own parameters and state_dict are not changed.
     """
     if precision not in PRECISIONS:
@@ -205,7 +206,7 @@ def inference_network(net: nn.Module, precision: str = "float32") -> nn.Module:
     if precision == "int8":
         from evio_lib.events.reconstruction.quantized import int8_forward
 
-        return int8_forward(net)
+        return int8_forward(net, int8_ranges)
     if precision == "bfloat16":
         return AutocastForward(net).eval()
     if type(net) is FireNet and all(p.device.type == "cpu" for p in net.parameters()):

@@ -38,7 +38,8 @@ from torch.nn import functional as F
 
 from evio_lib.events.reconstruction.nets import FireNet
 
-__all__ = ["Int8Ranges", "FireNetInt8", "calibrate_firenet", "calibration_voxels", "int8_forward"]
+__all__ = ["Int8Ranges", "FireNetInt8", "calibrate_firenet", "calibration_voxels", "int8_forward", "stored_ranges",
+           "weights_digest"]
 
 #: The calibrated tensors of :class:`FireNetInt8` (each a range [lo, hi] of float values).
 RANGE_NAMES = ("voxels", "head", "gru1_x", "gru1_h", "gru1_rh", "res1_a", "res1_b", "res1_out",
@@ -316,12 +317,29 @@ def calibrate_firenet(net: FireNet, voxel_sequences: list[np.ndarray]) -> Int8Ra
 _CALIBRATED: dict[str, Int8Ranges] = {}  # weights' digest -> ranges: one calibration per network and process
 
 
-def int8_forward(net: FireNet, ranges: Int8Ranges | None = None) -> FireNetInt8:
-    """Return the int8 forward pass of ``net``, calibrated on :func:`calibration_voxels` unless ``ranges`` is given.
+def weights_digest(net: torch.nn.Module) -> str:
+    """SHA-1 of a network's parameters and buffers (what int8 ranges are calibrated for)."""
+    import hashlib
 
-    The calibration (about 4 s on this 2-core CPU: 4 sequences simulated, then 160 float windows at 64 x 64) is done
-    once per set of weights and process. Raises ValueError for anything but a FireNet on the CPU, and where the
-    compiled kernels cannot load (no numba, or no writable cache for its machine code)."""
+    return hashlib.sha1(b"".join(t.detach().cpu().numpy().tobytes() for t in net.state_dict().values())).hexdigest()
+
+
+def stored_ranges(net: FireNet) -> dict:
+    """Return ``{"weights_sha1", "ranges"}`` of ``net``, calibrated on :func:`calibration_voxels`: what a shipped
+    checkpoint stores under ``int8_ranges`` (tools/ship_reconstructor.py) so that loading skips the calibration."""
+    ranges = calibrate_firenet(net, calibration_voxels())
+    return {"weights_sha1": weights_digest(net), "ranges": {k: [float(lo), float(hi)] for k, (lo, hi) in
+                                                              ranges.ranges.items()}}
+
+
+def int8_forward(net: FireNet, stored: dict | None = None) -> FireNetInt8:
+    """Return the int8 forward pass of ``net``.
+
+    Its ranges come from ``stored`` (a checkpoint's ``int8_ranges``, :func:`stored_ranges`) when they were
+    calibrated for exactly these weights (same SHA-1), else from a calibration on :func:`calibration_voxels` (about
+    4 s on this 2-core CPU: 4 sequences simulated, then 160 float windows at 64 x 64), done once per set of weights
+    and process. Raises ValueError for anything but a FireNet on the CPU, and where the compiled kernels cannot load
+    (no numba, or no writable cache for its machine code)."""
     if type(net) is not FireNet or any(p.device.type != "cpu" for p in net.parameters()):
         where = next(net.parameters()).device.type
         raise ValueError(f"precision int8 runs a FireNet on the CPU only; got a {type(net).__name__} on {where}")
@@ -329,10 +347,10 @@ def int8_forward(net: FireNet, ranges: Int8Ranges | None = None) -> FireNetInt8:
         from evio_lib.events.reconstruction import quantized_kernels  # noqa: F401
     except ImportError as error:
         raise ValueError(f"precision int8 needs the numba package ({error}); pip install numba, or use float32")
-    if ranges is None:
-        import hashlib
-
-        digest = hashlib.sha1(b"".join(t.detach().numpy().tobytes() for t in net.state_dict().values())).hexdigest()
+    digest = weights_digest(net)
+    if stored is not None and stored.get("weights_sha1") == digest:
+        ranges = Int8Ranges({k: tuple(v) for k, v in stored["ranges"].items()})
+    else:
         if digest not in _CALIBRATED:
             _CALIBRATED[digest] = calibrate_firenet(net, calibration_voxels())
         ranges = _CALIBRATED[digest]
