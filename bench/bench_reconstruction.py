@@ -4,7 +4,9 @@ Usage:  python bench/bench_reconstruction.py [--frames N] [--threads T] [--varia
 
 Each frame is one window of N_e = 0.35 * 240 * 180 events (uniform random events, seed 0); the rate includes building
 the voxel grid. The large E2VID-style network runs with random weights (none are shipped): its speed does not depend on
-them. Goal for the default network: at least 100 frames/s on a 2-core CPU. Measured figures: docs/reconstruction.md.
+them. FireNet runs in each precision (float32, the default; bfloat16; int8). Goal (issue 23): at least 100 frames/s on
+a 2-core CPU; measured on the idle machine (2026-11-27 evening), frames/s with one / two threads: float32 22-23 /
+38-43, bfloat16 33-35 / 56-59, int8 57-61 / 92-107 (median 102 over six runs; docs/reconstruction.md, Speed).
 
 ``--variants`` also times FireNet's forward pass alone (state carried, on the same voxel grids) in the variants tried
 for issue 23, with each one's largest difference from the eager float32 network's images:

@@ -40,7 +40,8 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--reconstructor-precision", choices=PRECISIONS, default=PRECISIONS[0],
                    help="event frames: a network's arithmetic (default float32; bfloat16 gave 1.35x FireNet's frames "
                         "per second on two threads of a CPU with native bfloat16, the same SSIM within 0.001; int8 "
-                        "2.5x on two threads and 3x on one, SSIM within 0.01; docs/reconstruction.md)")
+                        "2.5x on two threads and 2.7x on one, SSIM within 0.01, but less reliable in the pipeline; "
+                        "docs/reconstruction.md)")
     p.add_argument("--window-fraction", type=real(above=0.0), default=None,
                    help="event frames: n of N_e = n H W events per window (default: 0.7 boxes_like, 0.2 aerial_like, "
                         "0.5 otherwise; mc-events: 1.0 for every recording)")

@@ -91,7 +91,7 @@ class PipelineConfig:
         reconstructor: event frames only: a reconstructor name ('firenet', 'high_pass', 'direct').
         reconstructor_precision: event frames only: a network's arithmetic, 'float32' (default), 'bfloat16' (1.35x
             FireNet's frames per second on two threads of a CPU with native bfloat16, the same SSIM within 0.001) or
-            'int8' (FireNet only: int8 convolutions, 2.5x on two threads and 3x on one, SSIM within 0.01;
+            'int8' (FireNet only: int8 convolutions, 2.5x on two threads and 2.7x on one, SSIM within 0.01;
             docs/reconstruction.md); direct and high_pass ignore it.
         window_fraction: event frames only: n of N_e = n H W; None: the thesis's n for the preset (0.7 / 0.2) for
             reconstructed frames, 1.0 for every recording for motion-compensated ones (``MC_WINDOW_FRACTION``).

@@ -1,6 +1,8 @@
 """Learned event-to-image reconstruction: networks, training data, training, evaluation and the ``reconstruct`` command.
 
 - :mod:`~evio_lib.events.reconstruction.nets`: FireNet and the E2VID-style recurrent UNet;
+- :mod:`~evio_lib.events.reconstruction.quantized`: FireNet with int8 convolutions (``precision="int8"``), its
+  calibration, and its compiled pointwise kernels (:mod:`~evio_lib.events.reconstruction.quantized_kernels`);
 - :mod:`~evio_lib.events.reconstruction.data`: short simulated planar samples (quick tests and the lesson);
 - :mod:`~evio_lib.events.reconstruction.training_set`: the training-set generator (many independent sequences, one
   file each, made in parallel and resumable);

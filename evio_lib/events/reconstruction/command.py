@@ -113,7 +113,7 @@ def add_reconstruct_arguments(parser: argparse.ArgumentParser) -> argparse.Argum
     parser.add_argument("--precision", choices=PRECISIONS, default=PRECISIONS[0],
                         help="a network's arithmetic (default float32; bfloat16 gave 1.35x the frames per second on two "
                              "threads of a CPU with native bfloat16 (AVX512-BF16), the same SSIM within 0.001 on the "
-                             "held-out stretches; int8 (FireNet only) 2.5x on two threads and 3x on one, SSIM within "
+                             "held-out stretches; int8 (FireNet only) 2.5x on two threads and 2.7x on one, SSIM within "
                              "0.01; ignored by direct and high_pass)")
     window = parser.add_mutually_exclusive_group()
     window.add_argument("--window-fraction", type=float, default=None, metavar="N",

@@ -105,7 +105,8 @@ class FireNetInt8(torch.nn.Module):
     """A :class:`FireNet`'s forward pass with int8 convolutions: ``forward(voxels, state) -> (image, state)``.
 
     Built from a float FireNet and its calibrated :class:`Int8Ranges` (:func:`calibrate_firenet`); the FireNet is left
-    untouched. The state is two float32 tensors (N, C, H, W), exchangeable with FireNet's. CPU only.
+    untouched. The state is two float32 tensors (N, C, H, W), exchangeable with FireNet's. CPU inference only (no
+    gradients); one instance per thread (it reuses internal buffers from window to window).
 
     Per window: the voxel grid is quantised, the head, the GRUs' and the residual blocks' convolutions run in int8,
     and the pointwise steps between them (dequantise, gates, state update, residual sum, requantise, the 1x1
