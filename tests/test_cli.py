@@ -108,7 +108,7 @@ BAD_INPUTS = [
     ("run boxes_like --track-gap 1.5", "--track-gap"),
     ("run boxes_like --frames events --reconstructor-precision float16",
      "--reconstructor-precision: invalid choice: 'float16'"),
-    ("reconstruct boxes_like --out {d}/rec --precision int8", "--precision: invalid choice: 'int8'"),
+    ("reconstruct boxes_like --out {d}/rec --precision int4", "--precision: invalid choice: 'int4'"),
     # course and the command itself
     ("course --only 99 --no-execute", "--only 99 matches no notebook; available: 01_"),
     ("", "the following arguments are required: COMMAND"),
