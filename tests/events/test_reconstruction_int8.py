@@ -177,8 +177,25 @@ def test_the_shipped_checkpoint_stores_the_int8_calibration_of_its_own_weights(f
     from evio_lib.events.reconstruction.quantized import stored_ranges, weights_digest
 
     stored = torch.load(shipped_checkpoint("firenet"), map_location="cpu", weights_only=True)["int8_ranges"]
-    assert stored == stored_ranges(firenet)
+    fresh = stored_ranges(firenet)  # float convolutions: the last bits may differ on another CPU or torch build
+    assert stored["weights_sha1"] == fresh["weights_sha1"]
+    for name, (lo, hi) in fresh["ranges"].items():
+        np.testing.assert_allclose(stored["ranges"][name], [lo, hi], rtol=1e-4, atol=1e-6)
     assert int8_forward(firenet, stored).ranges.ranges == {k: tuple(v) for k, v in stored["ranges"].items()}
     foreign = {"weights_sha1": "0" * 40, "ranges": {name: [-1.0, 1.0] for name in RANGE_NAMES}}
     assert int8_forward(firenet, foreign).ranges.ranges != {k: tuple(v) for k, v in foreign["ranges"].items()}
     assert stored["weights_sha1"] == weights_digest(firenet)
+
+
+def test_the_thread_count_is_kept_and_a_state_with_gradients_is_accepted(firenet, voxels, ranges):
+    int8 = FireNetInt8(firenet, ranges)
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        _run(int8, voxels[:2])
+        assert torch.get_num_threads() == 1
+    finally:
+        torch.set_num_threads(before)
+    _, state = firenet(torch.from_numpy(voxels[:1]), None)    # outside no_grad: the state requires gradients
+    image, _ = int8(torch.from_numpy(voxels[1:2]), state)
+    assert torch.isfinite(image).all()

@@ -8,7 +8,7 @@ point z:
     q = clamp(round(x / s) + z, 0, 255),   x^ = s (q - z),
 
 activations per tensor in unsigned 8 bits, weights per output channel in 7 bits (q in [-63, 63], z = 0,
-s_k = max |w_k| / 63) and the bias in float (the kernels requantise it). Seven-bit weights keep every pair of
+s_k = max |w_k| / 63) and the bias in float (PyTorch's int8 convolution folds it in). Seven-bit weights keep every pair of
 products u8 x s7 below 2^15, so CPUs whose kernels add such pairs in 16 bits (AVX2 without VNNI) cannot overflow.
 A convolution's int32 accumulator is requantised to its output's own scale, so every quantised activation needs a
 range [lo, hi] (s = (hi - lo) / 255, z = round(-lo / s)):
@@ -110,7 +110,7 @@ class FireNetInt8(torch.nn.Module):
 
     Per window: the voxel grid is quantised, the head, the GRUs' and the residual blocks' convolutions run in int8,
     and the pointwise steps between them (dequantise, gates, state update, residual sum, requantise, the 1x1
-    prediction and its sigmoid) are fused into five compiled kernels (:mod:`evio_lib.events.reconstruction.
+    prediction and its sigmoid) are fused into six compiled kernels (:mod:`evio_lib.events.reconstruction.
     quantized_kernels`) that read and write the quantised tensors' bytes in place.
     """
 
@@ -181,11 +181,22 @@ class FireNetInt8(torch.nn.Module):
     def forward(self, voxels: torch.Tensor, state: list | None = None) -> tuple[torch.Tensor, list]:
         h1, h2 = state if state is not None else (None, None)
         last = torch.channels_last
-        h1 = h1.float().contiguous(memory_format=last) if h1 is not None else None
-        h2 = h2.float().contiguous(memory_format=last) if h2 is not None else None
+        h1 = h1.detach().float().contiguous(memory_format=last) if h1 is not None else None
+        h2 = h2.detach().float().contiguous(memory_format=last) if h2 is not None else None
+        voxels = voxels.detach()
         k = self.kernels
         threads = torch.get_num_threads()
         k.set_threads(threads)
+        torch.set_num_threads(threads)  # Numba's OpenMP start-up resets the pool size that PyTorch's kernels use
+        try:
+            return self._forward(voxels, h1, h2)
+        finally:
+            torch.set_num_threads(threads)
+
+    def _forward(self, voxels: torch.Tensor, h1: torch.Tensor | None, h2: torch.Tensor | None
+                 ) -> tuple[torch.Tensor, list]:
+        last = torch.channels_last
+        k = self.kernels
         with _quiet():
             v = voxels.float().contiguous(memory_format=last)
             xq = self.head(torch.quantize_per_tensor(v, *self.voxel_q, torch.quint8))
@@ -199,7 +210,6 @@ class FireNetInt8(torch.nn.Module):
             image = torch.empty((n, 1, height, width))
             k.residual_predict(_bytes(b), *_qparams(b), _hwc(h2), self.pred_w, self.pred_b,
                                image.numpy().reshape(n * height, width))
-        torch.set_num_threads(threads)  # Numba's OpenMP start-up resets the pool size that PyTorch's kernels then use
         return image, [h1, h2]
 
 
@@ -235,7 +245,7 @@ def _hwc(x: torch.Tensor) -> np.ndarray:
 
 
 def _no_bias(conv: torch.nn.Conv2d) -> torch.nn.Conv2d:
-    """A view of ``conv`` without its bias (the GRU's h-part convolutions: the bias is added once, in the x part)."""
+    """A copy of ``conv`` without its bias (the GRU's h-part convolutions: the bias is added once, in the x part)."""
     copy = torch.nn.Conv2d(conv.in_channels, conv.out_channels, conv.kernel_size, padding=conv.padding, bias=True)
     with torch.no_grad():
         copy.weight.copy_(conv.weight)
@@ -348,6 +358,9 @@ def int8_forward(net: FireNet, stored: dict | None = None) -> FireNetInt8:
         from evio_lib.events.reconstruction import quantized_kernels  # noqa: F401
     except ImportError as error:
         raise ValueError(f"precision int8 needs the numba package ({error}); pip install numba, or use float32")
+    except RuntimeError as error:  # numba's "cannot cache function ...: no locator available", raised at import
+        raise ValueError(f"precision int8: the compiled kernels cannot load ({error}); set NUMBA_CACHE_DIR to a "
+                         f"writable folder, or use float32") from None
     digest = weights_digest(net)
     if stored is not None and stored.get("weights_sha1") == digest:
         ranges = Int8Ranges({k: tuple(v) for k, v in stored["ranges"].items()})
@@ -355,8 +368,4 @@ def int8_forward(net: FireNet, stored: dict | None = None) -> FireNetInt8:
         if digest not in _CALIBRATED:
             _CALIBRATED[digest] = calibrate_firenet(net, calibration_voxels())
         ranges = _CALIBRATED[digest]
-    try:
-        return FireNetInt8(net, ranges).eval()
-    except RuntimeError as error:  # e.g. numba's "cannot cache function ...: no locator available"
-        raise ValueError(f"precision int8: the compiled kernels cannot load ({error}); set NUMBA_CACHE_DIR to a "
-                         f"writable folder, or use float32") from None
+    return FireNetInt8(net, ranges).eval()
