@@ -83,11 +83,13 @@ class Int8Ranges:
 
 
 def _quantised_conv(conv: torch.nn.Conv2d, out_range: tuple[float, int], relu: bool = False,
-                    in_columns: slice = slice(None), extra: torch.nn.Conv2d | None = None) -> torch.nn.Module:
-    """Return an int8 copy of ``conv`` (its input columns ``in_columns``; rows of ``extra`` appended), requantising
-    its output to ``out_range`` = (scale, zero point)."""
+                    in_columns: slice = slice(None), extra: torch.nn.Conv2d | None = None,
+                    with_bias: bool = True) -> torch.nn.Module:
+    """Return an int8 copy of ``conv`` (its input columns ``in_columns``; rows of ``extra`` appended; its bias only
+    ``with_bias``: the GRU's h-part convolutions leave it to the x part), requantising its output to ``out_range``
+    = (scale, zero point)."""
     weight = conv.weight.detach()[:, in_columns]
-    bias = conv.bias.detach() if conv.bias is not None else torch.zeros(conv.out_channels)
+    bias = conv.bias.detach() if conv.bias is not None and with_bias else torch.zeros(conv.out_channels)
     if extra is not None:
         weight = torch.cat([weight, extra.weight.detach()[:, in_columns]])
         bias = torch.cat([bias, extra.bias.detach()])
@@ -135,8 +137,8 @@ class FireNetInt8(torch.nn.Module):
                 c = cell.hidden_channels
                 x_cols, h_cols = slice(0, cell.gates.in_channels - c), slice(cell.gates.in_channels - c, None)
                 conv_x = _quantised_conv(cell.gates, sz(f"gru{i}_x"), in_columns=x_cols, extra=cell.candidate)
-                conv_h = _quantised_conv(_no_bias(cell.gates), sz(f"gru{i}_h"), in_columns=h_cols)
-                conv_rh = _quantised_conv(_no_bias(cell.candidate), sz(f"gru{i}_rh"), in_columns=h_cols)
+                conv_h = _quantised_conv(cell.gates, sz(f"gru{i}_h"), in_columns=h_cols, with_bias=False)
+                conv_rh = _quantised_conv(cell.candidate, sz(f"gru{i}_rh"), in_columns=h_cols, with_bias=False)
                 self.grus.append((c, conv_x, conv_h, conv_rh))
             self.res = [(_quantised_conv(block.conv1, sz(f"res{i}_a"), relu=True),
                          _quantised_conv(block.conv2, sz(f"res{i}_b")))
@@ -242,15 +244,6 @@ def _hwc(x: torch.Tensor) -> np.ndarray:
     """The (N H, W, C) float32 view of a channels-last tensor (no copy)."""
     n, c, h, w = x.shape
     return x.permute(0, 2, 3, 1).numpy().reshape(n * h, w, c)
-
-
-def _no_bias(conv: torch.nn.Conv2d) -> torch.nn.Conv2d:
-    """A copy of ``conv`` without its bias (the GRU's h-part convolutions: the bias is added once, in the x part)."""
-    copy = torch.nn.Conv2d(conv.in_channels, conv.out_channels, conv.kernel_size, padding=conv.padding, bias=True)
-    with torch.no_grad():
-        copy.weight.copy_(conv.weight)
-        copy.bias.zero_()
-    return copy
 
 
 # --------------------------------------------------------------------------------------------------- calibration
