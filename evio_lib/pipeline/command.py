@@ -75,6 +75,11 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--outlier-px", type=real(above=0.0), default=None, metavar="PX",
                    help="drop a track's observations that reproject farther than PX pixels from its triangulated "
                         "point, and keep the rest of the track (default: off)")
+    p.add_argument("--pixel-noise", type=real(above=0.0), default=1.0, metavar="PX",
+                   help="the filter's feature noise sigma in pixels (default 1.0)")
+    p.add_argument("--event-pixel-noise", type=real(above=0.0), default=None, metavar="PX",
+                   help="the feature noise sigma of the event frame streams' tracks, so that --frames aps+mc-events "
+                        "weights each stream by its own accuracy (default: --pixel-noise)")
     p.add_argument("--track-gap", type=integer(minimum=0), default=0, metavar="FRAMES",
                    help="descriptor tracker: keep a lost track for FRAMES frames and continue it, with its id, when "
                         "the feature is matched again (default 0: a missed detection ends the track, as in the "
@@ -159,7 +164,8 @@ def main_run(args: argparse.Namespace) -> int:
                                 min_window_s=args.min_window, max_window_s=args.max_window, init=args.init,
                                 bias_init=_bias(args.bias_init), imu_only=args.imu_only, oc=not args.no_oc,
                                 zupt=not args.no_zupt, max_duration=args.max_duration, seed=args.seed,
-                                observation_outlier_px=args.outlier_px, track_gap=args.track_gap)
+                                observation_outlier_px=args.outlier_px, track_gap=args.track_gap,
+                                pixel_noise_px=args.pixel_noise, event_pixel_noise_px=args.event_pixel_noise)
     except ValueError as error:  # the message names the config field; the user typed the option
         raise as_option_error(error, _OPTIONS) from None
     start = time.perf_counter()
@@ -194,7 +200,8 @@ _OPTIONS = {"reconstructor": "--reconstructor", "reconstructor_precision": "--re
             "min_window_s": "--min-window", "max_window_s": "--max-window",
             "max_features": "--max-features", "init": "--init", "frames": "--frames", "seed": "--seed",
             "method": "--tracker", "observation_outlier_px": "--outlier-px",
-            "track_gap": "--track-gap"}
+            "track_gap": "--track-gap", "pixel_noise_px": "--pixel-noise",
+            "event_pixel_noise_px": "--event-pixel-noise"}
 
 
 def add_table_arguments(p: argparse.ArgumentParser) -> None:

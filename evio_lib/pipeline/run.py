@@ -102,7 +102,13 @@ class PipelineConfig:
         bias_init: 'zero', 'groundtruth', or six numbers (b_g [rad/s], b_a [m/s^2]).
         imu_only: propagate the IMU only (no frames are processed: the IMU-only rows of Table 6).
         oc: observability-constrained EKF.
-        pixel_noise_px: feature noise σ, pixels.
+        pixel_noise_px: feature noise σ, pixels (of the APS frames' tracks when ``event_pixel_noise_px`` is set).
+        event_pixel_noise_px: feature noise σ of the event streams' tracks ('events', 'mc-events'), pixels; None:
+            ``pixel_noise_px``. Each observation's covariance is σ² pushed through the undistortion, so with two
+            streams ('aps+mc-events') each stream is weighted by its own accuracy. Measured with
+            ``bench/track_accuracy.py`` (boxes_like, validation seed 3, KLT): observations on motion-compensated
+            event frames lie a median 0.28 / 0.53 px from their points (gentle / violent 3 s; 95th percentile 3.3 /
+            2.9 px), on the APS frames 0.15 / 0.32 px (1.2 / 1.7 px).
         max_duration: seconds of the recording processed from the start (None: all).
         seed: seed of the front-end's RANSAC.
         zupt: detect standstill and apply zero-velocity updates there (module docstring).
@@ -134,6 +140,7 @@ class PipelineConfig:
     imu_only: bool = False
     oc: bool = True
     pixel_noise_px: float = 1.0
+    event_pixel_noise_px: float | None = None
     max_duration: float | None = None
     seed: int = 0
     zupt: bool = True
@@ -187,8 +194,13 @@ class PipelineConfig:
             raise ValueError(f"zupt must be True or False; got {self.zupt!r}")
         if self.observation_outlier_px is not None:  # checked as the filter will check it, before any loading
             MsckfConfig(observation_outlier_px=self.observation_outlier_px)
-        if not (math.isfinite(self.pixel_noise_px) and self.pixel_noise_px > 0):
-            raise ValueError(f"pixel_noise_px must be > 0; got {self.pixel_noise_px!r}")
+        for name in ("pixel_noise_px", "event_pixel_noise_px"):
+            value = getattr(self, name)
+            if value is None and name == "event_pixel_noise_px":
+                continue
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+                    or not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a finite number of pixels > 0; got {value!r}")
         FrontendConfig(method=self.tracker, max_features=self.max_features, ratio=self.match_ratio,
                        seed=self.seed)  # validates those
         if isinstance(self.track_gap, bool) or not isinstance(self.track_gap, (int, np.integer)) or self.track_gap < 0:
@@ -206,6 +218,12 @@ class PipelineConfig:
         low = self.min_window_s if self.min_window_s is not None else (MC_MIN_WINDOW_S if mc else 0.0)
         high = self.max_window_s if self.max_window_s is not None else (MC_MAX_WINDOW_S if mc else None)
         return float(low), (None if high is None else float(high))
+
+    def stream_pixel_noise(self, stream: str) -> float:
+        """Return the feature noise σ (pixels) of the frame stream ``stream`` ('aps', 'events' or 'mc-events')."""
+        if stream == "aps" or self.event_pixel_noise_px is None:
+            return float(self.pixel_noise_px)
+        return float(self.event_pixel_noise_px)
 
     def frontend_config(self) -> FrontendConfig:
         """Return the front-end's configuration."""
@@ -225,7 +243,10 @@ class PipelineConfig:
         names = {"aps": "APS frames", "mc-events": "motion-compensated event frames",
                  "events": f"event frames ({self.reconstructor})"}
         source = " + ".join(names[s] for s in frame_streams(self.frames))
-        return f"{name} on {source}" + (f", track gap {self.track_gap}" if self.track_gap else "")
+        noise = ""
+        if self.event_pixel_noise_px is not None and frame_streams(self.frames) != ("aps",):
+            noise = f", event noise {self.event_pixel_noise_px:g} px"
+        return f"{name} on {source}" + (f", track gap {self.track_gap}" if self.track_gap else "") + noise
 
 
 @dataclass(eq=False)
@@ -564,7 +585,7 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
     # filter's tracks of the two never share an id (STREAM_ID_OFFSET)
     trackers = [create_tracker(seq.camera, config.frontend_config(), detector=detector) for _ in streams]
     standstills = [StandstillDetector(zv) for _ in streams]
-    sigma_px = config.pixel_noise_px
+    sigmas_px = [config.stream_pixel_noise(name) for name in streams]  # each stream's feature noise
     outputs: list = []
     tracked: list = []
     timings = dict(reconstruction=0.0, detection=0.0, matching=0.0, ransac=0.0, filter=0.0)
@@ -618,7 +639,7 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
                     out = filt.zero_velocity_update(t, zv)  # None: its gate refused; a visual update then
                     zupt_frames += out is not None
                 if out is None:
-                    cov = observation_covariance(seq.camera, frame.pixels, sigma_px) if len(frame) else None
+                    cov = observation_covariance(seq.camera, frame.pixels, sigmas_px[k]) if len(frame) else None
                     out = filt.process_image(t, frame.ids, frame.xy, cov, stream=k)
                 outputs.append(out)
                 timings["filter"] += time.perf_counter() - start

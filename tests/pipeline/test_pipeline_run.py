@@ -265,6 +265,40 @@ def test_two_frame_streams_in_one_run(boxes_events):
     assert STREAM_ID_OFFSET > 2**31
 
 
+def test_each_frame_stream_gets_its_own_pixel_noise(boxes_events, monkeypatch):
+    """event_pixel_noise_px: the event stream's observations get covariances with their own sigma, the APS stream's
+    with pixel_noise_px; unset, every stream uses pixel_noise_px."""
+    import evio_lib.pipeline.run as run_module
+    from evio_lib.msckf.experiment import observation_covariance
+
+    calls = []
+
+    def recording(camera, pixels, sigma_px):
+        calls.append(sigma_px)
+        return observation_covariance(camera, pixels, sigma_px)
+
+    monkeypatch.setattr(run_module, "observation_covariance", recording)
+    config = PipelineConfig(frames="aps+mc-events", tracker="klt", features="fast", pixel_noise_px=0.5,
+                            event_pixel_noise_px=2.5, max_duration=0.8)
+    both = run_pipeline(boxes_events, config)
+    counts = {sigma: calls.count(sigma) for sigma in set(calls)}
+    n_aps = int(np.count_nonzero((boxes_events.sequence.frame_times > both.t[0] - 1e-9)
+                                 & (boxes_events.sequence.frame_times <= both.t[-1] + 1e-9)))
+    assert set(counts) == {0.5, 2.5} and abs(counts[0.5] - n_aps) <= 1 and counts[2.5] >= 5
+    assert config.label().endswith(", event noise 2.5 px")
+    assert config.stream_pixel_noise("aps") == 0.5 and config.stream_pixel_noise("mc-events") == 2.5
+    calls.clear()
+    run_pipeline(boxes_events, dataclasses.replace(config, event_pixel_noise_px=None))
+    assert set(calls) == {0.5}
+    aps_only = PipelineConfig(event_pixel_noise_px=2.0)
+    assert aps_only.stream_pixel_noise("aps") == 1.0 and "noise" not in aps_only.label()
+    for bad in (0.0, -1.0, float("nan"), float("inf"), True, "2"):
+        with pytest.raises(ValueError, match="event_pixel_noise_px must be a finite number of pixels > 0"):
+            PipelineConfig(event_pixel_noise_px=bad)
+    with pytest.raises(ValueError, match="pixel_noise_px must be a finite number of pixels > 0; got 0"):
+        PipelineConfig(pixel_noise_px=0)
+
+
 def test_table_rows_cover_every_frame_source_and_the_help_names_them():
     import argparse
 
