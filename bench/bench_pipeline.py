@@ -42,6 +42,7 @@ CONFIGS = {
     "sift_mc": PipelineConfig(frames="mc-events", features="sift"),
     "cnn_mc": PipelineConfig(frames="mc-events", features="superpoint"),
     "klt_mc": PipelineConfig(frames="mc-events", tracker="klt", features="fast"),
+    "klt_aps_mc": PipelineConfig(frames="aps+mc-events", tracker="klt", features="fast"),
 }
 
 

@@ -59,13 +59,19 @@ from evio_lib.pipeline.frames import (FRAME_SOURCES, STREAM_ID_OFFSET, aps_frame
                                       mc_event_frames)
 from evio_lib.threads import set_threads, single_threaded_blas  # re-exported: `from evio_lib.pipeline.run import set_threads` keeps working
 
-__all__ = ["INIT_MODES", "MIN_PERCENT_DISTANCE_M", "PipelineConfig", "PipelineResult", "run_pipeline", "run_pipelines",
+__all__ = ["FUSED_EVENT_NOISE_FACTOR", "INIT_MODES", "MIN_PERCENT_DISTANCE_M", "PipelineConfig", "PipelineResult", "run_pipeline", "run_pipelines",
            "set_threads"]
 
 INIT_MODES = ("auto", "groundtruth", "static")
 #: Shortest ground-truth path for which the % of distance is reported, m. Over a shorter path the mean error divided
 #: by the length measures the noise of standing still, not drift per metre travelled.
 MIN_PERCENT_DISTANCE_M = 0.5
+#: An event stream fused with the APS frames ('aps+mc-events', 'aps+events') gets this multiple of pixel_noise_px as
+#: its feature noise when event_pixel_noise_px is not given. Its tracks are about twice as far from their points
+#: (bench/track_accuracy.py) and come at two to four times the APS rate with errors that persist from frame to
+#: frame, so at equal sigma they outvote the APS tracks. Chosen on the validation seeds 3-5 of boxes_like
+#: (docs/pipeline.md, "Weighting the two streams").
+FUSED_EVENT_NOISE_FACTOR = 3.0
 #: 'auto' initialisation: fastest ground-truth speed (m/s) over the still window for which the start counts as still.
 _STILL_TRUTH_SPEED = 0.05
 
@@ -104,8 +110,9 @@ class PipelineConfig:
         oc: observability-constrained EKF.
         pixel_noise_px: feature noise σ, pixels (of the APS frames' tracks when ``event_pixel_noise_px`` is set).
         event_pixel_noise_px: feature noise σ of the event streams' tracks ('events', 'mc-events'), pixels; None:
-            ``pixel_noise_px``. Each observation's covariance is σ² pushed through the undistortion, so with two
-            streams ('aps+mc-events') each stream is weighted by its own accuracy. Measured with
+            :data:`FUSED_EVENT_NOISE_FACTOR` x ``pixel_noise_px`` when the run fuses them with the APS frames,
+            else ``pixel_noise_px``. Each observation's covariance is σ² pushed through the undistortion, so with
+            two streams ('aps+mc-events') each stream is weighted by its own accuracy. Measured with
             ``bench/track_accuracy.py`` (boxes_like, validation seed 3, KLT): observations on motion-compensated
             event frames lie a median 0.28 / 0.53 px from their points (gentle / violent 3 s; 95th percentile 3.3 /
             2.9 px), on the APS frames 0.15 / 0.32 px (1.2 / 1.7 px).
@@ -221,9 +228,12 @@ class PipelineConfig:
 
     def stream_pixel_noise(self, stream: str) -> float:
         """Return the feature noise σ (pixels) of the frame stream ``stream`` ('aps', 'events' or 'mc-events')."""
-        if stream == "aps" or self.event_pixel_noise_px is None:
+        if stream == "aps":
             return float(self.pixel_noise_px)
-        return float(self.event_pixel_noise_px)
+        if self.event_pixel_noise_px is not None:
+            return float(self.event_pixel_noise_px)
+        fused = "aps" in frame_streams(self.frames) and len(frame_streams(self.frames)) > 1
+        return float(self.pixel_noise_px) * (FUSED_EVENT_NOISE_FACTOR if fused else 1.0)
 
     def frontend_config(self) -> FrontendConfig:
         """Return the front-end's configuration."""
@@ -245,7 +255,7 @@ class PipelineConfig:
         source = " + ".join(names[s] for s in frame_streams(self.frames))
         noise = ""
         if self.event_pixel_noise_px is not None and frame_streams(self.frames) != ("aps",):
-            noise = f", event noise {self.event_pixel_noise_px:g} px"
+            noise = f", event noise {self.event_pixel_noise_px:g} px"  # only when set: the default is in the docs
         return f"{name} on {source}" + (f", track gap {self.track_gap}" if self.track_gap else "") + noise
 
 
@@ -440,14 +450,20 @@ def _bias_estimates(config: PipelineConfig, truth0: dict[str, np.ndarray]) -> tu
 
 
 def msckf_config_for(config: PipelineConfig, data: LoadedDataset) -> MsckfConfig:
-    """Return the filter's configuration: library defaults with the recording's IMU noise, the pixel noise and OC."""
+    """Return the filter's configuration: library defaults with the recording's IMU noise, the pixel noise and OC.
+
+    With several frame streams every frame of each is a camera clone, so the sliding window holds
+    ``max_camera_states`` per stream: the same time span as a one-stream run (with one window for two streams it
+    spans a third of the time, and the APS tracks lose their parallax; docs/pipeline.md, "Weighting the two
+    streams")."""
     cam = data.sequence.camera
     gravity = data.sequence.metadata.get("gravity_G")  # Sequence.metadata is always a dict
     cfg = MsckfConfig().with_imu_noise(data.noise)
     changes: dict[str, Any] = dict(pixel_noise_sigma=config.pixel_noise_px, focal_length_px=math.sqrt(cam.fx * cam.fy),
                                    observability_constrained=config.oc, imu_only=config.imu_only,
                                    observation_outlier_px=config.observation_outlier_px,
-                                   max_track_gap=config.track_gap)
+                                   max_track_gap=config.track_gap,
+                                   max_camera_states=cfg.max_camera_states * len(frame_streams(config.frames)))
     if gravity is not None:
         changes["gravity_G"] = tuple(float(g) for g in gravity)
     return dataclasses.replace(cfg, **changes)

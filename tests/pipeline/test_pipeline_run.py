@@ -267,9 +267,12 @@ def test_two_frame_streams_in_one_run(boxes_events):
 
 def test_each_frame_stream_gets_its_own_pixel_noise(boxes_events, monkeypatch):
     """event_pixel_noise_px: the event stream's observations get covariances with their own sigma, the APS stream's
-    with pixel_noise_px; unset, every stream uses pixel_noise_px."""
+    with pixel_noise_px; unset, an event stream fused with APS frames gets FUSED_EVENT_NOISE_FACTOR times it, a
+    lone event stream pixel_noise_px. Two streams get a window of twice the camera states."""
     import evio_lib.pipeline.run as run_module
+    from evio_lib.msckf.config import MsckfConfig
     from evio_lib.msckf.experiment import observation_covariance
+    from evio_lib.pipeline.run import FUSED_EVENT_NOISE_FACTOR
 
     calls = []
 
@@ -289,9 +292,14 @@ def test_each_frame_stream_gets_its_own_pixel_noise(boxes_events, monkeypatch):
     assert config.stream_pixel_noise("aps") == 0.5 and config.stream_pixel_noise("mc-events") == 2.5
     calls.clear()
     run_pipeline(boxes_events, dataclasses.replace(config, event_pixel_noise_px=None))
-    assert set(calls) == {0.5}
+    assert set(calls) == {0.5, 0.5 * FUSED_EVENT_NOISE_FACTOR} and FUSED_EVENT_NOISE_FACTOR > 1
+    alone = PipelineConfig(frames="mc-events", tracker="klt", features="fast", pixel_noise_px=0.5)
+    assert alone.stream_pixel_noise("mc-events") == 0.5 and "noise" not in alone.label()
     aps_only = PipelineConfig(event_pixel_noise_px=2.0)
     assert aps_only.stream_pixel_noise("aps") == 1.0 and "noise" not in aps_only.label()
+    window = MsckfConfig().max_camera_states
+    assert msckf_config_for(config, boxes_events).max_camera_states == 2 * window
+    assert msckf_config_for(alone, boxes_events).max_camera_states == window
     for bad in (0.0, -1.0, float("nan"), float("inf"), True, "2"):
         with pytest.raises(ValueError, match="event_pixel_noise_px must be a finite number of pixels > 0"):
             PipelineConfig(event_pixel_noise_px=bad)
