@@ -62,9 +62,13 @@ def main() -> None:
         times, images = seq.frame_times[pick], seq.frames[pick]
     else:  # the pipeline's defaults; the true gyro bias is removed (the filter's estimate in a run)
         gt_imu = seq.groundtruth_imu
-        b_g = gt_imu.interpolate([args.start]).bias_gyro[0] if gt_imu is not None and gt_imu.bias_gyro is not None else None
+        known = gt_imu is not None and gt_imu.bias_gyro is not None
+        b_g = gt_imu.interpolate([args.start]).bias_gyro[0] if known else None
         made = list(mc_event_frames(seq, data.R_CtoI, t_start=args.start, t_end=args.start + args.seconds,
                                     gyro_bias=None if b_g is None else (lambda: b_g)))
+        if len(made) < 2:
+            raise SystemExit(f"error: {len(made)} motion-compensated frame(s) in [{args.start:g}, "
+                             f"{args.start + args.seconds:g}] s (too few events there); choose another --start")
         times = np.array([t for t, _, _ in made])
         images = np.stack([im for _, im, _ in made])  # float32 in [0, 1], as the pipeline passes them
     truth = seq.groundtruth.interpolate(times)  # camera poses: R_CtoG, p_CinG

@@ -76,10 +76,12 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="drop a track's observations that reproject farther than PX pixels from its triangulated "
                         "point, and keep the rest of the track (default: off)")
     p.add_argument("--pixel-noise", type=real(above=0.0), default=1.0, metavar="PX",
-                   help="the filter's feature noise sigma in pixels (default 1.0)")
+                   help="the filter's feature noise sigma in pixels of the APS frames' tracks, and of a lone event "
+                        "stream's; the base of the --event-pixel-noise default (default 1.0)")
     p.add_argument("--event-pixel-noise", type=real(above=0.0), default=None, metavar="PX",
                    help="the feature noise sigma of the event frame streams' tracks, so that --frames aps+mc-events "
-                        "weights each stream by its own accuracy (default: --pixel-noise)")
+                        "weights each stream by its own accuracy (default: 3 x --pixel-noise when fused with the "
+                        "APS frames, else --pixel-noise; refused with --frames aps)")
     p.add_argument("--track-gap", type=integer(minimum=0), default=0, metavar="FRAMES",
                    help="descriptor tracker: keep a lost track for FRAMES frames and continue it, with its id, when "
                         "the feature is matched again (default 0: a missed detection ends the track, as in the "

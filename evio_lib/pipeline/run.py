@@ -59,7 +59,8 @@ from evio_lib.pipeline.frames import (FRAME_SOURCES, STREAM_ID_OFFSET, aps_frame
                                       mc_event_frames)
 from evio_lib.threads import set_threads, single_threaded_blas  # re-exported: `from evio_lib.pipeline.run import set_threads` keeps working
 
-__all__ = ["FUSED_EVENT_NOISE_FACTOR", "INIT_MODES", "MIN_PERCENT_DISTANCE_M", "PipelineConfig", "PipelineResult", "run_pipeline", "run_pipelines",
+__all__ = ["FUSED_EVENT_NOISE_FACTOR", "INIT_MODES", "MIN_PERCENT_DISTANCE_M",
+           "PipelineConfig", "PipelineResult", "run_pipeline", "run_pipelines",
            "set_threads"]
 
 INIT_MODES = ("auto", "groundtruth", "static")
@@ -69,8 +70,9 @@ MIN_PERCENT_DISTANCE_M = 0.5
 #: An event stream fused with the APS frames ('aps+mc-events', 'aps+events') gets this multiple of pixel_noise_px as
 #: its feature noise when event_pixel_noise_px is not given. Its tracks are about twice as far from their points
 #: (bench/track_accuracy.py) and come at two to four times the APS rate with errors that persist from frame to
-#: frame, so at equal sigma they outvote the APS tracks. Chosen on the validation seeds 3-5 of boxes_like
-#: (docs/pipeline.md, "Weighting the two streams").
+#: frame, so at equal sigma they outvote the APS tracks. Chosen on the validation seeds 3-5 of boxes_like with
+#: motion-compensated event frames (docs/pipeline.md, "Weighting the two streams"); 'aps+events' (FireNet frames)
+#: gets the same factor, unmeasured.
 FUSED_EVENT_NOISE_FACTOR = 3.0
 #: 'auto' initialisation: fastest ground-truth speed (m/s) over the still window for which the start counts as still.
 _STILL_TRUTH_SPEED = 0.05
@@ -108,11 +110,13 @@ class PipelineConfig:
         bias_init: 'zero', 'groundtruth', or six numbers (b_g [rad/s], b_a [m/s^2]).
         imu_only: propagate the IMU only (no frames are processed: the IMU-only rows of Table 6).
         oc: observability-constrained EKF.
-        pixel_noise_px: feature noise σ, pixels (of the APS frames' tracks when ``event_pixel_noise_px`` is set).
+        pixel_noise_px: feature noise σ of the APS frames' tracks, pixels (and of a lone event stream's tracks when
+            ``event_pixel_noise_px`` is None).
         event_pixel_noise_px: feature noise σ of the event streams' tracks ('events', 'mc-events'), pixels; None:
             :data:`FUSED_EVENT_NOISE_FACTOR` x ``pixel_noise_px`` when the run fuses them with the APS frames,
-            else ``pixel_noise_px``. Each observation's covariance is σ² pushed through the undistortion, so with
-            two streams ('aps+mc-events') each stream is weighted by its own accuracy. Measured with
+            else ``pixel_noise_px``; refused for a run without an event stream (it would change nothing). Each
+            observation's covariance is σ² pushed through the undistortion, so with two streams ('aps+mc-events')
+            each stream is weighted by its own accuracy. Measured with
             ``bench/track_accuracy.py`` (boxes_like, validation seed 3, KLT): observations on motion-compensated
             event frames lie a median 0.28 / 0.53 px from their points (gentle / violent 3 s; 95th percentile 3.3 /
             2.9 px), on the APS frames 0.15 / 0.32 px (1.2 / 1.7 px).
@@ -208,6 +212,9 @@ class PipelineConfig:
             if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
                     or not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a finite number of pixels > 0; got {value!r}")
+        if self.event_pixel_noise_px is not None and frame_streams(self.frames) == ("aps",):
+            raise ValueError(f"event_pixel_noise_px applies to event frame streams; frames {self.frames!r} has none "
+                             f"(use 'mc-events', 'events' or 'aps+mc-events')")
         FrontendConfig(method=self.tracker, max_features=self.max_features, ratio=self.match_ratio,
                        seed=self.seed)  # validates those
         if isinstance(self.track_gap, bool) or not isinstance(self.track_gap, (int, np.integer)) or self.track_gap < 0:
@@ -228,6 +235,8 @@ class PipelineConfig:
 
     def stream_pixel_noise(self, stream: str) -> float:
         """Return the feature noise σ (pixels) of the frame stream ``stream`` ('aps', 'events' or 'mc-events')."""
+        if stream not in ("aps", "events", "mc-events"):
+            raise ValueError(f"stream must be 'aps', 'events' or 'mc-events'; got {stream!r}")
         if stream == "aps":
             return float(self.pixel_noise_px)
         if self.event_pixel_noise_px is not None:
@@ -452,10 +461,12 @@ def _bias_estimates(config: PipelineConfig, truth0: dict[str, np.ndarray]) -> tu
 def msckf_config_for(config: PipelineConfig, data: LoadedDataset) -> MsckfConfig:
     """Return the filter's configuration: library defaults with the recording's IMU noise, the pixel noise and OC.
 
-    With several frame streams every frame of each is a camera clone, so the sliding window holds
-    ``max_camera_states`` per stream: the same time span as a one-stream run (with one window for two streams it
-    spans a third of the time, and the APS tracks lose their parallax; docs/pipeline.md, "Weighting the two
-    streams")."""
+    With several frame streams every frame of each is a camera clone, so the one sliding window holds
+    ``max_camera_states`` x the number of streams (80 for two). The streams fill it in proportion to their frame
+    rates: in boxes_like (APS 24 frames/s, motion-compensated event frames about 50/s on average, 86/s at the
+    violent end) 80 clones span about 1.1 s (0.7 s at the violent end) against the APS-only run's 1.7 s; with 40
+    they spanned about a third of that, and the APS tracks lost their parallax (docs/pipeline.md, "Weighting the
+    two streams")."""
     cam = data.sequence.camera
     gravity = data.sequence.metadata.get("gravity_G")  # Sequence.metadata is always a dict
     cfg = MsckfConfig().with_imu_noise(data.noise)
@@ -602,6 +613,10 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
     trackers = [create_tracker(seq.camera, config.frontend_config(), detector=detector) for _ in streams]
     standstills = [StandstillDetector(zv) for _ in streams]
     sigmas_px = [config.stream_pixel_noise(name) for name in streams]  # each stream's feature noise
+    if len(streams) > 1:
+        notes.append(f"{len(streams)} frame streams: feature noise "
+                     + ", ".join(f"{name} {sigma:g} px" for name, sigma in zip(streams, sigmas_px))
+                     + f"; the window holds {msckf_cfg.max_camera_states} camera states")
     outputs: list = []
     tracked: list = []
     timings = dict(reconstruction=0.0, detection=0.0, matching=0.0, ransac=0.0, filter=0.0)
@@ -621,8 +636,9 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
         def bias() -> np.ndarray:
             return filt.state.imu.b_g
 
-        parts = [_tagged(_frames(data, dataclasses.replace(config, frames=name), t_first, t_last, gyro_bias=bias), k)
-                 for k, name in enumerate(streams)]
+        # one frame maker per stream (the noise is the filter's business, and an 'aps' stream refuses an event noise)
+        parts = [_tagged(_frames(data, dataclasses.replace(config, frames=name, event_pixel_noise_px=None), t_first,
+                                 t_last, gyro_bias=bias), k) for k, name in enumerate(streams)]
         source = parts[0] if len(parts) == 1 else heapq.merge(*parts, key=lambda item: item[0])
     # one BLAS thread: the front-end's and the filter's matrices are small, and threaded BLAS spins (evio_lib.threads)
     with warnings.catch_warnings(), single_threaded_blas():

@@ -84,6 +84,23 @@ def test_cnn_inference_reaches_the_detector(pipeline_cache, boxes_aps, monkeypat
     assert "RMSE" in capsys.readouterr().out
 
 
+def test_pixel_noise_options_reach_the_config(pipeline_cache, boxes_aps, monkeypatch, capsys):
+    """--pixel-noise and --event-pixel-noise set their own fields (a swap would pass every other test)."""
+    from evio_lib.pipeline import run as run_module
+
+    configs = []
+    real = run_module.run_pipeline
+    monkeypatch.setattr(run_module, "run_pipeline", lambda data, config, **kw: configs.append(config) or real(
+        data, config, **kw))
+    args = ["run", "boxes_like", "--duration", "3", "--max-duration", "0.5", "--pixel-noise", "0.7", "--quiet",
+            "--no-figures"]
+    assert main(args) == 0
+    assert configs[-1].pixel_noise_px == 0.7 and configs[-1].event_pixel_noise_px is None
+    capsys.readouterr()
+    assert main(args + ["--event-pixel-noise", "2.5"]) == 2  # refused: no event stream
+    assert "--event-pixel-noise applies to event frame streams" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("args, message", [
     (["run", "nowhere_at_all"], "neither a preset"),
     (["run", "boxes_like", "--bias-init", "1,2"], "--bias-init must be"),

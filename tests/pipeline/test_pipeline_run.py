@@ -291,18 +291,24 @@ def test_each_frame_stream_gets_its_own_pixel_noise(boxes_events, monkeypatch):
     assert config.label().endswith(", event noise 2.5 px")
     assert config.stream_pixel_noise("aps") == 0.5 and config.stream_pixel_noise("mc-events") == 2.5
     calls.clear()
-    run_pipeline(boxes_events, dataclasses.replace(config, event_pixel_noise_px=None))
+    default = run_pipeline(boxes_events, dataclasses.replace(config, event_pixel_noise_px=None))
     assert set(calls) == {0.5, 0.5 * FUSED_EVENT_NOISE_FACTOR} and FUSED_EVENT_NOISE_FACTOR > 1
+    assert (f"2 frame streams: feature noise aps 0.5 px, mc-events {0.5 * FUSED_EVENT_NOISE_FACTOR:g} px; the "
+            f"window holds {2 * MsckfConfig().max_camera_states} camera states") in default.notes
     alone = PipelineConfig(frames="mc-events", tracker="klt", features="fast", pixel_noise_px=0.5)
     assert alone.stream_pixel_noise("mc-events") == 0.5 and "noise" not in alone.label()
-    aps_only = PipelineConfig(event_pixel_noise_px=2.0)
-    assert aps_only.stream_pixel_noise("aps") == 1.0 and "noise" not in aps_only.label()
+    assert PipelineConfig(frames="events").stream_pixel_noise("events") == 1.0  # a lone FireNet stream too
+    assert PipelineConfig(frames="aps+events").stream_pixel_noise("events") == FUSED_EVENT_NOISE_FACTOR
+    with pytest.raises(ValueError, match="stream must be 'aps', 'events' or 'mc-events'; got 'video'"):
+        config.stream_pixel_noise("video")
+    with pytest.raises(ValueError, match="event_pixel_noise_px applies to event frame streams; frames 'aps' has"):
+        PipelineConfig(event_pixel_noise_px=2.0)
     window = MsckfConfig().max_camera_states
     assert msckf_config_for(config, boxes_events).max_camera_states == 2 * window
     assert msckf_config_for(alone, boxes_events).max_camera_states == window
     for bad in (0.0, -1.0, float("nan"), float("inf"), True, "2"):
         with pytest.raises(ValueError, match="event_pixel_noise_px must be a finite number of pixels > 0"):
-            PipelineConfig(event_pixel_noise_px=bad)
+            PipelineConfig(frames="mc-events", event_pixel_noise_px=bad)
     with pytest.raises(ValueError, match="pixel_noise_px must be a finite number of pixels > 0; got 0"):
         PipelineConfig(pixel_noise_px=0)
 
