@@ -241,7 +241,8 @@ class PipelineConfig:
             return float(self.pixel_noise_px)
         if self.event_pixel_noise_px is not None:
             return float(self.event_pixel_noise_px)
-        fused = "aps" in frame_streams(self.frames) and len(frame_streams(self.frames)) > 1
+        streams = frame_streams(self.frames)
+        fused = "aps" in streams and len(streams) > 1
         return float(self.pixel_noise_px) * (FUSED_EVENT_NOISE_FACTOR if fused else 1.0)
 
     def frontend_config(self) -> FrontendConfig:
@@ -481,15 +482,16 @@ def msckf_config_for(config: PipelineConfig, data: LoadedDataset) -> MsckfConfig
 
 
 def _frames(data: LoadedDataset, config: PipelineConfig, t_start: float, t_end: float,
-            gyro_bias: Any = None) -> Iterator[tuple[float, np.ndarray, float]]:
-    """Return the run's frame source; ``gyro_bias`` (a callable) gives mc-events the filter's current gyro bias."""
-    streams = frame_streams(config.frames)
-    if len(streams) > 1:
-        raise ValueError(f"_frames makes one stream; split {config.frames!r} with frame_streams")
-    if config.frames == "aps":
+            gyro_bias: Any = None, stream: str | None = None) -> Iterator[tuple[float, np.ndarray, float]]:
+    """Return the frame source of ``stream`` (one of ``frame_streams(config.frames)``; None: ``config.frames``, a
+    single stream); ``gyro_bias`` (a callable) gives mc-events the filter's current gyro bias."""
+    stream = config.frames if stream is None else stream
+    if len(frame_streams(stream)) > 1:
+        raise ValueError(f"_frames makes one stream; split {stream!r} with frame_streams")
+    if stream == "aps":
         return aps_frames(data.sequence, t_start, t_end)
     low, high = config.window_bounds()
-    if config.frames == "mc-events":
+    if stream == "mc-events":
         return mc_event_frames(data.sequence, data.R_CtoI, config.window_fraction, config.adaptive_windows, t_start,
                                t_end, min_window_s=low, max_window_s=high, gyro_bias=gyro_bias)
     from evio_lib.events.reconstruct import available_reconstructors
@@ -636,9 +638,8 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
         def bias() -> np.ndarray:
             return filt.state.imu.b_g
 
-        # one frame maker per stream (the noise is the filter's business, and an 'aps' stream refuses an event noise)
-        parts = [_tagged(_frames(data, dataclasses.replace(config, frames=name, event_pixel_noise_px=None), t_first,
-                                 t_last, gyro_bias=bias), k) for k, name in enumerate(streams)]
+        parts = [_tagged(_frames(data, config, t_first, t_last, gyro_bias=bias, stream=name), k)
+                 for k, name in enumerate(streams)]
         source = parts[0] if len(parts) == 1 else heapq.merge(*parts, key=lambda item: item[0])
     # one BLAS thread: the front-end's and the filter's matrices are small, and threaded BLAS spins (evio_lib.threads)
     with warnings.catch_warnings(), single_threaded_blas():
