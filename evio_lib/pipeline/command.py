@@ -33,6 +33,10 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                         "in the pipeline; docs/speed.md)")
     p.add_argument("--tracker", choices=["descriptor", "klt"], default="descriptor",
                    help="descriptor: detect + match + two-point RANSAC (thesis); klt: optical flow (msckf_vio)")
+    p.add_argument("--event-tracker", choices=["descriptor", "klt"], default=None,
+                   help="--frames aps+mc-events or aps+events: the event stream's own tracker (default: --tracker "
+                        "for both streams; klt with --features sift detects FAST corners; --track-gap applies to "
+                        "the descriptor stream)")
     p.add_argument("--max-features", type=integer(minimum=20), default=60, help="N, features per frame (default 60)")
     p.add_argument("--reconstructor", default="firenet",
                    help="event frames: firenet (default, shipped), high_pass, direct, or a reconstruct-train "
@@ -160,7 +164,7 @@ def main_run(args: argparse.Namespace) -> int:
         options = options + (("inference", cnn_inference),)
     try:
         config = PipelineConfig(frames=args.frames, features=args.features, detector_options=options,
-                                tracker=args.tracker, max_features=args.max_features, reconstructor=args.reconstructor,
+                                tracker=args.tracker, event_tracker=args.event_tracker, max_features=args.max_features, reconstructor=args.reconstructor,
                                 reconstructor_precision=args.reconstructor_precision,
                                 window_fraction=args.window_fraction, adaptive_windows=args.adaptive,
                                 min_window_s=args.min_window, max_window_s=args.max_window, init=args.init,
@@ -203,7 +207,7 @@ _OPTIONS = {"reconstructor": "--reconstructor", "reconstructor_precision": "--re
             "max_features": "--max-features", "init": "--init", "frames": "--frames", "seed": "--seed",
             "method": "--tracker", "observation_outlier_px": "--outlier-px",
             "track_gap": "--track-gap", "pixel_noise_px": "--pixel-noise",
-            "event_pixel_noise_px": "--event-pixel-noise"}
+            "event_pixel_noise_px": "--event-pixel-noise", "event_tracker": "--event-tracker"}
 
 
 def add_table_arguments(p: argparse.ArgumentParser) -> None:

@@ -91,6 +91,10 @@ class PipelineConfig:
         features: detector name of ``evio_lib.features`` ('sift', 'superpoint' = the shipped CNN, 'orb', ...).
         detector_options: extra options of the detector as (name, value) pairs (e.g. ('weights', PATH)).
         tracker: 'descriptor' (the thesis's front-end) or 'klt' (optical flow; ``features`` then detects new ones).
+        event_tracker: a run that fuses APS frames with an event stream ('aps+mc-events', 'aps+events'): the event
+            stream's tracker, 'descriptor' or 'klt' (None: ``tracker``, one front-end for both streams). KLT with the
+            default ``features`` 'sift' detects FAST corners, as a lone KLT run does; ``track_gap`` applies to the
+            descriptor stream only.
         max_features: N, features kept per frame (thesis 60).
         match_ratio: Lowe's ratio test of the descriptor matches (None: off, the pipeline's default). Measured on 10 s
             of boxes_like (seed 0, SIFT on APS frames): with the front-end's stand-alone default 0.8, a third of the
@@ -138,6 +142,7 @@ class PipelineConfig:
     features: str = "sift"
     detector_options: tuple[tuple[str, Any], ...] = ()
     tracker: str = "descriptor"
+    event_tracker: str | None = None
     max_features: int = 60
     match_ratio: float | None = None
     reconstructor: str = "firenet"
@@ -220,7 +225,15 @@ class PipelineConfig:
         if isinstance(self.track_gap, bool) or not isinstance(self.track_gap, (int, np.integer)) or self.track_gap < 0:
             raise ValueError(f"track_gap must be an integer >= 0 (frames); got {self.track_gap!r}")
         object.__setattr__(self, "track_gap", int(self.track_gap))
-        if self.track_gap and self.tracker != "descriptor":
+        streams = frame_streams(self.frames)
+        if self.event_tracker is not None:
+            if not ("aps" in streams and len(streams) > 1):
+                raise ValueError(f"event_tracker applies to a run that fuses APS frames with an event stream "
+                                 f"('aps+mc-events', 'aps+events'); frames {self.frames!r} is one stream, whose tracker "
+                                 f"is tracker (--tracker)")
+            FrontendConfig(method=self.event_tracker)  # validates the name
+        trackers = {self.stream_tracker(name) for name in streams}
+        if self.track_gap and "descriptor" not in trackers:
             raise ValueError(f"track_gap applies to the descriptor tracker (KLT follows each patch and never "
                              f"searches for a lost one); got {self.track_gap} with tracker {self.tracker!r}")
 
@@ -245,28 +258,41 @@ class PipelineConfig:
         fused = "aps" in streams and len(streams) > 1
         return float(self.pixel_noise_px) * (FUSED_EVENT_NOISE_FACTOR if fused else 1.0)
 
-    def frontend_config(self) -> FrontendConfig:
-        """Return the front-end's configuration."""
-        detector = self.features if self.tracker == "descriptor" or self.features != "sift" else None
-        return FrontendConfig(method=self.tracker, detector=detector, detector_options=self.detector_options,
+    def stream_tracker(self, stream: str) -> str:
+        """Return the tracker ('descriptor' or 'klt') of the frame stream ``stream``."""
+        if stream not in ("aps", "events", "mc-events"):
+            raise ValueError(f"stream must be 'aps', 'events' or 'mc-events'; got {stream!r}")
+        return self.event_tracker if stream != "aps" and self.event_tracker is not None else self.tracker
+
+    def frontend_config(self, stream: str | None = None) -> FrontendConfig:
+        """Return the front-end's configuration (of the frame stream ``stream``; None: the first stream's)."""
+        tracker = self.stream_tracker(frame_streams(self.frames)[0] if stream is None else stream)
+        detector = self.features if tracker == "descriptor" or self.features != "sift" else None
+        return FrontendConfig(method=tracker, detector=detector, detector_options=self.detector_options,
                               max_features=self.max_features, ratio=self.match_ratio, seed=self.seed,
-                              max_gap_frames=self.track_gap)
+                              max_gap_frames=self.track_gap if tracker == "descriptor" else 0)
 
     def label(self) -> str:
         """Return a short name, e.g. 'SIFT on APS frames' or 'IMU only'."""
         if self.imu_only:
             return "IMU only" + (" (bias correction)" if self.bias_init != "zero" else "")
-        detector = self.frontend_config().detector_name
-        name = {"sift": "SIFT", "superpoint": "CNN", "fast": "FAST"}.get(detector, detector)
-        if self.tracker == "klt":
-            name = f"KLT + {name}"
         names = {"aps": "APS frames", "mc-events": "motion-compensated event frames",
                  "events": f"event frames ({self.reconstructor})"}
-        source = " + ".join(names[s] for s in frame_streams(self.frames))
+
+        def frontend(stream: str) -> str:
+            detector = self.frontend_config(stream).detector_name
+            name = {"sift": "SIFT", "superpoint": "CNN", "fast": "FAST"}.get(detector, detector)
+            return f"KLT + {name}" if self.stream_tracker(stream) == "klt" else name
+
+        streams = frame_streams(self.frames)
+        if len({frontend(s) for s in streams}) == 1:  # one front-end: 'KLT + FAST on APS frames + ...'
+            label = f"{frontend(streams[0])} on " + " + ".join(names[s] for s in streams)
+        else:  # 'SIFT on APS frames + KLT + FAST on motion-compensated event frames'
+            label = " + ".join(f"{frontend(s)} on {names[s]}" for s in streams)
         noise = ""
         if self.event_pixel_noise_px is not None and frame_streams(self.frames) != ("aps",):
             noise = f", event noise {self.event_pixel_noise_px:g} px"  # only when set: the default is in the docs
-        return f"{name} on {source}" + (f", track gap {self.track_gap}" if self.track_gap else "") + noise
+        return label + (f", track gap {self.track_gap}" if self.track_gap else "") + noise
 
 
 @dataclass(eq=False)
@@ -612,7 +638,7 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
     streams = frame_streams(config.frames)
     # one tracker (and standstill test) per frame stream; the second stream's track ids are offset so that the
     # filter's tracks of the two never share an id (STREAM_ID_OFFSET)
-    trackers = [create_tracker(seq.camera, config.frontend_config(), detector=detector) for _ in streams]
+    trackers = [create_tracker(seq.camera, config.frontend_config(name), detector=detector) for name in streams]
     standstills = [StandstillDetector(zv) for _ in streams]
     sigmas_px = [config.stream_pixel_noise(name) for name in streams]  # each stream's feature noise
     if len(streams) > 1:

@@ -4,6 +4,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from evio_lib.frontend import create_tracker
 from evio_lib.pipeline.dataset import LoadedDataset
 from evio_lib.pipeline.run import PipelineConfig, msckf_config_for, run_pipeline
 from evio_lib.sequence import ImuSamples
@@ -110,6 +111,11 @@ def test_static_initialisation_refuses_a_moving_start(boxes_aps):
     (dict(track_gap=-1), r"track_gap must be an integer >= 0 \(frames\); got -1"),
     (dict(track_gap=1.0), "track_gap must be an integer"),
     (dict(tracker="klt", features="fast", track_gap=2), "track_gap applies to the descriptor tracker"),
+    (dict(frames="aps+mc-events", tracker="klt", event_tracker="klt", track_gap=1),
+     "track_gap applies to the descriptor tracker"),
+    (dict(frames="aps+mc-events", event_tracker="flow"), "method must be one of"),
+    (dict(event_tracker="klt"), "event_tracker applies to a run that fuses APS frames with an event stream"),
+    (dict(frames="mc-events", event_tracker="klt"), r"frames 'mc-events' is one stream, whose tracker is tracker \(--tracker\)"),
 ])
 def test_bad_configs_are_refused(changes, message):
     with pytest.raises(ValueError, match=message):
@@ -263,6 +269,44 @@ def test_two_frame_streams_in_one_run(boxes_events):
     with pytest.raises(ValueError, match="frames must be one of"):
         PipelineConfig(frames="aps+aps")
     assert STREAM_ID_OFFSET > 2**31
+
+
+def test_each_frame_stream_gets_its_own_front_end(boxes_events, monkeypatch):
+    """event_tracker: the event stream of a fused run gets its own tracker (KLT + FAST beside SIFT on the APS
+    frames), each stream's frames go to its own, the track gap reaches the descriptor stream only, and the label
+    names both front-ends."""
+    import evio_lib.pipeline.run as run_module
+
+    made = []
+
+    def recording(camera, config, detector=None):
+        tracker = create_tracker(camera, config, detector=detector)
+        calls = []
+        process = tracker.process
+
+        def counted(image, t, R_prior=None):
+            calls.append(t)
+            return process(image, t, R_prior)
+
+        tracker.process = counted
+        made.append((config, calls))
+        return tracker
+
+    monkeypatch.setattr(run_module, "create_tracker", recording)
+    config = PipelineConfig(frames="aps+mc-events", event_tracker="klt", track_gap=2, max_duration=0.8)
+    assert config.label() == "SIFT on APS frames + KLT + FAST on motion-compensated event frames, track gap 2"
+    result = run_pipeline(boxes_events, config)
+    (aps_config, aps_calls), (mc_config, mc_calls) = made
+    assert (aps_config.method, aps_config.detector_name, aps_config.max_gap_frames) == ("descriptor", "sift", 2)
+    assert (mc_config.method, mc_config.detector_name, mc_config.max_gap_frames) == ("klt", "fast", 0)
+    frame_times = boxes_events.sequence.frame_times
+    assert set(np.round(aps_calls, 9)) <= set(np.round(frame_times, 9)) and len(aps_calls) >= 15
+    assert not set(np.round(mc_calls, 9)) & set(np.round(frame_times, 9)) and len(mc_calls) >= 5
+    assert len(result.t) == len(aps_calls) + len(mc_calls) and np.all(np.isfinite(result.p_IinG))
+    assert result.metrics["rmse_m"] < 0.2
+    assert config.stream_tracker("aps") == "descriptor" and config.stream_tracker("mc-events") == "klt"
+    same = PipelineConfig(frames="aps+mc-events", tracker="klt")  # unset: one front-end for both
+    assert same.frontend_config("mc-events") == same.frontend_config("aps") == same.frontend_config()
 
 
 def test_each_frame_stream_gets_its_own_pixel_noise(boxes_events, monkeypatch):
