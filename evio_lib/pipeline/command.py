@@ -60,6 +60,7 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--start", type=real(at_least=0.0), default=0.0, metavar="SECONDS",
                    help="presets: where in the preset's motion the simulated stretch begins (default 0; e.g. --start "
                         "50 --duration 10 for the violent end of boxes_like)")
+    add_aps_exposure_argument(p)
     p.add_argument("--max-duration", type=real(above=0.0), default=None,
                    help="seconds of the recording to process from its start (default: all)")
     p.add_argument("--seed", type=integer(minimum=0), default=0, help="presets: simulation seed; RANSAC seed (default 0)")
@@ -174,11 +175,12 @@ def main_run(args: argparse.Namespace) -> int:
                                 pixel_noise_px=args.pixel_noise, event_pixel_noise_px=args.event_pixel_noise)
     except ValueError as error:  # the message names the config field; the user typed the option
         raise as_option_error(error, _OPTIONS) from None
+    _check_aps_exposure(args.aps_exposure, args.dataset)
     start = time.perf_counter()
     data = load_dataset(args.dataset, duration=args.duration, seed=args.seed, start=args.start,
                         need_events=args.frames != "aps" and not args.imu_only,
                         need_frames="aps" in args.frames.split("+") or args.imu_only, extrinsics=args.extrinsics,
-                        progress=not args.quiet, calib=args.calib)
+                        progress=not args.quiet, calib=args.calib, aps_exposure_s=args.aps_exposure)
     print(f"loaded {data.sequence.name} ({data.kind}) in {time.perf_counter() - start:.1f} s")
     for note in data.notes:
         print(f"  {note}")
@@ -191,6 +193,21 @@ def main_run(args: argparse.Namespace) -> int:
         print(f"wrote {args.out} (trajectory.txt is the {'IMU' if data.kind == 'euroc' else 'camera'} pose in TUM "
               f"format)")
     return 0
+
+
+def _check_aps_exposure(seconds: float | None, dataset: str | None = None) -> None:
+    """Raise ValueError naming --aps-exposure unless it is None or an exposure a preset (``dataset``) can take."""
+    from evio_lib.pipeline.dataset import PRESETS, check_aps_exposure
+
+    if seconds is None:
+        return
+    if dataset is not None and dataset not in PRESETS:
+        raise ValueError("--aps-exposure applies to simulated presets; a recording's frames were exposed when it was "
+                         "recorded")
+    try:
+        check_aps_exposure(seconds)
+    except ValueError as error:
+        raise as_option_error(error, _OPTIONS) from None
 
 
 def _require_checkpoint_file(option: str, path: Path | None) -> None:
@@ -207,7 +224,16 @@ _OPTIONS = {"reconstructor": "--reconstructor", "reconstructor_precision": "--re
             "max_features": "--max-features", "init": "--init", "frames": "--frames", "seed": "--seed",
             "method": "--tracker", "observation_outlier_px": "--outlier-px",
             "track_gap": "--track-gap", "pixel_noise_px": "--pixel-noise",
-            "event_pixel_noise_px": "--event-pixel-noise", "event_tracker": "--event-tracker"}
+            "event_pixel_noise_px": "--event-pixel-noise", "event_tracker": "--event-tracker",
+            "aps_exposure_s": "--aps-exposure"}
+
+
+def add_aps_exposure_argument(p: argparse.ArgumentParser) -> None:
+    """Add ``--aps-exposure`` (presets: the simulated APS frames' exposure time) to ``run`` or ``table``."""
+    p.add_argument("--aps-exposure", type=real(above=0.0), default=None, metavar="SECONDS",
+                   help="presets: the APS frames' exposure time (default: the simulator's 0.01 s; at most one frame "
+                        "interval, 1/24 s): longer exposures blur the frames more where the camera moves fast, and "
+                        "another exposure is another cached recording")
 
 
 def add_table_arguments(p: argparse.ArgumentParser) -> None:
@@ -225,6 +251,7 @@ def add_table_arguments(p: argparse.ArgumentParser) -> None:
                         "run only when named)")
     p.add_argument("--events-cnn", type=Path, default=None,
                    help="checkpoint of a CNN trained with event frames (the 'CNN trained with event frames' row)")
+    add_aps_exposure_argument(p)
     p.add_argument("--jobs", type=integer(minimum=1), default=1, help="parallel joblib workers (default 1)")
     p.add_argument("--fast", action="store_true", help="CI size: 3 s of each preset, one seed")
     p.add_argument("--out", type=output_folder(), default=None, help="write table.md, table.json and runs.json here")
@@ -253,6 +280,7 @@ def main_table(args: argparse.Namespace) -> int:
         rows = table_rows(args.rows, None if args.events_cnn is None else str(args.events_cnn))
     except ValueError as error:
         raise ValueError(f"--rows: {error}") from None
+    _check_aps_exposure(args.aps_exposure)
     seeds = 1 if args.fast else args.seeds
     duration = 3.0 if args.fast and args.duration is None else args.duration
     durations = {p: duration for p in args.presets} if duration is not None else None
@@ -265,7 +293,8 @@ def main_table(args: argparse.Namespace) -> int:
             except ValueError as error:
                 raise ValueError(f"--duration: {error}") from None
     start = time.perf_counter()
-    records = run_table(args.presets, list(range(seeds)), rows, durations, jobs=args.jobs)
+    records = run_table(args.presets, list(range(seeds)), rows, durations, jobs=args.jobs,
+                        aps_exposure_s=args.aps_exposure)
     table = aggregate(records)
     text = format_table6(table)
     print(text)

@@ -24,6 +24,8 @@ NaN are refused, never replaced by defaults (defaults for missing ones are named
 """
 from __future__ import annotations
 
+import dataclasses
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -102,15 +104,17 @@ def check_preset_start(preset: str, start: float) -> float:
 
 
 def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, with_events: bool = False,
-                    cache: bool = True, progress: bool = False, jobs: int | None = None, start: float = 0.0
-                    ) -> Sequence:
+                    cache: bool = True, progress: bool = False, jobs: int | None = None, start: float = 0.0,
+                    aps_exposure_s: float | None = None) -> Sequence:
     """Return the simulated recording of a preset: ``duration`` s of its full motion from ``start`` (cached as .npz).
 
     The motion is always the preset's whole trajectory (60 s boxes_like: gentle start, violent end; 40 s
     aerial_like), so a shorter duration is the start of the same recording, not a faster one; ``start`` > 0 takes a
     later stretch of the same motion (e.g. the violent end of boxes_like: ``start=50, duration=10``). ``jobs``:
     processes that render the APS frames (``simulate_sequence``; the result does not depend on it); None:
-    ``evio_lib.sim.jobs.default_jobs()``, ``EVIO_JOBS`` or one per core, at most 4.
+    ``evio_lib.sim.jobs.default_jobs()``, ``EVIO_JOBS`` or one per core, at most 4. ``aps_exposure_s``: the APS
+    frames' exposure time T (:class:`evio_lib.sim.aps.ApsParams`; None: the simulator's 10 ms), at most one frame
+    interval; it changes only the frames' blur, and the recording's cache name (another T is another recording).
     """
     from evio_lib.sim.jobs import check_jobs
 
@@ -126,6 +130,9 @@ def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, w
                          f"(0-{full:g} s); use a duration of at most {full - start:g} s from {start:g} s")
     config = SimulationConfig(preset=preset, duration=duration, trajectory_duration=full, seed=seed,
                               with_events=with_events, start_time=start)
+    if aps_exposure_s is not None:
+        config = dataclasses.replace(config, aps=dataclasses.replace(
+            config.aps, exposure_s=check_aps_exposure(aps_exposure_s, config.frame_rate_hz)))
     stem = sequence_cache_dir() / (f"{preset}_d{duration:g}_seed{seed}" + (f"_start{start:g}" if start else "")
                                    + f"_m{recording_settings_digest(config)}")
     path = stem.with_name(stem.name + ("_events.npz" if with_events else "_frames.npz"))
@@ -142,6 +149,17 @@ def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, w
     if cache:
         store_sequence_npz(sequence, path)
     return sequence
+
+
+def check_aps_exposure(value: Any, frame_rate_hz: float = 24.0) -> float:
+    """Return ``value`` as an APS exposure time in seconds, or raise ValueError: a number in (0, 1 / frame_rate_hz]
+    (a frame cannot be exposed for longer than the interval between frames)."""
+    longest = 1.0 / frame_rate_hz
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not (math.isfinite(value) and 0 < value <= longest):
+        raise ValueError(f"aps_exposure_s must be a number of seconds in (0, {longest:.4g}] (at most one frame "
+                         f"interval at {frame_rate_hz:g} frames/s); got {value!r}")
+    return float(value)
 
 
 def read_kalibr_extrinsics(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
@@ -236,7 +254,8 @@ def _is_euroc(folder: Path) -> bool:
 
 def load_dataset(dataset: str | Path | None = None, *, duration: float | None = None, seed: int = 0,
                  need_events: bool = False, need_frames: bool = True, extrinsics: str | Path | None = None,
-                 progress: bool = False, calib: str | Path | None = None, start: float = 0.0) -> LoadedDataset:
+                 progress: bool = False, calib: str | Path | None = None, start: float = 0.0,
+                 aps_exposure_s: float | None = None) -> LoadedDataset:
     """Return the recording named by ``dataset`` (a preset name, a folder or a file; None: ``boxes_like``).
 
     Args:
@@ -245,6 +264,8 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
         duration: presets only: seconds simulated (default: the preset's whole 60 / 40 s, or what is left after
             ``start``).
         start: presets only: where in the preset's motion the simulated stretch begins, s (default 0).
+        aps_exposure_s: presets only: the APS frames' exposure time, s (None: the simulator's 10 ms;
+            :func:`simulate_preset`).
         seed: presets only: the simulation seed.
         need_events, need_frames: what the run uses (a preset is simulated with events only when needed; a folder
             without them is refused with a message saying what is missing).
@@ -263,10 +284,14 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
     text = str(dataset)
     if start and text not in PRESETS:
         raise ValueError("--start applies to simulated presets; a recording is processed from its beginning")
+    if aps_exposure_s is not None and text not in PRESETS:
+        raise ValueError("aps_exposure_s applies to simulated presets; a recording's frames were exposed when it "
+                         "was recorded")
     if text in PRESETS:
         if calib is not None:
             raise ValueError(f"--calib applies to recordings; the preset {text} knows its camera")
-        seq = simulate_preset(text, duration, seed, with_events=need_events, progress=progress, start=start)
+        seq = simulate_preset(text, duration, seed, with_events=need_events, progress=progress, start=start,
+                              aps_exposure_s=aps_exposure_s)
         kind, source = "preset", text
     elif Path(text).is_file() and Path(text).suffix.lower() == ".aedat4":
         from evio_lib.io.aedat4 import read_aedat4

@@ -59,6 +59,32 @@ def test_preset_start_takes_a_later_stretch_of_the_same_motion(boxes_aps):
         load_dataset("boxes_like", start=59.0, duration=2.0)
 
 
+def test_aps_exposure_blurs_the_frames_and_names_its_own_recording(pipeline_cache):
+    """aps_exposure_s: the same motion, IMU and ground truth; frames at the exposure's middle, blurred more by a
+    longer exposure where the camera moves fast; cached under its own name, and 10 ms is the default's recording."""
+    import cv2
+
+    def sharpness(frames):  # mean |Laplacian|: the fine detail that motion blur removes
+        return float(np.mean([np.abs(cv2.Laplacian(f.astype(np.float32), cv2.CV_32F)).mean() for f in frames]))
+
+    short = load_dataset("boxes_like", duration=0.3, start=52.0).sequence  # the violent end
+    long = load_dataset("boxes_like", duration=0.3, start=52.0, aps_exposure_s=0.03).sequence
+    np.testing.assert_array_equal(long.imu.gyro, short.imu.gyro)
+    np.testing.assert_array_equal(long.groundtruth.p_BinG, short.groundtruth.p_BinG)
+    np.testing.assert_allclose(long.frame_times - short.frame_times, (0.03 - 0.01) / 2, atol=1e-9)
+    assert sharpness(long.frames) < 0.85 * sharpness(short.frames)
+    names = sorted(p.name for p in sequence_cache_dir().glob("boxes_like_d0.3_seed0_start52_m*_frames.npz"))
+    assert len(names) == 2
+    again = load_dataset("boxes_like", duration=0.3, start=52.0, aps_exposure_s=0.01).sequence  # the default's
+    np.testing.assert_array_equal(again.frames, short.frames)
+    assert len(list(sequence_cache_dir().glob("boxes_like_d0.3_seed0_start52_m*_frames.npz"))) == 2
+    for bad in (0.0, -0.01, 0.05, float("nan"), True, "0.02"):
+        with pytest.raises(ValueError, match=r"aps_exposure_s must be a number of seconds in \(0, 0.04167\]"):
+            load_dataset("boxes_like", duration=0.3, start=52.0, aps_exposure_s=bad)
+    with pytest.raises(ValueError, match="aps_exposure_s applies to simulated presets"):
+        load_dataset(str(pipeline_cache), aps_exposure_s=0.02)
+
+
 @pytest.mark.parametrize("dataset, message", [
     ("no_such_preset", "neither a preset"),
     (__file__, "is a file"),

@@ -114,6 +114,9 @@ def test_pixel_noise_options_reach_the_config(pipeline_cache, boxes_aps, monkeyp
     (["run", "boxes_like", "--cnn-inference", "int8"], "--cnn-inference applies to a CNN detector"),
     (["run", "boxes_like", "--features", "superpoint", "--cnn-inference", "int4"], "--cnn-inference"),
     (["table", "--rows", "nonsense"], "unknown table row"),
+    (["table", "--aps-exposure", "0.05"], "--aps-exposure must be a number of seconds in (0, 0.04167]"),
+    (["run", "boxes_like", "--aps-exposure", "0.1"], "--aps-exposure must be a number of seconds in (0, 0.04167]"),
+    (["run", "nowhere_at_all", "--aps-exposure", "0.02"], "--aps-exposure applies to simulated presets"),
 ])
 def test_command_errors_are_one_line(args, message, capsys, pipeline_cache):
     assert main(args) == 2
@@ -141,6 +144,12 @@ def test_table_fast_command(pipeline_cache, tmp_path, capsys):
     assert "IMU only (no bias correction)" in text and "IMU only (bias correction)" in text
     rows = json.loads((out / "table.json").read_text())
     assert [r["row"] for r in rows] == ["imu", "imu_bias"] and all(r["failed"] == 0 for r in rows)
+    assert all("aps_exposure_s" not in r for r in json.loads((out / "runs.json").read_text()))
+    longer = tmp_path / "table_exposure"
+    assert main(["table", "--fast", "--presets", "boxes_like", "--rows", "imu", "--aps-exposure", "0.02", "--out",
+                 str(longer)]) == 0
+    (record,) = json.loads((longer / "runs.json").read_text())
+    assert record["aps_exposure_s"] == 0.02 and "error" not in record
 
 
 def test_aggregate_is_mean_and_sample_std():
