@@ -5,7 +5,8 @@ the RMSE of each configuration together with the camera's mean speed and angular
 error against time with the motion below it (``plot_error_comparison(..., motion=...)``), so the reader sees where
 each source gains or loses. One thread, as ``run`` uses by default.
 
-Usage: python bench/error_vs_speed.py [--preset boxes_like] [--seed 0] [--stretch 10] [--out docs/figures/x.png]
+Usage: python bench/error_vs_speed.py [--preset boxes_like] [--seed 0] [--stretch 10] [--aps-exposure S]
+       [--out docs/figures/x.png]
 Measured figures: docs/pipeline.md, "Motion-compensated event frames".
 """
 import argparse
@@ -51,9 +52,11 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--stretch", type=float, default=10.0, help="seconds per row of the table (default 10)")
     parser.add_argument("--configs", nargs="+", default=list(CONFIGS), choices=list(CONFIGS))
+    parser.add_argument("--aps-exposure", type=float, default=None, metavar="SECONDS",
+                        help="the simulated APS frames' exposure time (default: the simulator's 0.01 s)")
     parser.add_argument("--out", default=None, help="save the figure here (PNG)")
     args = parser.parse_args()
-    data = load_dataset(args.preset, seed=args.seed, need_events=True)
+    data = load_dataset(args.preset, seed=args.seed, need_events=True, aps_exposure_s=args.aps_exposure)
     results = {}
     for name in args.configs:
         results[name] = run_pipeline(data, PipelineConfig(**{**CONFIGS[name].__dict__, "seed": args.seed}))
@@ -80,7 +83,9 @@ def main() -> None:
         errors = {n: np.linalg.norm(r.p_IinG - r.truth["p_IinG"], axis=1) for n, r in results.items()}
         fig = plot_error_comparison({n: r.t for n, r in results.items()}, errors, log=True,
                                     styles={n: "--" for n in results if "mc-events" in n},
-                                    title=f"{args.preset}, seed {args.seed}: position error (dashed: event frames)",
+                                    title=f"{args.preset}, seed {args.seed}"
+                                          + (f", APS exposure {1e3 * args.aps_exposure:g} ms" if args.aps_exposure else "")
+                                          + ": position error (dashed: event frames)",
                                     motion=(t_grid, speed, rate))
         fig.savefig(args.out, dpi=110)
         print(f"\nwrote {args.out}")
