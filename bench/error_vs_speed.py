@@ -7,7 +7,7 @@ each source gains or loses. One thread, as ``run`` uses by default.
 
 Usage: python bench/error_vs_speed.py [--preset boxes_like] [--seed 0] [--stretch 10] [--aps-exposure S]
        [--out docs/figures/x.png]
-Measured figures: docs/pipeline.md, "Motion-compensated event frames".
+Measured figures: docs/pipeline.md, "Motion-compensated event frames" and "A longer APS exposure".
 """
 import argparse
 import os
@@ -84,7 +84,7 @@ def main() -> None:
         fig = plot_error_comparison({n: r.t for n, r in results.items()}, errors, log=True,
                                     styles={n: "--" for n in results if "mc-events" in n},
                                     title=f"{args.preset}, seed {args.seed}"
-                                          + (f", APS exposure {1e3 * args.aps_exposure:g} ms" if args.aps_exposure else "")
+                                          + (f", APS exposure {1e3 * args.aps_exposure:g} ms" if args.aps_exposure is not None else "")
                                           + ": position error (dashed: event frames)",
                                     motion=(t_grid, speed, rate))
         fig.savefig(args.out, dpi=110)

@@ -41,7 +41,7 @@ _POSITIVE = (
 _POSITIVE_OR_INF = (
     "accel_full_scale", "gyro_full_scale", "imu_max_gap", "imu_max_bridged_gap", "max_normalized_coordinate",
 )
-_INTEGER_MIN = {"max_camera_states": 2, "min_track_length": 2, "triangulation_max_iterations": 1, "max_track_gap": 0}
+_INTEGER_MIN = {"max_camera_states": 2, "min_track_length": 2, "triangulation_max_iterations": 1}
 _BOOLEAN = ("marginalize_third", "chi2_gating", "observability_constrained", "imu_only")
 
 
@@ -77,7 +77,9 @@ class MsckfConfig:
             image without it and is used then; with g > 0 it is kept (its observations need not come from
             consecutive clones) until more than g images in a row lack it, so a front-end that finds a feature
             again after a missed detection (``FrontendConfig.max_gap_frames``) continues one track instead of two
-            short ones. The update of such a track comes g images later.
+            short ones. The update of such a track comes g images later. A tuple gives each frame stream its own g
+            (index = the ``stream`` of ``Msckf.process_image``; e.g. ``(2, 0)``: descriptor tracks with gaps on
+            stream 0, KLT tracks, which never come back, on stream 1); :meth:`track_gap` reads it.
         chi2_gating, chi2_probability: per-feature chi-square (Mahalanobis) gating and its probability [0.95],
             applied to ALL of a feature's observations in the window (dof 2M - 3) even when a prune uses only
             some. A gate also throws away correct data, and which data depends on the residual: the kept
@@ -153,7 +155,8 @@ class MsckfConfig:
     chi2_probability: float = _param(0.95, "", "chi-square gating probability (quantile)")
     observation_outlier_px: float | None = _param(None, "px", "drop a track's observations reprojecting farther "
                                                               "than this after triangulation (None: off)")
-    max_track_gap: int = _param(0, "", "images of its stream a track may miss and continue (0: ends at the first)")
+    max_track_gap: int | tuple[int, ...] = _param(0, "", "images of its stream a track may miss and continue (0: "
+                                                          "ends at the first; a tuple: one per frame stream)")
     # triangulation (inverse-depth Gauss-Newton, thesis §3.3.7)
     triangulation_max_iterations: int = _param(10, "", "Gauss-Newton iterations at most")
     triangulation_tolerance: float = _param(1e-7, "", "stop when the update norm falls below this")
@@ -212,6 +215,12 @@ class MsckfConfig:
             raise ValueError(
                 f"keyframe_tracking_rate_threshold must lie in [0, 1]; got {self.keyframe_tracking_rate_threshold!r}"
             )
+        gaps = self.max_track_gap if isinstance(self.max_track_gap, tuple) else (self.max_track_gap,)
+        if not gaps or any(isinstance(g, bool) or not isinstance(g, (int, np.integer)) or g < 0 for g in gaps):
+            raise ValueError(f"max_track_gap must be an integer >= 0, or a tuple of them (one per frame stream); got "
+                             f"{self.max_track_gap!r}")
+        object.__setattr__(self, "max_track_gap", tuple(int(g) for g in gaps)
+                           if isinstance(self.max_track_gap, tuple) else int(self.max_track_gap))
         for name, minimum in _INTEGER_MIN.items():
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
@@ -246,6 +255,18 @@ class MsckfConfig:
     def gravity(self) -> NDArray[np.float64]:
         """Return g_G (3,) as a new float64 array, m/s^2."""
         return np.array(self.gravity_G, dtype=np.float64)
+
+    def track_gap(self, stream: int = 0) -> int:
+        """Return the images a track of frame stream ``stream`` may miss and continue (``max_track_gap``).
+
+        >>> MsckfConfig(max_track_gap=(2, 0)).track_gap(1), MsckfConfig(max_track_gap=2).track_gap(1)
+        (0, 2)
+        """
+        if not isinstance(self.max_track_gap, tuple):
+            return self.max_track_gap
+        if not 0 <= stream < len(self.max_track_gap):
+            raise ValueError(f"max_track_gap {self.max_track_gap} has no entry for frame stream {stream}")
+        return self.max_track_gap[stream]
 
     @property
     def feature_noise_sigma(self) -> float:

@@ -114,7 +114,8 @@ def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, w
     processes that render the APS frames (``simulate_sequence``; the result does not depend on it); None:
     ``evio_lib.sim.jobs.default_jobs()``, ``EVIO_JOBS`` or one per core, at most 4. ``aps_exposure_s``: the APS
     frames' exposure time T (:class:`evio_lib.sim.aps.ApsParams`; None: the simulator's 10 ms), at most one frame
-    interval; it changes only the frames' blur, and the recording's cache name (another T is another recording).
+    interval. It changes the frames' blur and their times (the middle of each exposure, T/2 + k/24 s), and the
+    recording's cache name (another T is another recording); the events, the IMU and the ground truth stay the same.
     """
     from evio_lib.sim.jobs import check_jobs
 
@@ -157,8 +158,9 @@ def check_aps_exposure(value: Any, frame_rate_hz: float = 24.0) -> float:
     longest = 1.0 / frame_rate_hz
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
             or not (math.isfinite(value) and 0 < value <= longest):
-        raise ValueError(f"aps_exposure_s must be a number of seconds in (0, {longest:.4g}] (at most one frame "
-                         f"interval at {frame_rate_hz:g} frames/s); got {value!r}")
+        shown = math.floor(longest * 1e5) / 1e5  # rounded down, so that the bound shown is itself accepted
+        raise ValueError(f"aps_exposure_s must be a number of seconds > 0 and at most one frame interval, "
+                         f"1/{frame_rate_hz:g} s ({shown:.5f}); got {value!r}")
     return float(value)
 
 
@@ -284,7 +286,7 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
     text = str(dataset)
     if start and text not in PRESETS:
         raise ValueError("--start applies to simulated presets; a recording is processed from its beginning")
-    if aps_exposure_s is not None and text not in PRESETS:
+    if aps_exposure_s is not None and text not in PRESETS and Path(text).exists():  # else: 'neither a preset ...'
         raise ValueError("aps_exposure_s applies to simulated presets; a recording's frames were exposed when it "
                          "was recorded")
     if text in PRESETS:
@@ -292,6 +294,8 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
             raise ValueError(f"--calib applies to recordings; the preset {text} knows its camera")
         seq = simulate_preset(text, duration, seed, with_events=need_events, progress=progress, start=start,
                               aps_exposure_s=aps_exposure_s)
+        if aps_exposure_s is not None:
+            notes.append(f"APS exposure {1e3 * aps_exposure_s:g} ms (the simulator's default: 10 ms)")
         kind, source = "preset", text
     elif Path(text).is_file() and Path(text).suffix.lower() == ".aedat4":
         from evio_lib.io.aedat4 import read_aedat4

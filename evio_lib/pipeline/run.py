@@ -131,8 +131,9 @@ class PipelineConfig:
             triangulation and keeps the rest (``MsckfConfig.observation_outlier_px``; None: off).
         track_gap: frames a descriptor track may miss and still continue with its id
             (``FrontendConfig.max_gap_frames`` and ``MsckfConfig.max_track_gap``; 0: a missed detection ends the
-            track, the thesis's tracker and the default). KLT never searches for a lost patch: with it the gap
-            must be 0. Measured on the validation seeds 3-5 of both whole presets (docs/pipeline.md): 2 gives SIFT on APS
+            track, the thesis's tracker and the default). KLT never searches for a lost patch: with KLT on every
+            stream the gap must be 0, and with ``event_tracker`` 'klt' it applies to the APS stream only (front-end
+            and filter). Measured on the validation seeds 3-5 of both whole presets (docs/pipeline.md): 2 gives SIFT on APS
             frames tracks of 4.3-4.9 frames on boxes_like instead of 2.9-3.4 and a lower second-half RMSE on all
             six recordings, but it is not the default: the CNN diverged with it on one of them, and the gentle start
             of a recording gets worse.
@@ -227,11 +228,12 @@ class PipelineConfig:
         object.__setattr__(self, "track_gap", int(self.track_gap))
         streams = frame_streams(self.frames)
         if self.event_tracker is not None:
+            if self.event_tracker not in ("descriptor", "klt"):
+                raise ValueError(f"event_tracker must be None, 'descriptor' or 'klt'; got {self.event_tracker!r}")
             if not ("aps" in streams and len(streams) > 1):
                 raise ValueError(f"event_tracker applies to a run that fuses APS frames with an event stream "
-                                 f"('aps+mc-events', 'aps+events'); frames {self.frames!r} is one stream, whose tracker "
-                                 f"is tracker (--tracker)")
-            FrontendConfig(method=self.event_tracker)  # validates the name
+                                 f"('aps+mc-events', 'aps+events'); frames {self.frames!r} is one stream: set its "
+                                 f"tracker with tracker (--tracker)")
         trackers = {self.stream_tracker(name) for name in streams}
         if self.track_gap and "descriptor" not in trackers:
             raise ValueError(f"track_gap applies to the descriptor tracker (KLT follows each patch and never "
@@ -287,8 +289,8 @@ class PipelineConfig:
         streams = frame_streams(self.frames)
         if len({frontend(s) for s in streams}) == 1:  # one front-end: 'KLT + FAST on APS frames + ...'
             label = f"{frontend(streams[0])} on " + " + ".join(names[s] for s in streams)
-        else:  # 'SIFT on APS frames + KLT + FAST on motion-compensated event frames'
-            label = " + ".join(f"{frontend(s)} on {names[s]}" for s in streams)
+        else:  # 'SIFT on APS frames and KLT + FAST on motion-compensated event frames'
+            label = " and ".join(f"{frontend(s)} on {names[s]}" for s in streams)
         noise = ""
         if self.event_pixel_noise_px is not None and frame_streams(self.frames) != ("aps",):
             noise = f", event noise {self.event_pixel_noise_px:g} px"  # only when set: the default is in the docs
@@ -500,11 +502,20 @@ def msckf_config_for(config: PipelineConfig, data: LoadedDataset) -> MsckfConfig
     changes: dict[str, Any] = dict(pixel_noise_sigma=config.pixel_noise_px, focal_length_px=math.sqrt(cam.fx * cam.fy),
                                    observability_constrained=config.oc, imu_only=config.imu_only,
                                    observation_outlier_px=config.observation_outlier_px,
-                                   max_track_gap=config.track_gap,
+                                   max_track_gap=_filter_track_gaps(config),
                                    max_camera_states=cfg.max_camera_states * len(frame_streams(config.frames)))
     if gravity is not None:
         changes["gravity_G"] = tuple(float(g) for g in gravity)
     return dataclasses.replace(cfg, **changes)
+
+
+def _filter_track_gaps(config: PipelineConfig) -> int | tuple[int, ...]:
+    """Return the filter's ``max_track_gap``: ``track_gap``, or with several frame streams one gap per stream (a KLT
+    stream's tracks never come back, so its gap is 0 and its ended tracks are used at once)."""
+    streams = frame_streams(config.frames)
+    if len(streams) == 1:
+        return config.track_gap
+    return tuple(config.frontend_config(name).max_gap_frames for name in streams)
 
 
 def _frames(data: LoadedDataset, config: PipelineConfig, t_start: float, t_end: float,
@@ -567,7 +578,8 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
         data: the recording (:func:`evio_lib.pipeline.dataset.load_dataset`).
         config: the run's choices (default ``PipelineConfig()``: SIFT on APS frames).
         progress: show a progress bar over the processed seconds.
-        detector: an already created feature detector to use instead of ``config.features`` (e.g. a loaded CNN).
+        detector: an already created feature detector to use instead of ``config.features`` (e.g. a loaded CNN), by
+            every stream's tracker (with ``config.event_tracker`` 'klt' too, which otherwise detects FAST corners).
 
     Raises ValueError for a recording the run cannot use (no overlap of frames and IMU, a still start required by
     static initialisation that is not still, an IMU gap too long to bridge) with the reason in the message.

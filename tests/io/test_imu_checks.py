@@ -78,7 +78,8 @@ def test_preset_through_load_dataset_passes(tmp_path, monkeypatch):
     import evio_lib.pipeline.dataset as dataset
     from evio_lib.sim.presets import SimulationConfig, simulate_sequence
 
-    def imu_only(preset, duration=None, seed=0, with_events=False, cache=True, progress=False, start=0.0):
+    def imu_only(preset, duration=None, seed=0, with_events=False, cache=True, progress=False, start=0.0,
+                 aps_exposure_s=None):
         return simulate_sequence(SimulationConfig(preset=preset, duration=duration, trajectory_duration=60.0,
                                                   seed=seed, with_events=False, with_frames=False,
                                                   start_time=start))  # skip rendering

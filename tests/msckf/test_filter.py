@@ -642,9 +642,12 @@ def test_a_track_gap_keeps_tracks_whole_across_missed_observations():
         for fid in ids.tolist():
             seen_at.setdefault(fid, []).append(k)
     used, gapped, errors = {}, {}, {}
-    for gap in (0, 2):
+    # (max_track_gap, the frames' stream): one gap per stream reads the stream's own entry
+    for key, (gap_config, stream) in {0: (0, 0), 2: (2, 0), "2 on stream 1": ((0, 2), 1),
+                                      "0 on stream 1": ((2, 0), 1)}.items():
+        gap = gap_config if stream == 0 else gap_config[stream]
         # the oldest third is pruned (the default), so the holes in a track are the missed images alone
-        f = Msckf(dataclasses.replace(cfg, max_track_gap=gap, marginalize_third=True), state)
+        f = Msckf(dataclasses.replace(cfg, max_track_gap=gap_config, marginalize_third=True), state)
         update = f._update
         counts = {"obs": 0, "gapped": 0}
 
@@ -662,15 +665,20 @@ def test_a_track_gap_keeps_tracks_whole_across_missed_observations():
             return update(uses)
 
         f._update = checked_update
-        outputs = f.run(imu.t, imu.gyro, imu.accel, holed)
+        outputs = f.run(imu.t, imu.gyro, imu.accel, [(t, ids, xy, None, stream) for t, ids, xy in holed])
         assert_finite(outputs)
-        used[gap], gapped[gap] = counts["obs"], counts["gapped"]
-        errors[gap] = position_errors(traj, outputs)
+        used[key], gapped[key] = counts["obs"], counts["gapped"]
+        errors[key] = position_errors(traj, outputs)
     assert gapped[0] == 0 and gapped[2] > 50
+    assert (used["2 on stream 1"], gapped["2 on stream 1"]) == (used[2], gapped[2])
+    assert (used["0 on stream 1"], gapped["0 on stream 1"]) == (used[0], gapped[0])
     assert used[2] > 1.2 * used[0]  # measured: 2 787 against 2 185
     assert errors[2].max() < 0.1 and np.sqrt(np.mean(errors[2] ** 2)) < np.sqrt(np.mean(errors[0] ** 2))
-    with pytest.raises(ValueError, match="max_track_gap must be an integer >= 0"):
-        MsckfConfig(max_track_gap=-1)
+    for bad in (-1, (), (2, -1), 1.5, (True,)):
+        with pytest.raises(ValueError, match="max_track_gap must be an integer >= 0, or a tuple of them"):
+            MsckfConfig(max_track_gap=bad)
+    with pytest.raises(ValueError, match=r"max_track_gap \(2, 0\) has no entry for frame stream 2"):
+        MsckfConfig(max_track_gap=(2, 0)).track_gap(2)
 
 
 # ---------------------------------------------------------------- per-observation outliers

@@ -79,7 +79,8 @@ def test_aps_exposure_blurs_the_frames_and_names_its_own_recording(pipeline_cach
     np.testing.assert_array_equal(again.frames, short.frames)
     assert len(list(sequence_cache_dir().glob("boxes_like_d0.3_seed0_start52_m*_frames.npz"))) == 2
     for bad in (0.0, -0.01, 0.05, float("nan"), True, "0.02"):
-        with pytest.raises(ValueError, match=r"aps_exposure_s must be a number of seconds in \(0, 0.04167\]"):
+        with pytest.raises(ValueError, match=r"aps_exposure_s must be a number of seconds > 0 and at most one frame "
+                                             r"interval, 1/24 s \(0.04166\)"):
             load_dataset("boxes_like", duration=0.3, start=52.0, aps_exposure_s=bad)
     with pytest.raises(ValueError, match="aps_exposure_s applies to simulated presets"):
         load_dataset(str(pipeline_cache), aps_exposure_s=0.02)

@@ -114,9 +114,14 @@ def test_pixel_noise_options_reach_the_config(pipeline_cache, boxes_aps, monkeyp
     (["run", "boxes_like", "--cnn-inference", "int8"], "--cnn-inference applies to a CNN detector"),
     (["run", "boxes_like", "--features", "superpoint", "--cnn-inference", "int4"], "--cnn-inference"),
     (["table", "--rows", "nonsense"], "unknown table row"),
-    (["table", "--aps-exposure", "0.05"], "--aps-exposure must be a number of seconds in (0, 0.04167]"),
-    (["run", "boxes_like", "--aps-exposure", "0.1"], "--aps-exposure must be a number of seconds in (0, 0.04167]"),
-    (["run", "nowhere_at_all", "--aps-exposure", "0.02"], "--aps-exposure applies to simulated presets"),
+    (["table", "--aps-exposure", "0.05"], "--aps-exposure must be a number of seconds > 0 and at most one frame "
+                                          "interval, 1/24 s (0.04166); got 0.05"),
+    (["run", "boxes_like", "--aps-exposure", "0.1"], "--aps-exposure must be a number of seconds > 0 and at most"),
+    (["run", "nowhere_at_all", "--aps-exposure", "0.02"], "neither a preset"),
+    (["run", "boxes_like", "--frames", "mc-events", "--aps-exposure", "0.02"],
+     "--aps-exposure applies to runs that use APS frames"),
+    (["run", "boxes_like", "--imu-only", "--aps-exposure", "0.02"], "--aps-exposure applies to runs that use APS"),
+    (["table", "--rows", "imu", "--aps-exposure", "0.02"], "--aps-exposure applies to table rows that use APS frames"),
 ])
 def test_command_errors_are_one_line(args, message, capsys, pipeline_cache):
     assert main(args) == 2
@@ -145,11 +150,26 @@ def test_table_fast_command(pipeline_cache, tmp_path, capsys):
     rows = json.loads((out / "table.json").read_text())
     assert [r["row"] for r in rows] == ["imu", "imu_bias"] and all(r["failed"] == 0 for r in rows)
     assert all("aps_exposure_s" not in r for r in json.loads((out / "runs.json").read_text()))
-    longer = tmp_path / "table_exposure"
-    assert main(["table", "--fast", "--presets", "boxes_like", "--rows", "imu", "--aps-exposure", "0.02", "--out",
-                 str(longer)]) == 0
-    (record,) = json.loads((longer / "runs.json").read_text())
+
+
+def test_aps_exposure_reaches_the_recording(pipeline_cache, tmp_path, monkeypatch, capsys):
+    """--aps-exposure: run and table simulate the preset with it (the frames' times say so: the middle of each
+    exposure), the run's notes and each table record name it."""
+    import evio_lib.pipeline.dataset as dataset
+
+    asked = []
+    real = dataset.simulate_preset
+    monkeypatch.setattr(dataset, "simulate_preset", lambda *a, **kw: asked.append(kw.get("aps_exposure_s")) or real(
+        *a, **kw))
+    args = ["run", "boxes_like", "--duration", "1", "--aps-exposure", "0.02", "--quiet", "--no-figures", "--out",
+            str(tmp_path / "run")]
+    assert main(args) == 0 and asked == [0.02]
+    assert "APS exposure 20 ms (the simulator's default: 10 ms)" in capsys.readouterr().out
+    assert main(["table", "--fast", "--presets", "boxes_like", "--rows", "klt_aps", "--aps-exposure", "0.02",
+                 "--out", str(tmp_path / "table")]) == 0
+    (record,) = json.loads((tmp_path / "table" / "runs.json").read_text())
     assert record["aps_exposure_s"] == 0.02 and "error" not in record
+    assert len(asked) >= 2 and set(asked[1:]) == {0.02}  # the table's simulation and its run
 
 
 def test_aggregate_is_mean_and_sample_std():

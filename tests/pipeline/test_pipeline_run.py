@@ -113,9 +113,9 @@ def test_static_initialisation_refuses_a_moving_start(boxes_aps):
     (dict(tracker="klt", features="fast", track_gap=2), "track_gap applies to the descriptor tracker"),
     (dict(frames="aps+mc-events", tracker="klt", event_tracker="klt", track_gap=1),
      "track_gap applies to the descriptor tracker"),
-    (dict(frames="aps+mc-events", event_tracker="flow"), "method must be one of"),
+    (dict(frames="aps+mc-events", event_tracker="flow"), "event_tracker must be None, 'descriptor' or 'klt'; got 'flow'"),
     (dict(event_tracker="klt"), "event_tracker applies to a run that fuses APS frames with an event stream"),
-    (dict(frames="mc-events", event_tracker="klt"), r"frames 'mc-events' is one stream, whose tracker is tracker \(--tracker\)"),
+    (dict(frames="mc-events", event_tracker="klt"), r"frames 'mc-events' is one stream: set its tracker with tracker \(--tracker\)"),
 ])
 def test_bad_configs_are_refused(changes, message):
     with pytest.raises(ValueError, match=message):
@@ -294,7 +294,7 @@ def test_each_frame_stream_gets_its_own_front_end(boxes_events, monkeypatch):
 
     monkeypatch.setattr(run_module, "create_tracker", recording)
     config = PipelineConfig(frames="aps+mc-events", event_tracker="klt", track_gap=2, max_duration=0.8)
-    assert config.label() == "SIFT on APS frames + KLT + FAST on motion-compensated event frames, track gap 2"
+    assert config.label() == "SIFT on APS frames and KLT + FAST on motion-compensated event frames, track gap 2"
     result = run_pipeline(boxes_events, config)
     (aps_config, aps_calls), (mc_config, mc_calls) = made
     assert (aps_config.method, aps_config.detector_name, aps_config.max_gap_frames) == ("descriptor", "sift", 2)
@@ -305,6 +305,8 @@ def test_each_frame_stream_gets_its_own_front_end(boxes_events, monkeypatch):
     assert len(result.t) == len(aps_calls) + len(mc_calls) and np.all(np.isfinite(result.p_IinG))
     assert result.metrics["rmse_m"] < 0.2
     assert config.stream_tracker("aps") == "descriptor" and config.stream_tracker("mc-events") == "klt"
+    assert msckf_config_for(config, boxes_events).max_track_gap == (2, 0)  # the filter uses KLT's ended tracks at once
+    assert msckf_config_for(dataclasses.replace(config, event_tracker=None), boxes_events).max_track_gap == (2, 2)
     same = PipelineConfig(frames="aps+mc-events", tracker="klt")  # unset: one front-end for both
     assert same.frontend_config("mc-events") == same.frontend_config("aps") == same.frontend_config()
 
