@@ -157,6 +157,7 @@ def test_aps_exposure_reaches_the_recording(pipeline_cache, tmp_path, monkeypatc
     exposure), the run's notes and each table record name it."""
     import evio_lib.pipeline.dataset as dataset
 
+    monkeypatch.setenv("EVIO_CACHE_DIR", str(tmp_path / "cache"))  # its own recordings: other tests count theirs
     asked = []
     real = dataset.simulate_preset
     monkeypatch.setattr(dataset, "simulate_preset", lambda *a, **kw: asked.append(kw.get("aps_exposure_s")) or real(
