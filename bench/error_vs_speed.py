@@ -81,11 +81,11 @@ def main() -> None:
         print(f"{a:5.0f}-{b:<5.0f}  {speed[inside].mean():6.2f} {rate[inside].mean():6.2f} | " + " | ".join(cells))
     if args.out:
         errors = {n: np.linalg.norm(r.p_IinG - r.truth["p_IinG"], axis=1) for n, r in results.items()}
+        exposure = f", APS exposure {1e3 * args.aps_exposure:g} ms" if args.aps_exposure is not None else ""
         fig = plot_error_comparison({n: r.t for n, r in results.items()}, errors, log=True,
                                     styles={n: "--" for n in results if "mc-events" in n},
-                                    title=f"{args.preset}, seed {args.seed}"
-                                          + (f", APS exposure {1e3 * args.aps_exposure:g} ms" if args.aps_exposure is not None else "")
-                                          + ": position error (dashed: event frames)",
+                                    title=f"{args.preset}, seed {args.seed}{exposure}: position error (dashed: event "
+                                          f"frames)",
                                     motion=(t_grid, speed, rate))
         fig.savefig(args.out, dpi=110)
         print(f"\nwrote {args.out}")

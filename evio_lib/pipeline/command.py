@@ -165,7 +165,8 @@ def main_run(args: argparse.Namespace) -> int:
         options = options + (("inference", cnn_inference),)
     try:
         config = PipelineConfig(frames=args.frames, features=args.features, detector_options=options,
-                                tracker=args.tracker, event_tracker=args.event_tracker, max_features=args.max_features, reconstructor=args.reconstructor,
+                                tracker=args.tracker, event_tracker=args.event_tracker, max_features=args.max_features,
+                                reconstructor=args.reconstructor,
                                 reconstructor_precision=args.reconstructor_precision,
                                 window_fraction=args.window_fraction, adaptive_windows=args.adaptive,
                                 min_window_s=args.min_window, max_window_s=args.max_window, init=args.init,
@@ -175,7 +176,8 @@ def main_run(args: argparse.Namespace) -> int:
                                 pixel_noise_px=args.pixel_noise, event_pixel_noise_px=args.event_pixel_noise)
     except ValueError as error:  # the message names the config field; the user typed the option
         raise as_option_error(error, _OPTIONS) from None
-    _check_aps_exposure(args.aps_exposure, args.dataset, uses_aps="aps" in args.frames.split("+") and not args.imu_only)
+    _check_aps_exposure(args.aps_exposure, args.dataset,
+                        uses_aps="aps" in args.frames.split("+") and not args.imu_only)
     start = time.perf_counter()
     data = load_dataset(args.dataset, duration=args.duration, seed=args.seed, start=args.start,
                         need_events=args.frames != "aps" and not args.imu_only,

@@ -133,10 +133,10 @@ class PipelineConfig:
             (``FrontendConfig.max_gap_frames`` and ``MsckfConfig.max_track_gap``; 0: a missed detection ends the
             track, the thesis's tracker and the default). KLT never searches for a lost patch: with KLT on every
             stream the gap must be 0, and with ``event_tracker`` 'klt' it applies to the APS stream only (front-end
-            and filter). Measured on the validation seeds 3-5 of both whole presets (docs/pipeline.md): 2 gives SIFT on APS
-            frames tracks of 4.3-4.9 frames on boxes_like instead of 2.9-3.4 and a lower second-half RMSE on all
-            six recordings, but it is not the default: the CNN diverged with it on one of them, and the gentle start
-            of a recording gets worse.
+            and filter). Measured on the validation seeds 3-5 of both whole presets (docs/pipeline.md): 2 gives SIFT
+            on APS frames tracks of 4.3-4.9 frames on boxes_like instead of 2.9-3.4 and a lower second-half RMSE on
+            all six recordings, but it is not the default: the CNN diverged with it on one of them, and the gentle
+            start of a recording gets worse.
     """
 
     frames: str = "aps"

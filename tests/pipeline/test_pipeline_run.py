@@ -113,9 +113,11 @@ def test_static_initialisation_refuses_a_moving_start(boxes_aps):
     (dict(tracker="klt", features="fast", track_gap=2), "track_gap applies to the descriptor tracker"),
     (dict(frames="aps+mc-events", tracker="klt", event_tracker="klt", track_gap=1),
      "track_gap applies to the descriptor tracker"),
-    (dict(frames="aps+mc-events", event_tracker="flow"), "event_tracker must be None, 'descriptor' or 'klt'; got 'flow'"),
+    (dict(frames="aps+mc-events", event_tracker="flow"),
+     "event_tracker must be None, 'descriptor' or 'klt'; got 'flow'"),
     (dict(event_tracker="klt"), "event_tracker applies to a run that fuses APS frames with an event stream"),
-    (dict(frames="mc-events", event_tracker="klt"), r"frames 'mc-events' is one stream: set its tracker with tracker \(--tracker\)"),
+    (dict(frames="mc-events", event_tracker="klt"),
+     r"frames 'mc-events' is one stream: set its tracker with tracker \(--tracker\)"),
 ])
 def test_bad_configs_are_refused(changes, message):
     with pytest.raises(ValueError, match=message):
