@@ -239,8 +239,8 @@ def add_aps_exposure_argument(p: argparse.ArgumentParser) -> None:
     """Add ``--aps-exposure`` (presets: the simulated APS frames' exposure time) to ``run`` or ``table``."""
     p.add_argument("--aps-exposure", type=real(above=0.0), default=None, metavar="SECONDS",
                    help="presets: the APS frames' exposure time (default: the simulator's 0.01 s; at most one frame "
-                        "interval, 1/24 s): longer exposures blur the frames more where the camera moves fast, and "
-                        "another exposure is another cached recording")
+                        "interval, 1/24 s): longer exposures blur the frames more where the camera moves fast; the "
+                        "frames are simulated for it and cached, the events and the IMU are the default recording's")
 
 
 def add_table_arguments(p: argparse.ArgumentParser) -> None:

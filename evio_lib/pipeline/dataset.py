@@ -115,7 +115,9 @@ def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, w
     ``evio_lib.sim.jobs.default_jobs()``, ``EVIO_JOBS`` or one per core, at most 4. ``aps_exposure_s``: the APS
     frames' exposure time T (:class:`evio_lib.sim.aps.ApsParams`; None: the simulator's 10 ms), at most one frame
     interval. It changes the frames' blur and their times (the middle of each exposure, T/2 + k/24 s), and the
-    recording's cache name (another T is another recording); the events, the IMU and the ground truth stay the same.
+    recording's cache name (another T is another recording); the events, the IMU and the ground truth stay the same,
+    so a recording with events and another T is the default recording's events with frames simulated for T (cached
+    frames-only), unless a whole recording for T is in the cache already.
     """
     from evio_lib.sim.jobs import check_jobs
 
@@ -144,6 +146,15 @@ def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, w
         sequence = load_cached_sequence(found)  # None: not there, or damaged (said, deleted, simulated again)
         if sequence is not None:
             return sequence
+    if cache and with_events and config.aps != SimulationConfig().aps:
+        # The events, the IMU and the ground truth do not depend on the APS settings (their own random streams):
+        # the default recording's (cached, or simulated once for every exposure) with this exposure's frames, cached
+        # frames-only, instead of a second events file of about 2 GB for the whole room.
+        events = simulate_preset(preset, duration, seed, with_events=True, progress=progress, jobs=jobs, start=start)
+        frames = simulate_preset(preset, duration, seed, with_events=False, progress=progress, jobs=jobs, start=start,
+                                 aps_exposure_s=config.aps.exposure_s)
+        return dataclasses.replace(events, frames=frames.frames, frame_times=frames.frame_times,
+                                   metadata={**events.metadata, "config": frames.metadata["config"]})
     if cache:  # before the simulation (seconds to minutes): a cache that cannot be written is said now
         check_cache_file_writable(path)
     sequence = simulate_sequence(config, progress=progress, jobs=jobs)

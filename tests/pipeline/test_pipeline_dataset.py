@@ -61,7 +61,8 @@ def test_preset_start_takes_a_later_stretch_of_the_same_motion(boxes_aps):
 
 def test_aps_exposure_blurs_the_frames_and_names_its_own_recording(pipeline_cache):
     """aps_exposure_s: the same motion, IMU and ground truth; frames at the exposure's middle, blurred more by a
-    longer exposure where the camera moves fast; cached under its own name, and 10 ms is the default's recording."""
+    longer exposure where the camera moves fast; cached under its own name, and 10 ms is the default's recording.
+    With events, the default recording's events join this exposure's frames, equal to a whole simulation."""
     import cv2
 
     def sharpness(frames):  # mean |Laplacian|: the fine detail that motion blur removes
@@ -78,6 +79,15 @@ def test_aps_exposure_blurs_the_frames_and_names_its_own_recording(pipeline_cach
     again = load_dataset("boxes_like", duration=0.3, start=52.0, aps_exposure_s=0.01).sequence  # the default's
     np.testing.assert_array_equal(again.frames, short.frames)
     assert len(list(sequence_cache_dir().glob("boxes_like_d0.3_seed0_start52_m*_frames.npz"))) == 2
+    # with events: the default recording's events beside this exposure's frames, equal to a whole simulation
+    both = load_dataset("boxes_like", duration=0.3, start=52.0, aps_exposure_s=0.03, need_events=True).sequence
+    whole = simulate_preset("boxes_like", 0.3, 0, with_events=True, start=52.0, aps_exposure_s=0.03, cache=False)
+    for name in ("events", "frames", "frame_times"):
+        np.testing.assert_array_equal(getattr(both, name), getattr(whole, name))
+    np.testing.assert_array_equal(both.imu.accel, whole.imu.accel)
+    assert both.metadata == whole.metadata and both.metadata["config"]["aps"]["exposure_s"] == 0.03
+    events_files = list(sequence_cache_dir().glob("boxes_like_d0.3_seed0_start52_m*_events.npz"))
+    assert len(events_files) == 1  # the default's: no second events file for the other exposure
     for bad in (0.0, -0.01, 0.05, float("nan"), True, "0.02"):
         with pytest.raises(ValueError, match=r"aps_exposure_s must be a number of seconds > 0 and at most one frame "
                                              r"interval, 1/24 s \(0.04166\)"):
