@@ -107,6 +107,7 @@ BAD_INPUTS = [
     ("run boxes_like --track-gap -1", "--track-gap must be >= 0; got -1"),
     ("run boxes_like --track-gap 1.5", "--track-gap"),
     ("run boxes_like --frames aps+mc-events --event-pixel-noise 0", "--event-pixel-noise must be > 0; got 0"),
+    ("run {d}/full --aps-exposure 0.02", "--aps-exposure applies to simulated presets; a recording's frames"),
     ("run boxes_like --event-tracker klt", "--event-tracker applies to a run that fuses APS frames with an event"),
     ("run boxes_like --frames aps+mc-events --event-tracker sift", "--event-tracker: invalid choice: 'sift'"),
     ("run boxes_like --pixel-noise inf", "--pixel-noise must be a finite number > 0; got inf"),

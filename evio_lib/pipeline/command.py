@@ -144,6 +144,7 @@ def main_run(args: argparse.Namespace) -> int:
     """Run the pipeline on one recording; print the summary; write the output folder when --out is given."""
     from evio_lib.io.output_dir import check_output_dir
     from evio_lib.pipeline.dataset import PRESETS, load_dataset, sequence_cache_dir
+    from evio_lib.pipeline.frames import frame_streams
     from evio_lib.pipeline.output import write_run
     from evio_lib.pipeline.run import PipelineConfig, run_pipeline, set_threads
 
@@ -176,8 +177,7 @@ def main_run(args: argparse.Namespace) -> int:
                                 pixel_noise_px=args.pixel_noise, event_pixel_noise_px=args.event_pixel_noise)
     except ValueError as error:  # the message names the config field; the user typed the option
         raise as_option_error(error, _OPTIONS) from None
-    _check_aps_exposure(args.aps_exposure, args.dataset,
-                        uses_aps="aps" in args.frames.split("+") and not args.imu_only)
+    _check_aps_exposure(args.aps_exposure, uses_aps="aps" in frame_streams(args.frames) and not args.imu_only)
     start = time.perf_counter()
     data = load_dataset(args.dataset, duration=args.duration, seed=args.seed, start=args.start,
                         need_events=args.frames != "aps" and not args.imu_only,
@@ -197,18 +197,15 @@ def main_run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _check_aps_exposure(seconds: float | None, dataset: str | None = None, uses_aps: bool = True,
+def _check_aps_exposure(seconds: float | None, uses_aps: bool = True,
                         users: str = "runs that use APS frames (--frames aps, aps+mc-events or aps+events, without "
                                      "--imu-only)") -> None:
-    """Raise ValueError naming --aps-exposure unless it is None or an exposure that a preset (``dataset``) can take
-    and the run uses (``uses_aps``: the run reads APS frames)."""
-    from evio_lib.pipeline.dataset import PRESETS, check_aps_exposure
+    """Raise ValueError naming --aps-exposure unless it is None or an exposure the run uses (``uses_aps``: it reads
+    APS frames). A recording folder refuses it in ``load_dataset``, before anything is read."""
+    from evio_lib.pipeline.dataset import check_aps_exposure
 
     if seconds is None:
         return
-    if dataset is not None and dataset not in PRESETS and Path(dataset).exists():  # a wrong name: load_dataset says
-        raise ValueError("--aps-exposure applies to simulated presets; a recording's frames were exposed when it was "
-                         "recorded")
     if not uses_aps:  # it would change nothing but cost a new simulation
         raise ValueError(f"--aps-exposure applies to {users}")
     try:
@@ -287,9 +284,8 @@ def main_table(args: argparse.Namespace) -> int:
         rows = table_rows(args.rows, None if args.events_cnn is None else str(args.events_cnn))
     except ValueError as error:
         raise ValueError(f"--rows: {error}") from None
-    _check_aps_exposure(args.aps_exposure, uses_aps=any(
-        "aps" in dict(row.options).get("frames", "aps").split("+") and not dict(row.options).get("imu_only", False)
-        for row in rows), users="table rows that use APS frames; none of the rows chosen does")
+    _check_aps_exposure(args.aps_exposure, uses_aps=any(row.uses_aps_frames for row in rows),
+                        users="table rows that use APS frames; none of the rows chosen does")
     seeds = 1 if args.fast else args.seeds
     duration = 3.0 if args.fast and args.duration is None else args.duration
     durations = {p: duration for p in args.presets} if duration is not None else None

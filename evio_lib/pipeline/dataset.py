@@ -298,7 +298,7 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
     if start and text not in PRESETS:
         raise ValueError("--start applies to simulated presets; a recording is processed from its beginning")
     if aps_exposure_s is not None and text not in PRESETS and Path(text).exists():  # else: 'neither a preset ...'
-        raise ValueError("aps_exposure_s applies to simulated presets; a recording's frames were exposed when it "
+        raise ValueError("--aps-exposure applies to simulated presets; a recording's frames were exposed when it "
                          "was recorded")
     if text in PRESETS:
         if calib is not None:

@@ -78,6 +78,12 @@ FUSED_EVENT_NOISE_FACTOR = 3.0
 _STILL_TRUTH_SPEED = 0.05
 
 
+def _check_stream(stream: str) -> None:
+    """Raise ValueError unless ``stream`` names one frame stream ('aps', 'events' or 'mc-events')."""
+    if stream not in ("aps", "events", "mc-events"):
+        raise ValueError(f"stream must be 'aps', 'events' or 'mc-events'; got {stream!r}")
+
+
 @dataclass(frozen=True)
 class PipelineConfig:
     """Every choice of one pipeline run (frozen, validated).
@@ -230,7 +236,7 @@ class PipelineConfig:
         if self.event_tracker is not None:
             if self.event_tracker not in ("descriptor", "klt"):
                 raise ValueError(f"event_tracker must be None, 'descriptor' or 'klt'; got {self.event_tracker!r}")
-            if not ("aps" in streams and len(streams) > 1):
+            if not self.fuses_aps_and_events:
                 raise ValueError(f"event_tracker applies to a run that fuses APS frames with an event stream "
                                  f"('aps+mc-events', 'aps+events'); frames {self.frames!r} is one stream: set its "
                                  f"tracker with tracker (--tracker)")
@@ -250,20 +256,22 @@ class PipelineConfig:
 
     def stream_pixel_noise(self, stream: str) -> float:
         """Return the feature noise σ (pixels) of the frame stream ``stream`` ('aps', 'events' or 'mc-events')."""
-        if stream not in ("aps", "events", "mc-events"):
-            raise ValueError(f"stream must be 'aps', 'events' or 'mc-events'; got {stream!r}")
+        _check_stream(stream)
         if stream == "aps":
             return float(self.pixel_noise_px)
         if self.event_pixel_noise_px is not None:
             return float(self.event_pixel_noise_px)
+        return float(self.pixel_noise_px) * (FUSED_EVENT_NOISE_FACTOR if self.fuses_aps_and_events else 1.0)
+
+    @property
+    def fuses_aps_and_events(self) -> bool:
+        """Return True when the run fuses the APS frames with an event stream ('aps+mc-events', 'aps+events')."""
         streams = frame_streams(self.frames)
-        fused = "aps" in streams and len(streams) > 1
-        return float(self.pixel_noise_px) * (FUSED_EVENT_NOISE_FACTOR if fused else 1.0)
+        return "aps" in streams and len(streams) > 1
 
     def stream_tracker(self, stream: str) -> str:
         """Return the tracker ('descriptor' or 'klt') of the frame stream ``stream``."""
-        if stream not in ("aps", "events", "mc-events"):
-            raise ValueError(f"stream must be 'aps', 'events' or 'mc-events'; got {stream!r}")
+        _check_stream(stream)
         return self.event_tracker if stream != "aps" and self.event_tracker is not None else self.tracker
 
     def frontend_config(self, stream: str | None = None) -> FrontendConfig:
@@ -292,7 +300,7 @@ class PipelineConfig:
         else:  # 'SIFT on APS frames and KLT + FAST on motion-compensated event frames'
             label = " and ".join(f"{frontend(s)} on {names[s]}" for s in streams)
         noise = ""
-        if self.event_pixel_noise_px is not None and frame_streams(self.frames) != ("aps",):
+        if self.event_pixel_noise_px is not None and streams != ("aps",):
             noise = f", event noise {self.event_pixel_noise_px:g} px"  # only when set: the default is in the docs
         return label + (f", track gap {self.track_gap}" if self.track_gap else "") + noise
 

@@ -32,6 +32,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from evio_lib.pipeline.dataset import PRESET_DURATIONS, PRESETS, check_preset_duration
+from evio_lib.pipeline.frames import frame_streams
 
 __all__ = ["TABLE_ROWS", "OPTIONAL_ROWS", "TableRow", "table_rows", "table_job", "run_table", "aggregate",
            "format_table6"]
@@ -48,6 +49,12 @@ class TableRow:
     @property
     def needs_events(self) -> bool:
         return dict(self.options).get("frames", "aps") != "aps"
+
+    @property
+    def uses_aps_frames(self) -> bool:
+        """Return True when the row's runs read the APS frames (IMU-only rows and event-only sources do not)."""
+        options = dict(self.options)
+        return "aps" in frame_streams(options.get("frames", "aps")) and not options.get("imu_only", False)
 
 
 TABLE_ROWS = (

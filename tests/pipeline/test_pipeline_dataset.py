@@ -92,7 +92,7 @@ def test_aps_exposure_blurs_the_frames_and_names_its_own_recording(pipeline_cach
         with pytest.raises(ValueError, match=r"aps_exposure_s must be a number of seconds > 0 and at most one frame "
                                              r"interval, 1/24 s \(0.04166\)"):
             load_dataset("boxes_like", duration=0.3, start=52.0, aps_exposure_s=bad)
-    with pytest.raises(ValueError, match="aps_exposure_s applies to simulated presets"):
+    with pytest.raises(ValueError, match="--aps-exposure applies to simulated presets"):
         load_dataset(str(pipeline_cache), aps_exposure_s=0.02)
 
 
