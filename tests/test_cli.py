@@ -108,6 +108,8 @@ BAD_INPUTS = [
     ("run boxes_like --track-gap 1.5", "--track-gap"),
     ("run boxes_like --frames aps+mc-events --event-pixel-noise 0", "--event-pixel-noise must be > 0; got 0"),
     ("run {d}/full --aps-exposure 0.02", "--aps-exposure applies to simulated presets; a recording's frames"),
+    ("run {d}/full --speed 2", "--speed applies to simulated presets; a recording's motion is the one"),
+    ("run boxes_like --speed 0", "--speed must be > 0; got 0"),
     ("run boxes_like --event-tracker klt", "--event-tracker applies to a run that fuses APS frames with an event"),
     ("run boxes_like --frames aps+mc-events --event-tracker sift", "--event-tracker: invalid choice: 'sift'"),
     ("run boxes_like --pixel-noise inf", "--pixel-noise must be a finite number > 0; got inf"),

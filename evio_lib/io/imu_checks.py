@@ -102,9 +102,9 @@ def _norms(x: np.ndarray) -> np.ndarray:
     return np.linalg.norm(x, axis=1)
 
 
-def _accel_problem(accel_median: float, gyro_median: float, columns: str) -> str | None:
-    """Return what is wrong with the magnitudes of accelerometer and gyro, or None."""
-    if 0.5 * STANDARD_GRAVITY <= accel_median <= 4.0 * STANDARD_GRAVITY:
+def _accel_problem(accel_median: float, gyro_median: float, columns: str, speed: float = 1.0) -> str | None:
+    """Return what is wrong with the magnitudes of accelerometer and gyro, or None (``speed``: see check_imu_units)."""
+    if 0.5 * STANDARD_GRAVITY <= accel_median <= 4.0 * STANDARD_GRAVITY * max(speed, 1.0) ** 2:
         return None
     if accel_median < 0.5 * STANDARD_GRAVITY and 0.5 * STANDARD_GRAVITY <= gyro_median <= 4.0 * STANDARD_GRAVITY:
         return (f"the gyro and accelerometer columns look swapped: the gyro's median |w| is {gyro_median:.3g} (gravity "
@@ -347,7 +347,7 @@ def _axes_problem(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, truth: Any
 
 def check_imu_units(t: Any, gyro: Any, accel: Any, truth: Any = None, *, source: str = "the IMU",
                     columns: str = "gyro (rad/s) then accelerometer (m/s^2)", R_CtoI: Any = None,
-                    gravity_G: Any = None) -> str:
+                    gravity_G: Any = None, speed: float = 1.0) -> str:
     """Refuse IMU samples that are not gyro [rad/s] and specific force [m/s^2] in the frame the truth says.
 
     Args:
@@ -359,6 +359,8 @@ def check_imu_units(t: Any, gyro: Any, accel: Any, truth: Any = None, *, source:
         columns: the column order the reader expects, for the swapped-columns message.
         R_CtoI: the recording's own camera-IMU rotation, needed with a camera ground truth.
         gravity_G: gravity in the truth's world frame (default (0, 0, -9.81): z up).
+        speed: a simulated motion played this many times faster than people and vehicles move (a preset's
+            ``speed``): its accelerations, and so the plausible median |a| (4 g at speed 1), grow with speed^2.
 
     Returns:
         One line saying what was checked (for the dataset notes).
@@ -398,7 +400,7 @@ def check_imu_units(t: Any, gyro: Any, accel: Any, truth: Any = None, *, source:
                             f"step), where an IMU samples at 100 Hz or more (steps of 0.01 s or less){guess}")
     accel_median = float(np.median(_norms(accel)))
     gyro_median = float(np.median(_norms(gyro)))
-    problem = _accel_problem(accel_median, gyro_median, columns)
+    problem = _accel_problem(accel_median, gyro_median, columns, speed)
     if problem is not None:
         raise ImuUnitsError(f"{source}: {problem}")
 

@@ -61,6 +61,7 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="presets: where in the preset's motion the simulated stretch begins (default 0; e.g. --start "
                         "50 --duration 10 for the violent end of boxes_like)")
     add_aps_exposure_argument(p)
+    add_speed_argument(p)
     p.add_argument("--max-duration", type=real(above=0.0), default=None,
                    help="seconds of the recording to process from its start (default: all)")
     p.add_argument("--seed", type=integer(minimum=0), default=0, help="presets: simulation seed; RANSAC seed (default 0)")
@@ -178,11 +179,13 @@ def main_run(args: argparse.Namespace) -> int:
     except ValueError as error:  # the message names the config field; the user typed the option
         raise as_option_error(error, _OPTIONS) from None
     _check_aps_exposure(args.aps_exposure, uses_aps="aps" in frame_streams(args.frames) and not args.imu_only)
+    _check_speed(args.speed)
     start = time.perf_counter()
     data = load_dataset(args.dataset, duration=args.duration, seed=args.seed, start=args.start,
                         need_events=args.frames != "aps" and not args.imu_only,
                         need_frames="aps" in args.frames.split("+") or args.imu_only, extrinsics=args.extrinsics,
-                        progress=not args.quiet, calib=args.calib, aps_exposure_s=args.aps_exposure)
+                        progress=not args.quiet, calib=args.calib, aps_exposure_s=args.aps_exposure,
+                        speed=args.speed)
     print(f"loaded {data.sequence.name} ({data.kind}) in {time.perf_counter() - start:.1f} s")
     for note in data.notes:
         print(f"  {note}")
@@ -214,6 +217,17 @@ def _check_aps_exposure(seconds: float | None, uses_aps: bool = True,
         raise as_option_error(error, _OPTIONS) from None
 
 
+def _check_speed(speed: float | None) -> None:
+    """Raise ValueError naming --speed unless it is None or a playback speed of a preset's motion."""
+    from evio_lib.pipeline.dataset import check_speed
+
+    if speed is not None:
+        try:
+            check_speed(speed)
+        except ValueError as error:
+            raise ValueError(f"--{error}") from None
+
+
 def _require_checkpoint_file(option: str, path: Path | None) -> None:
     """Raise ValueError unless ``path`` (the value of ``option``) is None or an existing file."""
     if path is not None and not path.is_file():
@@ -240,6 +254,15 @@ def add_aps_exposure_argument(p: argparse.ArgumentParser) -> None:
                         "frames are simulated for it and cached, the events and the IMU are the default recording's")
 
 
+def add_speed_argument(p: argparse.ArgumentParser) -> None:
+    """Add ``--speed`` (presets: the motion played faster) to ``run`` or ``table``."""
+    p.add_argument("--speed", type=real(above=0.0), default=None, metavar="FACTOR",
+                   help="presets: play the preset's motion FACTOR times faster, in [0.25, 4] (default 1): the same "
+                        "path in 1/FACTOR of the time, rates x FACTOR, accelerations x FACTOR^2; --duration and "
+                        "--start are seconds of the faster motion (boxes_like at 2: 30 s, its violent end from "
+                        "about 24 s)")
+
+
 def add_table_arguments(p: argparse.ArgumentParser) -> None:
     """Add the options of ``table``."""
     p.add_argument("--presets", nargs="+", choices=["boxes_like", "aerial_like"], default=["boxes_like", "aerial_like"],
@@ -256,6 +279,7 @@ def add_table_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--events-cnn", type=Path, default=None,
                    help="checkpoint of a CNN trained with event frames (the 'CNN trained with event frames' row)")
     add_aps_exposure_argument(p)
+    add_speed_argument(p)
     p.add_argument("--jobs", type=integer(minimum=1), default=1, help="parallel joblib workers (default 1)")
     p.add_argument("--fast", action="store_true", help="CI size: 3 s of each preset, one seed")
     p.add_argument("--out", type=output_folder(), default=None, help="write table.md, table.json and runs.json here")
@@ -289,17 +313,19 @@ def main_table(args: argparse.Namespace) -> int:
     seeds = 1 if args.fast else args.seeds
     duration = 3.0 if args.fast and args.duration is None else args.duration
     durations = {p: duration for p in args.presets} if duration is not None else None
-    if durations is not None:
-        from evio_lib.pipeline.dataset import check_preset_duration
+    from evio_lib.pipeline.dataset import check_preset_duration
 
+    _check_speed(args.speed)
+    speed = 1.0 if args.speed is None else args.speed
+    if durations is not None:
         for preset, seconds in durations.items():
             try:
-                check_preset_duration(preset, seconds)
+                check_preset_duration(preset, seconds, speed)
             except ValueError as error:
                 raise ValueError(f"--duration: {error}") from None
     start = time.perf_counter()
     records = run_table(args.presets, list(range(seeds)), rows, durations, jobs=args.jobs,
-                        aps_exposure_s=args.aps_exposure)
+                        aps_exposure_s=args.aps_exposure, speed=speed)
     table = aggregate(records)
     text = format_table6(table)
     print(text)

@@ -37,7 +37,7 @@ from evio_lib.io.imu_checks import ImuUnitsError, check_imu_units
 from evio_lib.sequence import Sequence
 from evio_lib.sim.imu import ImuNoiseParams
 
-__all__ = ["PRESETS", "PRESET_DURATIONS", "LoadedDataset", "load_dataset", "simulate_preset", "read_kalibr_extrinsics",
+__all__ = ["PRESETS", "PRESET_DURATIONS", "preset_length", "check_speed", "LoadedDataset", "load_dataset", "simulate_preset", "read_kalibr_extrinsics",
            "sequence_cache_dir"]
 
 PRESETS = ("boxes_like", "aerial_like")
@@ -74,38 +74,60 @@ def sequence_cache_dir() -> Path:
     return default_cache_dir() / "sequences"
 
 
-def check_preset_duration(preset: str, duration: Any) -> float:
-    """Return ``duration`` as a float, or raise ValueError unless it lies in (0, the preset's length] seconds."""
+def preset_length(preset: str, speed: float = 1.0) -> float:
+    """Return the length of a preset's whole motion played ``speed`` times faster, seconds (60 s boxes_like and 40 s
+    aerial_like at speed 1)."""
     if preset not in PRESETS:
         raise ValueError(f"preset must be one of {PRESETS}; got {preset!r}")
-    full = PRESET_DURATIONS[preset]
+    return PRESET_DURATIONS[preset] / check_speed(speed)
+
+
+def check_speed(value: Any) -> float:
+    """Return ``value`` as a playback speed of a preset's motion, or raise ValueError: a number in
+    [``MIN_SPEED``, ``MAX_SPEED``] (:class:`evio_lib.sim.presets.SimulationConfig`)."""
+    from evio_lib.sim.presets import MAX_SPEED, MIN_SPEED
+
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not (math.isfinite(value) and MIN_SPEED <= value <= MAX_SPEED):
+        raise ValueError(f"speed must be a number in [{MIN_SPEED:g}, {MAX_SPEED:g}] (how many times faster than the "
+                         f"preset its motion is played); got {value!r}")
+    return float(value)
+
+
+def _speed_words(speed: float) -> str:
+    return "" if speed == 1.0 else f" played at speed {speed:g}"
+
+
+def check_preset_duration(preset: str, duration: Any, speed: float = 1.0) -> float:
+    """Return ``duration`` as a float, or raise ValueError unless it lies in (0, the preset's length] seconds (at
+    ``speed``: the preset's length / speed)."""
+    full = preset_length(preset, speed)
     try:
         value = float(duration)
     except (TypeError, ValueError):
         raise ValueError(f"duration of {preset} must be a number of seconds in (0, {full:g}]; got {duration!r}") from None
     if not np.isfinite(value) or value <= 0 or value > full:
-        raise ValueError(f"duration of {preset} must be in (0, {full:g}] s (the preset's whole motion); got {duration!r}")
+        raise ValueError(f"duration of {preset} must be in (0, {full:g}] s (the preset's whole motion"
+                         f"{_speed_words(speed)}); got {duration!r}")
     return value
 
 
-def check_preset_start(preset: str, start: float) -> float:
-    """Return ``start`` as a float in [0, the preset's duration), or raise ValueError naming the preset's span."""
-    full = PRESET_DURATIONS[preset] if preset in PRESETS else None
-    if full is None:
-        raise ValueError(f"preset must be one of {PRESETS}; got {preset!r}")
+def check_preset_start(preset: str, start: float, speed: float = 1.0) -> float:
+    """Return ``start`` as a float in [0, the preset's length at ``speed``), or raise ValueError naming the span."""
+    full = preset_length(preset, speed)
     try:
         value = float(start)
     except (TypeError, ValueError):
         raise ValueError(f"start of {preset} must be a number of seconds in [0, {full:g}); got {start!r}") from None
     if not np.isfinite(value) or value < 0 or value >= full:
-        raise ValueError(f"start of {preset} must be in [0, {full:g}) s (where in the preset's motion the stretch "
-                         f"begins); got {start!r}")
+        raise ValueError(f"start of {preset} must be in [0, {full:g}) s (where in the preset's motion"
+                         f"{_speed_words(speed)} the stretch begins); got {start!r}")
     return value
 
 
 def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, with_events: bool = False,
                     cache: bool = True, progress: bool = False, jobs: int | None = None, start: float = 0.0,
-                    aps_exposure_s: float | None = None) -> Sequence:
+                    aps_exposure_s: float | None = None, speed: float = 1.0) -> Sequence:
     """Return the simulated recording of a preset: ``duration`` s of its full motion from ``start`` (cached as .npz).
 
     The motion is always the preset's whole trajectory (60 s boxes_like: gentle start, violent end; 40 s
@@ -117,7 +139,10 @@ def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, w
     interval. It changes the frames' blur and their times (the middle of each exposure, T/2 + k/24 s), and the
     recording's cache name (another T is another recording); the events, the IMU and the ground truth stay the same,
     so a recording with events and another T is the default recording's events with frames simulated for T (cached
-    frames-only), unless a whole recording for T is in the cache already.
+    frames-only), unless a whole recording for T is in the cache already. ``speed``: the preset's motion played this
+    many times faster (:class:`evio_lib.sim.trajectory.TimeScaledTrajectory`; rates x speed, accelerations x
+    speed^2); ``start`` and ``duration`` are then seconds of the faster motion, whose whole lasts the preset's length
+    / speed (boxes_like at speed 2: 30 s, its violent end from about 24 s).
     """
     from evio_lib.sim.jobs import check_jobs
 
@@ -125,18 +150,21 @@ def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, w
     from evio_lib.io.cache import check_cache_file_writable, load_cached_sequence, store_sequence_npz
     from evio_lib.sim.presets import SimulationConfig, recording_settings_digest, simulate_sequence
 
-    full = PRESET_DURATIONS[preset] if preset in PRESETS else None
-    start = check_preset_start(preset, start)
-    duration = check_preset_duration(preset, (full - start) if duration is None else duration)
+    speed = check_speed(speed)
+    full = preset_length(preset, speed)
+    start = check_preset_start(preset, start, speed)
+    duration = check_preset_duration(preset, (full - start) if duration is None else duration, speed)
     if start + duration > full + 1e-9:
-        raise ValueError(f"the stretch [{start:g}, {start + duration:g}] s of {preset} ends after its motion "
-                         f"(0-{full:g} s); use a duration of at most {full - start:g} s from {start:g} s")
+        raise ValueError(f"the stretch [{start:g}, {start + duration:g}] s of {preset} ends after its motion"
+                         f"{_speed_words(speed)} (0-{full:g} s); use a duration of at most {full - start:g} s from "
+                         f"{start:g} s")
     config = SimulationConfig(preset=preset, duration=duration, trajectory_duration=full, seed=seed,
-                              with_events=with_events, start_time=start)
+                              with_events=with_events, start_time=start, speed=speed)
     if aps_exposure_s is not None:
         config = dataclasses.replace(config, aps=dataclasses.replace(
             config.aps, exposure_s=check_aps_exposure(aps_exposure_s, config.frame_rate_hz)))
     stem = sequence_cache_dir() / (f"{preset}_d{duration:g}_seed{seed}" + (f"_start{start:g}" if start else "")
+                                   + (f"_speed{speed:g}" if speed != 1.0 else "")
                                    + f"_m{recording_settings_digest(config)}")
     path = stem.with_name(stem.name + ("_events.npz" if with_events else "_frames.npz"))
     # a recording simulated with events also serves a run that needs only the frames (the same seed gives the same
@@ -150,9 +178,10 @@ def simulate_preset(preset: str, duration: float | None = None, seed: int = 0, w
         # The events, the IMU and the ground truth do not depend on the APS settings (their own random streams):
         # the default recording's (cached, or simulated once for every exposure) with this exposure's frames, cached
         # frames-only, instead of a second events file of about 2 GB for the whole room.
-        events = simulate_preset(preset, duration, seed, with_events=True, progress=progress, jobs=jobs, start=start)
+        events = simulate_preset(preset, duration, seed, with_events=True, progress=progress, jobs=jobs, start=start,
+                                 speed=speed)
         frames = simulate_preset(preset, duration, seed, with_events=False, progress=progress, jobs=jobs, start=start,
-                                 aps_exposure_s=config.aps.exposure_s)
+                                 aps_exposure_s=config.aps.exposure_s, speed=speed)
         return dataclasses.replace(events, frames=frames.frames, frame_times=frames.frame_times,
                                    metadata={**events.metadata, "config": frames.metadata["config"]})
     if cache:  # before the simulation (seconds to minutes): a cache that cannot be written is said now
@@ -268,7 +297,7 @@ def _is_euroc(folder: Path) -> bool:
 def load_dataset(dataset: str | Path | None = None, *, duration: float | None = None, seed: int = 0,
                  need_events: bool = False, need_frames: bool = True, extrinsics: str | Path | None = None,
                  progress: bool = False, calib: str | Path | None = None, start: float = 0.0,
-                 aps_exposure_s: float | None = None) -> LoadedDataset:
+                 aps_exposure_s: float | None = None, speed: float | None = None) -> LoadedDataset:
     """Return the recording named by ``dataset`` (a preset name, a folder or a file; None: ``boxes_like``).
 
     Args:
@@ -279,6 +308,8 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
         start: presets only: where in the preset's motion the simulated stretch begins, s (default 0).
         aps_exposure_s: presets only: the APS frames' exposure time, s (None: the simulator's 10 ms;
             :func:`simulate_preset`).
+        speed: presets only: the preset's motion played this many times faster (None: 1, the preset itself);
+            ``duration`` and ``start`` are seconds of the faster motion (:func:`simulate_preset`).
         seed: presets only: the simulation seed.
         need_events, need_frames: what the run uses (a preset is simulated with events only when needed; a folder
             without them is refused with a message saying what is missing).
@@ -300,13 +331,18 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
     if aps_exposure_s is not None and text not in PRESETS and Path(text).exists():  # else: 'neither a preset ...'
         raise ValueError("--aps-exposure applies to simulated presets; a recording's frames were exposed when it "
                          "was recorded")
+    if speed is not None and text not in PRESETS and Path(text).exists():
+        raise ValueError("--speed applies to simulated presets; a recording's motion is the one it was recorded with")
     if text in PRESETS:
         if calib is not None:
             raise ValueError(f"--calib applies to recordings; the preset {text} knows its camera")
         seq = simulate_preset(text, duration, seed, with_events=need_events, progress=progress, start=start,
-                              aps_exposure_s=aps_exposure_s)
+                              aps_exposure_s=aps_exposure_s, speed=1.0 if speed is None else speed)
         if aps_exposure_s is not None:
             notes.append(f"APS exposure {1e3 * aps_exposure_s:g} ms (the simulator's default: 10 ms)")
+        if speed is not None and speed != 1.0:
+            notes.append(f"motion: the preset's played at speed {speed:g} (rates x {speed:g}, accelerations x "
+                         f"{speed * speed:g}; its whole motion lasts {preset_length(text, speed):g} s)")
         kind, source = "preset", text
     elif Path(text).is_file() and Path(text).suffix.lower() == ".aedat4":
         from evio_lib.io.aedat4 import read_aedat4
@@ -376,7 +412,7 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
     gravity_G = seq.metadata.get("gravity_G") if isinstance(seq.metadata, dict) else None
     try:  # the readers checked already; presets, --extrinsics and the assumed extrinsics are checked here
         check_imu_units(seq.imu.t, seq.imu.gyro, seq.imu.accel, truth, source=f"{source} IMU", R_CtoI=R_CtoI,
-                        gravity_G=gravity_G)
+                        gravity_G=gravity_G, speed=1.0 if speed is None or kind != "preset" else speed)
     except ImuUnitsError as error:
         if not (assumed and truth is not None and truth.body == "camera"):
             raise

@@ -31,7 +31,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from evio_lib.pipeline.dataset import PRESET_DURATIONS, PRESETS, check_preset_duration
+from evio_lib.pipeline.dataset import PRESETS, check_preset_duration, check_speed, preset_length
 from evio_lib.pipeline.frames import frame_streams
 
 __all__ = ["TABLE_ROWS", "OPTIONAL_ROWS", "TableRow", "table_rows", "table_job", "run_table", "aggregate",
@@ -112,18 +112,20 @@ def table_rows(keys: Sequence[str] | None = None, events_cnn: str | None = None)
     return rows
 
 
-def _simulate(preset: str, duration: float, seed: int, with_events: bool, aps_exposure_s: float | None = None) -> None:
+def _simulate(preset: str, duration: float, seed: int, with_events: bool, aps_exposure_s: float | None = None,
+              speed: float = 1.0) -> None:
     from evio_lib.pipeline.dataset import simulate_preset
 
     simulate_preset(preset, duration, seed, with_events=with_events, jobs=1,  # the jobs of the table run in parallel
-                    aps_exposure_s=aps_exposure_s)
+                    aps_exposure_s=aps_exposure_s, speed=speed)
 
 
 def table_job(preset: str, duration: float, seed: int, row: TableRow, threads: int = 1,
-              aps_exposure_s: float | None = None) -> dict[str, Any]:
+              aps_exposure_s: float | None = None, speed: float = 1.0) -> dict[str, Any]:
     """Return the numbers of one (preset, row, seed) run: metrics, timings and tracking means (a pure function).
 
     ``aps_exposure_s``: the simulated APS frames' exposure time (None: the simulator's 10 ms; recorded when set).
+    ``speed``: the preset's motion played this many times faster (recorded when not 1).
 
     A run that fails (e.g. the filter diverges to a refused state) returns its error message under "error"
     instead of numbers, so one bad seed does not lose the rest of the table.
@@ -137,10 +139,12 @@ def table_job(preset: str, duration: float, seed: int, row: TableRow, threads: i
                               "duration_s": duration}
     if aps_exposure_s is not None:
         record["aps_exposure_s"] = aps_exposure_s
+    if speed != 1.0:
+        record["speed"] = speed
     start = time.perf_counter()
     try:
         data = load_dataset(preset, duration=duration, seed=seed, need_events=row.needs_events,
-                            need_frames=True, aps_exposure_s=aps_exposure_s)
+                            need_frames=True, aps_exposure_s=aps_exposure_s, speed=speed)
         result = run_pipeline(data, config)
     except (ValueError, OSError) as error:  # a bad input of this row (e.g. its checkpoint): the row's error
         record["error"] = (str(error).splitlines() or [type(error).__name__])[0]
@@ -161,14 +165,15 @@ def table_job(preset: str, duration: float, seed: int, row: TableRow, threads: i
 
 def run_table(presets: Sequence[str] = PRESETS, seeds: Sequence[int] = (0, 1, 2), rows: Sequence[TableRow] | None = None,
               durations: dict[str, float] | None = None, jobs: int = 1, progress: bool = True,
-              aps_exposure_s: float | None = None) -> list[dict[str, Any]]:
+              aps_exposure_s: float | None = None, speed: float = 1.0) -> list[dict[str, Any]]:
     """Return one record per (preset, row, seed) (:func:`table_job`), run with ``jobs`` joblib workers.
 
     Args:
         presets: preset names; seeds: simulation (and front-end) seeds; rows: default :func:`table_rows`.
-        durations: seconds per preset (default the whole presets, 60 s and 40 s).
+        durations: seconds per preset (default the whole presets, 60 s and 40 s, divided by ``speed``).
         jobs: joblib workers (processes); each uses one thread.
         aps_exposure_s: the simulated APS frames' exposure time, s (None: the simulator's 10 ms).
+        speed: every preset's motion played this many times faster (:func:`evio_lib.pipeline.dataset.simulate_preset`).
     """
     from joblib import Parallel, delayed
 
@@ -176,9 +181,10 @@ def run_table(presets: Sequence[str] = PRESETS, seeds: Sequence[int] = (0, 1, 2)
     for preset in presets:
         if preset not in PRESETS:
             raise ValueError(f"preset must be one of {PRESETS}; got {preset!r}")
-    durations = {p: PRESET_DURATIONS[p] for p in presets} | (durations or {})
+    speed = check_speed(speed)
+    durations = {p: preset_length(p, speed) for p in presets} | (durations or {})
     for preset in presets:  # before any worker starts: a bad duration is one error, not one per job
-        check_preset_duration(preset, durations[preset])
+        check_preset_duration(preset, durations[preset], speed)
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise ValueError(f"jobs must be an integer >= 1; got {jobs!r}")
     if aps_exposure_s is not None:
@@ -186,8 +192,8 @@ def run_table(presets: Sequence[str] = PRESETS, seeds: Sequence[int] = (0, 1, 2)
 
         aps_exposure_s = check_aps_exposure(aps_exposure_s)
     events = any(r.needs_events for r in rows)
-    sims = [(p, durations[p], s, events, aps_exposure_s) for p in presets for s in seeds]
-    runs = [(p, durations[p], s, r, 1, aps_exposure_s) for p in presets for r in rows for s in seeds]
+    sims = [(p, durations[p], s, events, aps_exposure_s, speed) for p in presets for s in seeds]
+    runs = [(p, durations[p], s, r, 1, aps_exposure_s, speed) for p in presets for r in rows for s in seeds]
     verbose = 5 if progress else 0
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     try:

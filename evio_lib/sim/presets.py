@@ -39,7 +39,7 @@ from evio_lib.sim.trajectory import trajectory_from_preset
 
 PRESETS = ("boxes_like", "aerial_like")
 
-__all__ = ["PRESETS", "MAX_RECORDING_DURATION_S", "CameraPoseTable", "SimulationConfig", "simulate_sequence",
+__all__ = ["PRESETS", "MAX_RECORDING_DURATION_S", "MIN_SPEED", "MAX_SPEED", "CameraPoseTable", "SimulationConfig", "simulate_sequence",
            "simulation_cache_path", "simulate_sequence_cached",
            "recording_settings_digest"]
 
@@ -48,6 +48,10 @@ __all__ = ["PRESETS", "MAX_RECORDING_DURATION_S", "CameraPoseTable", "Simulation
 #: ten minutes are about 3-9 GB, and about 15 min of simulation on a 2-core CPU (1.5 min per minute recorded). An
 #: IMU-only simulation may run for MAX_TRAJECTORY_DURATION_S (an hour).
 MAX_RECORDING_DURATION_S = 600.0
+
+#: Bounds of ``SimulationConfig.speed``. At speed 2 the violent end of boxes_like (about 2.7 m/s and 5 rad/s) makes
+#: about 9 M events/s, so four times the preset's speed is the most one simulation is let to make.
+MIN_SPEED, MAX_SPEED = 0.25, 4.0
 
 
 @dataclass(frozen=True)
@@ -59,6 +63,8 @@ class SimulationConfig:
     start_time: float = 0.0                # where in the preset's motion the recording starts (s)
     trajectory_duration: float | None = None   # length of the preset's motion; None: max(start_time + duration, 2 s),
                                                # i.e. the whole preset (gentle start, violent end) within the recording
+    speed: float = 1.0                     # the preset's motion played this many times faster (TimeScaledTrajectory);
+                                           # every time here (duration, start_time, trajectory_duration) is played time
     seed: int = 0                          # one seed drives the trajectory, the scene, the IMU noise, the events and the frames
     imu_rate_hz: float = 1000.0            # DAVIS IMU rate
     frame_rate_hz: float = 24.0            # DAVIS APS frame rate
@@ -88,6 +94,10 @@ class SimulationConfig:
             raise ValueError(f"duration {self.duration:g} s is longer than the longest simulation, {longest:g} s "
                              f"({'MAX_RECORDING_DURATION_S' if longest == MAX_RECORDING_DURATION_S else 'MAX_TRAJECTORY_DURATION_S'}"
                              f"; {self.duration:g} s of events and frames would take about {gib:.3g} GiB of memory)")
+        if isinstance(self.speed, bool) or not isinstance(self.speed, (int, float, np.integer, np.floating)) \
+                or not (np.isfinite(self.speed) and MIN_SPEED <= self.speed <= MAX_SPEED):
+            raise ValueError(f"speed must be a number in [{MIN_SPEED:g}, {MAX_SPEED:g}] (how many times faster than the "
+                             f"preset the motion is played; events per second grow with it); got {self.speed!r}")
         if not (np.isfinite(self.start_time) and self.start_time >= 0):
             raise ValueError(f"start_time must be a finite number >= 0; got {self.start_time!r}")
         if self.trajectory_duration is not None and self.start_time + self.duration > self.trajectory_duration + 1e-9:
@@ -103,7 +113,7 @@ class SimulationConfig:
         """Length of the preset's trajectory that the recording is cut from (s)."""
         if self.trajectory_duration is not None:
             return self.trajectory_duration
-        return max(self.t_end, 2.0)
+        return max(self.t_end, 2.0 / min(self.speed, 1.0))  # the presets' motions last at least 2 s (of their own clock)
 
 
 def _pose_function(trajectory, extrinsics: CameraImuExtrinsics):
@@ -261,6 +271,7 @@ def simulate_sequence(config: SimulationConfig, progress: bool = False,
         "source": "evio simulator",
         "config": {"preset": config.preset, "duration": config.duration, "seed": config.seed,
                    "start_time": config.start_time, "trajectory_duration": config.motion_duration(),
+                   "speed": config.speed,
                    "imu_rate_hz": config.imu_rate_hz, "frame_rate_hz": config.frame_rate_hz,
                    "groundtruth_rate_hz": config.groundtruth_rate_hz, "events": asdict(config.events),
                    "aps": asdict(config.aps)},
@@ -289,7 +300,7 @@ def _exposure_chunk(config: SimulationConfig, times: np.ndarray) -> np.ndarray:
     The scene and the motion are made again from the config (0.3 s; the scene pickles to 80 MB, too much to send),
     once per recording in each worker.
     """
-    key = json.dumps([config.preset, config.seed, config.motion_duration(), asdict(config.extrinsics)],
+    key = json.dumps([config.preset, config.seed, config.motion_duration(), config.speed, asdict(config.extrinsics)],
                      default=lambda value: np.asarray(value).tolist())
     if key not in _WORKER_WORLD:  # a worker renders several chunks of one recording: the world is made once
         _WORKER_WORLD.clear()
@@ -303,7 +314,8 @@ _WORKER_WORLD: dict[str, tuple] = {}  # in a frame worker: the (trajectory, scen
 
 def _world(config: SimulationConfig):  # type: ignore[no-untyped-def]
     """Return (trajectory, scene, pose_at) of ``config``: made the same way here and in the frame workers."""
-    trajectory = trajectory_from_preset(config.preset, duration=config.motion_duration(), seed=config.seed)
+    trajectory = trajectory_from_preset(config.preset, duration=config.motion_duration(), seed=config.seed,
+                                        speed=config.speed)
     scene = scene_from_preset(config.preset, seed=config.seed)
     return trajectory, scene, _pose_function(trajectory, config.extrinsics)
 
@@ -350,6 +362,15 @@ def _collect_frames(pending: Iterator[np.ndarray], config: SimulationConfig, tim
     return frames
 
 
+def _settings(config: SimulationConfig) -> dict:
+    """Return the config's fields as a dict, without ``speed`` when it is 1 (the preset's own motion): the digests of
+    the recordings simulated before the field existed stay what they were."""
+    settings = asdict(config)
+    if settings["speed"] == 1.0:
+        del settings["speed"]
+    return settings
+
+
 def _settings_digest(settings: dict, length: int) -> str:
     """Return the first ``length`` hex digits of the SHA-1 of the settings as sorted JSON (arrays as lists)."""
     text = json.dumps(settings, sort_keys=True, default=lambda value: np.asarray(value).tolist())
@@ -364,7 +385,7 @@ def recording_settings_digest(config: SimulationConfig) -> str:
     frames-only recordings of one setting share it (a recording with events also serves a run that needs only the
     frames).
     """
-    return _settings_digest(asdict(dataclasses.replace(config, with_events=True, with_frames=True)), 8)
+    return _settings_digest(_settings(dataclasses.replace(config, with_events=True, with_frames=True)), 8)
 
 
 def simulation_cache_path(config: SimulationConfig) -> Path:
@@ -377,7 +398,7 @@ def simulation_cache_path(config: SimulationConfig) -> Path:
     """
     from evio_lib.features.training.datasets import default_cache_dir  # the project's one cache folder
 
-    return default_cache_dir() / "sequences" / f"{config.preset}_{_settings_digest(asdict(config), 16)}.npz"
+    return default_cache_dir() / "sequences" / f"{config.preset}_{_settings_digest(_settings(config), 16)}.npz"
 
 
 def simulate_sequence_cached(config: SimulationConfig, progress: bool = False, jobs: int | None = None) -> Sequence:

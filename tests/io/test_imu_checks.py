@@ -79,7 +79,7 @@ def test_preset_through_load_dataset_passes(tmp_path, monkeypatch):
     from evio_lib.sim.presets import SimulationConfig, simulate_sequence
 
     def imu_only(preset, duration=None, seed=0, with_events=False, cache=True, progress=False, start=0.0,
-                 aps_exposure_s=None):
+                 aps_exposure_s=None, speed=1.0):
         return simulate_sequence(SimulationConfig(preset=preset, duration=duration, trajectory_duration=60.0,
                                                   seed=seed, with_events=False, with_frames=False,
                                                   start_time=start))  # skip rendering
@@ -106,6 +106,18 @@ def test_accelerometer_in_g_and_milli_g(euroc, boxes):
     assert "milli-g" in message and "multiply the accelerometer by 0.00980665" in message
     message = _refused(imu.t, imu.gyro, imu.accel * 16384 / 9.80665)  # raw counts of a ±2 g part
     assert "divide by the LSB per g" in message
+
+
+def test_a_motion_played_faster_may_accelerate_more():
+    """speed: a preset played s times faster accelerates s^2 times more, so the plausible median |a| grows with it."""
+    t = np.arange(400) * 0.005
+    gyro = np.tile([0.3, -0.2, 0.1], (400, 1))
+    accel = np.tile([0.0, 60.0, 9.81], (400, 1))  # a median of about 6 g: beyond a hand at the preset's own speed
+    with pytest.raises(ImuUnitsError, match="median |a| = 60.8 is no specific force"):
+        check_imu_units(t, gyro, accel)
+    assert check_imu_units(t, gyro, accel, speed=2.0).startswith("IMU units: median |a| 60.8")
+    with pytest.raises(ImuUnitsError, match="is no specific force"):
+        check_imu_units(t, gyro, 3.0 * accel, speed=2.0)  # beyond 16 g even so
 
 
 def test_gyro_and_accelerometer_columns_swapped(euroc, boxes):

@@ -96,6 +96,35 @@ def test_aps_exposure_blurs_the_frames_and_names_its_own_recording(pipeline_cach
         load_dataset(str(pipeline_cache), aps_exposure_s=0.02)
 
 
+def test_speed_plays_the_preset_faster_and_names_its_own_recording(tmp_path, monkeypatch, pipeline_cache):
+    """speed: the preset's motion played faster; start and duration are seconds of the faster motion, whose whole
+    lasts the preset's length / speed; cached under its own name; the run's notes say so; refused for a folder."""
+    monkeypatch.setenv("EVIO_CACHE_DIR", str(tmp_path / "cache"))  # its own recordings: other tests count theirs
+    from evio_lib.sim.trajectory import boxes_like
+
+    data = load_dataset("boxes_like", duration=0.3, start=26.0, speed=2.0)
+    seq = data.sequence
+    truth = boxes_like(60.0, seed=0).evaluate(2.0 * seq.imu.t)  # the preset's [52, 52.6] s, in 0.3 s
+    np.testing.assert_allclose(seq.groundtruth_imu.p_BinG, boxes_like(60.0, seed=0).evaluate(
+        2.0 * seq.groundtruth_imu.t).p_IinG, atol=1e-12)
+    residual = seq.imu.gyro - 2.0 * truth.w_I  # the doubled rate, plus a nearly constant bias and the noise
+    assert np.abs(residual - np.median(residual, axis=0)).mean() < 0.02 < np.abs(truth.w_I).mean()
+    assert seq.frame_times[0] == pytest.approx(26.0 + 0.005) and len(seq.frames) == 7  # 24 Hz of played time
+    assert any("played at speed 2 (rates x 2, accelerations x 4; its whole motion lasts 30 s)" in n for n in data.notes)
+    assert [p.name.split("_m")[0] for p in sequence_cache_dir().glob("*.npz")] == ["boxes_like_d0.3_seed0_start26_speed2"]
+    assert not any("speed" in n for n in load_dataset("boxes_like", duration=0.3, start=52.0, speed=1.0).notes)
+    with pytest.raises(ValueError, match=r"start of boxes_like must be in \[0, 30\) s \(where in the preset's motion "
+                                         r"played at speed 2"):
+        load_dataset("boxes_like", duration=0.3, start=30.0, speed=2.0)
+    with pytest.raises(ValueError, match=r"ends after its motion played at speed 2 \(0-30 s\)"):
+        load_dataset("boxes_like", duration=2.0, start=29.0, speed=2.0)
+    for bad in (0.0, 8.0, float("nan"), True, "2"):
+        with pytest.raises(ValueError, match=r"speed must be a number in \[0.25, 4\]"):
+            load_dataset("boxes_like", duration=0.3, speed=bad)
+    with pytest.raises(ValueError, match="--speed applies to simulated presets"):
+        load_dataset(str(pipeline_cache), speed=2.0)
+
+
 @pytest.mark.parametrize("dataset, message", [
     ("no_such_preset", "neither a preset"),
     (__file__, "is a file"),

@@ -122,6 +122,10 @@ def test_pixel_noise_options_reach_the_config(pipeline_cache, boxes_aps, monkeyp
      "--aps-exposure applies to runs that use APS frames"),
     (["run", "boxes_like", "--imu-only", "--aps-exposure", "0.02"], "--aps-exposure applies to runs that use APS"),
     (["table", "--rows", "imu", "--aps-exposure", "0.02"], "--aps-exposure applies to table rows that use APS frames"),
+    (["run", "boxes_like", "--speed", "5"], "--speed must be a number in [0.25, 4]"),
+    (["table", "--speed", "0.2"], "--speed must be a number in [0.25, 4]"),
+    (["table", "--speed", "2", "--duration", "40"], "--duration: duration of boxes_like must be in (0, 30] s (the "
+                                                   "preset's whole motion played at speed 2)"),
 ])
 def test_command_errors_are_one_line(args, message, capsys, pipeline_cache):
     assert main(args) == 2
@@ -171,6 +175,25 @@ def test_aps_exposure_reaches_the_recording(pipeline_cache, tmp_path, monkeypatc
     (record,) = json.loads((tmp_path / "table" / "runs.json").read_text())
     assert record["aps_exposure_s"] == 0.02 and "error" not in record
     assert len(asked) >= 2 and set(asked[1:]) == {0.02}  # the table's simulation and its run
+
+
+def test_speed_reaches_the_recording(tmp_path, monkeypatch, capsys):
+    """--speed: run and table simulate the preset played faster; the run's notes and each table record say so."""
+    import evio_lib.pipeline.dataset as dataset
+
+    monkeypatch.setenv("EVIO_CACHE_DIR", str(tmp_path / "cache"))
+    asked = []
+    real = dataset.simulate_preset
+    monkeypatch.setattr(dataset, "simulate_preset", lambda *a, **kw: asked.append(kw.get("speed")) or real(*a, **kw))
+    args = ["run", "boxes_like", "--duration", "1", "--start", "10", "--speed", "2", "--imu-only", "--quiet",
+            "--no-figures", "--out", str(tmp_path / "run")]
+    assert main(args) == 0 and asked == [2.0]
+    assert "played at speed 2" in capsys.readouterr().out
+    assert main(["table", "--fast", "--presets", "boxes_like", "--rows", "imu", "--speed", "2", "--out",
+                 str(tmp_path / "table")]) == 0
+    (record,) = json.loads((tmp_path / "table" / "runs.json").read_text())
+    assert record["speed"] == 2.0 and "error" not in record
+    assert set(asked[1:]) == {2.0}
 
 
 def test_aggregate_is_mean_and_sample_std():

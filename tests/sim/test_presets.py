@@ -82,6 +82,30 @@ def test_sensors_agree_with_the_ground_truth(preset):
     assert seq.events["t"][0] >= config.start_time and seq.events["t"][-1] <= config.t_end
 
 
+def test_a_faster_recording_is_the_preset_played_faster():
+    """speed = 2: the IMU reads the time-scaled motion (rates x 2, accelerations x 4), the ground truth at time t is
+    the preset's pose at 2 t, and the digests name the speed (while speed 1 keeps the names of the recordings
+    simulated before the option existed)."""
+    from evio_lib.sim.presets import recording_settings_digest
+
+    slow = _ideal_config("boxes_like", duration=0.2, with_events=False)
+    fast = replace(slow, speed=2.0, start_time=2.0, trajectory_duration=5.0)  # the preset's [4, 4.4] s of a 10 s motion
+    seq = simulate_sequence(fast)
+    base = boxes_like(10.0, seed=fast.seed).evaluate(2.0 * seq.imu.t)
+    np.testing.assert_allclose(seq.imu.gyro, 2.0 * base.w_I, atol=1e-12)
+    np.testing.assert_allclose(seq.imu.accel, np.einsum("nji,nj->ni", base.R_ItoG, 4.0 * base.a_IinG
+                                                        - np.array([0.0, 0.0, -9.81])), atol=1e-9)
+    truth = seq.groundtruth_imu
+    np.testing.assert_allclose(truth.p_BinG, boxes_like(10.0, seed=fast.seed).evaluate(2.0 * truth.t).p_IinG, atol=1e-12)
+    assert seq.metadata["config"]["speed"] == 2.0
+    assert recording_settings_digest(fast) != recording_settings_digest(replace(fast, speed=1.0))
+    assert recording_settings_digest(SimulationConfig(preset="boxes_like", duration=60.0, trajectory_duration=60.0,
+                                                      seed=0, start_time=0.0)) == "7d0f172b"  # as before the option
+    for bad in (0.0, 0.1, 5.0, np.nan, True):
+        with pytest.raises(ValueError, match=r"speed must be a number in \[0.25, 4\]"):
+            replace(slow, speed=bad)
+
+
 def test_events_integrate_to_the_log_intensity_change():
     """Per pixel, sum(p) * C equals the change of log intensity between the first and last render (within C)."""
     config = _ideal_config("boxes_like", with_frames=False)

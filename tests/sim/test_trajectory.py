@@ -8,6 +8,7 @@ from scipy.spatial.transform import Rotation
 from evio_lib.geometry.rotation import so3_exp, so3_log
 from evio_lib.sim.rig import CameraImuExtrinsics
 from evio_lib.sim.trajectory import (
+    TimeScaledTrajectory,
     Trajectory,
     TrajectorySample,
     aerial_like,
@@ -20,12 +21,20 @@ PRESET_CASES = [
     ("aerial_like", aerial_like(duration=40.0, seed=3)),
     ("boxes_like_10s", boxes_like(duration=10.0, seed=1)),
     ("aerial_like_10s", aerial_like(duration=10.0, seed=1)),
+    ("boxes_like_twice_as_fast", TimeScaledTrajectory(boxes_like(duration=20.0, seed=2), 2.0)),
+    ("aerial_like_slower", TimeScaledTrajectory(aerial_like(duration=10.0, seed=2), 0.5)),
 ]
 
 
 def _fd4(f, t, h):
     """4th-order central difference of f (array-valued) at times t: (-f(t+2h) + 8 f(t+h) - 8 f(t-h) + f(t-2h)) / 12h."""
     return (-f(t + 2 * h) + 8 * f(t + h) - 8 * f(t - h) + f(t - 2 * h)) / (12 * h)
+
+
+def _step(traj: Trajectory, h: float) -> float:
+    """A finite-difference step h of a preset's own clock, on the clock of ``traj`` (shorter when played faster, so
+    the truncation error stays that of the preset)."""
+    return h / getattr(traj, "speed", 1.0)
 
 
 def _query_times(traj: Trajectory, n: int = 40) -> np.ndarray:
@@ -54,7 +63,7 @@ def test_evaluate_shapes_and_rotation_validity(name, traj):
 def test_velocity_and_acceleration_are_derivatives_of_position(name, traj):
     t = _query_times(traj)
     s = traj.evaluate(t)
-    h = 5e-4
+    h = _step(traj, 5e-4)
     v_fd = _fd4(lambda x: traj.evaluate(x).p_IinG, t, h)
     a_fd = _fd4(lambda x: traj.evaluate(x).v_IinG, t, h)
     np.testing.assert_allclose(s.v_IinG, v_fd, rtol=0, atol=2e-8)
@@ -71,16 +80,16 @@ def test_angular_velocity_is_derivative_of_orientation(name, traj):
         Rm, Rp = traj.evaluate(t - h).R_ItoG, traj.evaluate(t + h).R_ItoG
         return so3_log(np.swapaxes(Rm, 1, 2) @ Rp)
 
-    h = 5e-4
+    h = _step(traj, 5e-4)
     w_fd = (8 * log_chord(h) - log_chord(2 * h)) / (12 * h)  # cancels the h^3 term
     np.testing.assert_allclose(s.w_I, w_fd, rtol=0, atol=1e-8)
     # and the body-frame convention: dR/dt = R [w x] (not [w x] R)
-    dR_fd = _fd4(lambda x: traj.evaluate(x).R_ItoG, t, 1e-3)
+    dR_fd = _fd4(lambda x: traj.evaluate(x).R_ItoG, t, _step(traj, 1e-3))
     w_skew = np.swapaxes(s.R_ItoG, 1, 2) @ dR_fd
     np.testing.assert_allclose(w_skew[:, 2, 1], s.w_I[:, 0], atol=1e-8)
     np.testing.assert_allclose(w_skew[:, 0, 2], s.w_I[:, 1], atol=1e-8)
     np.testing.assert_allclose(w_skew[:, 1, 0], s.w_I[:, 2], atol=1e-8)
-    dw_fd = _fd4(lambda x: traj.evaluate(x).w_I, t, 5e-4)
+    dw_fd = _fd4(lambda x: traj.evaluate(x).w_I, t, _step(traj, 5e-4))
     np.testing.assert_allclose(s.dw_I, dw_fd, rtol=0, atol=1e-6)
 
 
@@ -197,6 +206,35 @@ def test_trajectory_from_preset():
     )
     with pytest.raises(ValueError, match="name must be one of"):
         trajectory_from_preset("circle")
+
+
+def test_time_scaled_trajectory_is_the_base_played_faster():
+    """Same path and attitudes at speed * t; rates x speed, accelerations x speed^2 (the derivative tests above check
+    that these are the derivatives of the scaled path)."""
+    base = boxes_like(duration=60.0, seed=0)
+    fast = trajectory_from_preset("boxes_like", seed=0, speed=2.5)
+    assert isinstance(fast, TimeScaledTrajectory) and (fast.t_start, fast.t_end) == (0.0, 24.0)
+    t = np.linspace(0.0, 24.0, 37)
+    f, b = fast.evaluate(t), base.evaluate(2.5 * t)
+    np.testing.assert_array_equal(f.p_IinG, b.p_IinG)
+    np.testing.assert_array_equal(f.R_ItoG, b.R_ItoG)
+    np.testing.assert_allclose(f.v_IinG, 2.5 * b.v_IinG, rtol=1e-15)
+    np.testing.assert_allclose(f.w_I, 2.5 * b.w_I, rtol=1e-15)
+    np.testing.assert_allclose(f.a_IinG, 6.25 * b.a_IinG, rtol=1e-15)
+    np.testing.assert_allclose(f.dw_I, 6.25 * b.dw_I, rtol=1e-15)
+    np.testing.assert_array_equal(f.t, t)
+    # a duration is the played one: the preset's 60 s at speed 2 last 30 s, its first 20 s at speed 2 last 10 s
+    assert trajectory_from_preset("boxes_like", duration=10.0, speed=2.0).duration == 10.0
+    np.testing.assert_array_equal(trajectory_from_preset("boxes_like", duration=10.0, seed=1, speed=2.0).evaluate(t[:5]).p_IinG,
+                                  boxes_like(duration=20.0, seed=1).evaluate(2.0 * t[:5]).p_IinG)
+    assert trajectory_from_preset("aerial_like", speed=1.0).__class__ is not TimeScaledTrajectory
+    for bad in (0.0, -1.0, np.nan, np.inf, True, "2"):
+        with pytest.raises(ValueError, match="speed must be a finite number > 0"):
+            trajectory_from_preset("boxes_like", speed=bad)
+        with pytest.raises(ValueError, match="speed must be a finite number > 0"):
+            TimeScaledTrajectory(base, bad)
+    with pytest.raises(ValueError, match="longer than the longest trajectory, 1800 s at speed 2"):
+        trajectory_from_preset("boxes_like", duration=2000.0, speed=2.0)
 
 
 def test_trajectory_bad_inputs():
