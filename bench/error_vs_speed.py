@@ -6,8 +6,8 @@ error against time with the motion below it (``plot_error_comparison(..., motion
 each source gains or loses. One thread, as ``run`` uses by default.
 
 Usage: python bench/error_vs_speed.py [--preset boxes_like] [--seed 0] [--stretch 10] [--aps-exposure S]
-       [--out docs/figures/x.png]
-Measured figures: docs/pipeline.md, "Motion-compensated event frames" and "A longer APS exposure".
+       [--speed FACTOR] [--out docs/figures/x.png]
+Measured figures: docs/pipeline.md, "Motion-compensated event frames", "A longer APS exposure" and "Faster motion".
 """
 import argparse
 import os
@@ -54,9 +54,12 @@ def main() -> None:
     parser.add_argument("--configs", nargs="+", default=list(CONFIGS), choices=list(CONFIGS))
     parser.add_argument("--aps-exposure", type=float, default=None, metavar="SECONDS",
                         help="the simulated APS frames' exposure time (default: the simulator's 0.01 s)")
+    parser.add_argument("--speed", type=float, default=None, metavar="FACTOR",
+                        help="the preset's motion played this many times faster (default 1; run --speed)")
     parser.add_argument("--out", default=None, help="save the figure here (PNG)")
     args = parser.parse_args()
-    data = load_dataset(args.preset, seed=args.seed, need_events=True, aps_exposure_s=args.aps_exposure)
+    data = load_dataset(args.preset, seed=args.seed, need_events=True, aps_exposure_s=args.aps_exposure,
+                        speed=args.speed)
     results = {}
     for name in args.configs:
         results[name] = run_pipeline(data, PipelineConfig(**{**CONFIGS[name].__dict__, "seed": args.seed}))
@@ -82,6 +85,7 @@ def main() -> None:
     if args.out:
         errors = {n: np.linalg.norm(r.p_IinG - r.truth["p_IinG"], axis=1) for n, r in results.items()}
         exposure = f", APS exposure {1e3 * args.aps_exposure:g} ms" if args.aps_exposure is not None else ""
+        exposure += f", played at speed {args.speed:g}" if args.speed not in (None, 1.0) else ""
         fig = plot_error_comparison({n: r.t for n, r in results.items()}, errors, log=True,
                                     styles={n: "--" for n in results if "mc-events" in n},
                                     title=f"{args.preset}, seed {args.seed}{exposure}: position error (dashed: event "
