@@ -21,6 +21,7 @@ matplotlib.use("Agg")
 import numpy as np  # noqa: E402
 
 from evio_lib.evaluation.plots_pipeline import plot_error_comparison  # noqa: E402
+from evio_lib.evaluation.trajectory_metrics import camera_motion  # noqa: E402
 from evio_lib.pipeline import PipelineConfig, load_dataset, run_pipeline  # noqa: E402
 
 CONFIGS = {
@@ -30,20 +31,6 @@ CONFIGS = {
     "SIFT, APS frames": PipelineConfig(features="sift"),
     "SIFT, mc-events": PipelineConfig(features="sift", frames="mc-events"),
 }
-
-
-def camera_motion(data, t):
-    """Return (speed [m/s], angular rate [rad/s]) of the IMU at times t: the ground truth's velocity, and the gyro
-    (bias-free truth where the recording has it) averaged over 50 ms."""
-    seq = data.sequence
-    gt = seq.groundtruth_imu if seq.groundtruth_imu is not None else seq.groundtruth
-    p = gt.interpolate(t).p_BinG
-    speed = np.linalg.norm(np.gradient(p, t, axis=0), axis=1)
-    imu = seq.imu
-    rate = np.linalg.norm(imu.gyro, axis=1)
-    kernel = max(1, int(round(0.05 / np.median(np.diff(imu.t)))))
-    smooth = np.convolve(rate, np.ones(kernel) / kernel, mode="same")
-    return speed, np.interp(t, imu.t, smooth)
 
 
 def main() -> None:
@@ -72,7 +59,7 @@ def main() -> None:
     if edges[-1] < t_all[-1]:  # the last, shorter stretch too
         edges = np.append(edges, t_all[-1] + 1e-9)
     t_grid = np.linspace(t_all[0], t_all[-1], 600)
-    speed, rate = camera_motion(data, t_grid)
+    speed, rate = camera_motion(data.sequence, t_grid)
     print(f"\n{'stretch [s]':<12} {'speed':>6} {'rad/s':>6} | " + " | ".join(f"{n:>22}" for n in results))
     for a, b in zip(edges[:-1], edges[1:]):
         inside = (t_grid >= a) & (t_grid < b)

@@ -41,6 +41,7 @@ __all__ = [
     "rmse",
     "final_error",
     "distance_travelled",
+    "camera_motion",
     "percent_of_distance",
     "align_umeyama",
     "absolute_trajectory_error",
@@ -140,6 +141,36 @@ def distance_travelled(p_gt: ArrayLike) -> float:
     if p.shape[0] < 2:
         return 0.0
     return float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum())
+
+
+def camera_motion(sequence: Any, t: ArrayLike, smoothing_s: float = 0.05) -> tuple[NDArray[np.float64],
+                                                                                   NDArray[np.float64]]:
+    """Return (speed [m/s], angular rate [rad/s]) of a recording's sensor at times t, to set errors beside motion.
+
+    speed: |d p/dt| of the ground truth's position (the IMU's where the recording has it, else the camera's), by
+    central differences on the times t; angular rate: |gyro| averaged over ``smoothing_s`` (so it includes the gyro's
+    bias and noise, a few hundredths of a rad/s), interpolated at t.
+
+    >>> from types import SimpleNamespace as NS
+    >>> from evio_lib.sequence import GroundTruth, ImuSamples
+    >>> tt = np.linspace(0.0, 2.0, 201)
+    >>> gt = GroundTruth(t=tt, p_BinG=np.c_[0.5 * tt, 0 * tt, 0 * tt], q_GtoB=np.tile([0, 0, 0, 1.0], (201, 1)), body="imu")
+    >>> imu = ImuSamples(t=tt, gyro=np.tile([0.0, 0.0, 2.0], (201, 1)), accel=np.tile([0, 0, 9.81], (201, 1)))
+    >>> [v.round(3).tolist() for v in camera_motion(NS(groundtruth_imu=gt, groundtruth=None, imu=imu), [0.5, 1.5])]
+    [[0.5, 0.5], [2.0, 2.0]]
+    """
+    t = np.asarray(t, dtype=np.float64).reshape(-1)
+    truth = sequence.groundtruth_imu if sequence.groundtruth_imu is not None else sequence.groundtruth
+    if truth is None or sequence.imu is None:
+        raise ValueError("camera_motion needs the recording's ground truth and IMU")
+    if t.size < 2 or not np.all(np.diff(t) > 0):
+        raise ValueError(f"t must hold at least 2 increasing times; got {t.size}")
+    speed = np.linalg.norm(np.gradient(truth.interpolate(t).p_BinG, t, axis=0), axis=1)
+    imu = sequence.imu
+    rate = np.linalg.norm(imu.gyro, axis=1)
+    kernel = max(1, int(round(smoothing_s / float(np.median(np.diff(imu.t))))))
+    smooth = np.convolve(rate, np.ones(kernel) / kernel, mode="same")
+    return speed, np.interp(t, imu.t, smooth)
 
 
 def percent_of_distance(errors: ArrayLike, distance: float) -> float:

@@ -394,3 +394,22 @@ def test_relative_errors_bad_input() -> None:
         relative_errors_by_length(R_est, p_est, R_gt, p_gt[:5])
     with pytest.raises(ValueError, match=r"R_gt must have shape \(N, 3, 3\)"):
         relative_errors_by_length(R_est, p_est, R_gt[:, :2], p_gt)
+
+
+def test_camera_motion_is_the_simulated_speed_and_rate():
+    """On a short simulated stretch of the room: the speed is the trajectory's |v|, the rate its |w| within the
+    gyro's bias and noise."""
+    from evio_lib.sim.presets import SimulationConfig, simulate_sequence
+    from evio_lib.sim.trajectory import boxes_like
+    from evio_lib.evaluation.trajectory_metrics import camera_motion
+
+    seq = simulate_sequence(SimulationConfig(preset="boxes_like", duration=1.0, start_time=50.0, trajectory_duration=60.0,
+                                             seed=2, with_events=False, with_frames=False))
+    t = np.linspace(50.1, 50.9, 41)
+    speed, _ = camera_motion(seq, t)
+    _, rate = camera_motion(seq, t, smoothing_s=0.001)  # one sample: |w| + the bias and the noise
+    truth = boxes_like(60.0, seed=2).evaluate(t)
+    np.testing.assert_allclose(speed, np.linalg.norm(truth.v_IinG, axis=1), rtol=0.03)  # differences over 40 ms
+    assert np.abs(rate - np.linalg.norm(truth.w_I, axis=1)).max() < 0.1 < np.linalg.norm(truth.w_I, axis=1).min()
+    with pytest.raises(ValueError, match="at least 2 increasing times"):
+        camera_motion(seq, [50.5])
