@@ -30,6 +30,9 @@ f = 200 px, 4 px over a 20 ms window), so the windows stay short (see :func:`evi
 """
 from __future__ import annotations
 
+import os
+import warnings
+
 import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -38,7 +41,59 @@ from evio_lib.frontend.gyro_prior import gyro_orientations
 from evio_lib.geometry.camera import PinholeRadtan
 from evio_lib.geometry.rotation import so3_exp
 
-__all__ = ["warp_events", "accumulate_bilinear", "motion_compensated_frame"]
+__all__ = ["warp_events", "accumulate_bilinear", "motion_compensated_frame", "mc_backend", "MC_BACKEND_ENV"]
+
+#: Environment variable that picks the backend of :func:`motion_compensated_frame`: auto (default), numba or numpy.
+MC_BACKEND_ENV = "EVIO_MC_BACKEND"
+_KERNEL_PROBLEM: list[str] = []  # "" once the kernel loaded, else why it did not (said once)
+
+
+def mc_backend() -> str:
+    """Return the backend of :func:`motion_compensated_frame`: ``"numba"`` or ``"numpy"`` (the same frame up to
+    rounding).
+
+    ``EVIO_MC_BACKEND`` = ``numba`` | ``numpy`` | ``auto`` (default: the compiled kernel
+    :func:`evio_lib.events.warp_kernels.warp_and_count` when it loads, else NumPy with one warning saying why). The
+    kernel makes a frame about 4-5x faster than the NumPy passes of :func:`warp_events` and
+    :func:`accumulate_bilinear`, which stay the reference it is tested against.
+    """
+    choice = os.environ.get(MC_BACKEND_ENV, "auto").strip().lower() or "auto"
+    if choice not in ("auto", "numba", "numpy"):
+        raise ValueError(f"{MC_BACKEND_ENV} must be one of auto, numba, numpy; got {choice!r}")
+    if choice == "numpy":
+        return "numpy"
+    if not _KERNEL_PROBLEM:
+        try:
+            import evio_lib.events.warp_kernels  # noqa: F401  (compiles lazily)
+        except ImportError as error:
+            _KERNEL_PROBLEM.append(f"the numba package does not import ({error}); pip install numba")
+        except Exception as error:  # e.g. RuntimeError: cannot cache function ...: no locator available
+            _KERNEL_PROBLEM.append(f"Numba cannot load the kernel ({type(error).__name__}: {error}); set "
+                                   f"NUMBA_CACHE_DIR to a writable folder")
+        else:
+            _KERNEL_PROBLEM.append("")
+        if _KERNEL_PROBLEM[0] and choice == "auto":
+            warnings.warn(f"motion-compensated frames with NumPy (slower, the same frames): {_KERNEL_PROBLEM[0]}; "
+                          f"{MC_BACKEND_ENV}=numpy silences this", RuntimeWarning, stacklevel=2)
+    if _KERNEL_PROBLEM[0]:
+        if choice == "numba":
+            raise RuntimeError(f"{MC_BACKEND_ENV}=numba, but {_KERNEL_PROBLEM[0]}")
+        return "numpy"
+    return "numba"
+
+
+def _interval_rotations(t: np.ndarray, t_ref: float, imu_t: ArrayLike, gyro: ArrayLike, R_CtoI: ArrayLike,
+                        gyro_bias: ArrayLike | None) -> tuple[NDArray[np.float64], NDArray[np.float64],
+                                                              NDArray[np.float64]]:
+    """Return (breaks (K + 1,), w_C (K, 3), M (K, 3, 3)) of the window: the gyro intervals, their rates in the camera
+    frame and the rotations R_{C(t_k) -> C(t_ref)} of their starts (module docstring)."""
+    t_a, t_b = min(float(t[0]), float(t_ref)), max(float(t[-1]), float(t_ref))
+    breaks, A, w = gyro_orientations(imu_t, gyro, t_a, t_b, gyro_bias)
+    R_CtoI = np.asarray(R_CtoI, dtype=np.float64)
+    k_ref = int(np.clip(np.searchsorted(breaks, t_ref, side="right") - 1, 0, w.shape[0] - 1))
+    A_ref = A[k_ref] @ so3_exp(w[k_ref] * (t_ref - breaks[k_ref]))
+    M = R_CtoI.T @ A_ref.T @ A[:-1] @ R_CtoI                                 # (K, 3, 3) C(t_k) -> C(t_ref)
+    return breaks, w @ R_CtoI, M                                             # rates in the camera frame (rows)
 
 
 def warp_events(events: np.ndarray, camera: PinholeRadtan, t_ref: float, imu_t: ArrayLike, gyro: ArrayLike,
@@ -56,17 +111,11 @@ def warp_events(events: np.ndarray, camera: PinholeRadtan, t_ref: float, imu_t: 
     if events.size == 0:
         return np.zeros((0, 2))
     t = events["t"]
-    t_a, t_b = min(float(t[0]), float(t_ref)), max(float(t[-1]), float(t_ref))
-    breaks, A, w = gyro_orientations(imu_t, gyro, t_a, t_b, gyro_bias)
-    R_CtoI = np.asarray(R_CtoI, dtype=np.float64)
-    k_ref = int(np.clip(np.searchsorted(breaks, t_ref, side="right") - 1, 0, w.shape[0] - 1))
-    A_ref = A[k_ref] @ so3_exp(w[k_ref] * (t_ref - breaks[k_ref]))
-    M = R_CtoI.T @ A_ref.T @ A[:-1] @ R_CtoI                                 # (M, 3, 3) C(t_k) -> C(t_ref)
-    w_C = w @ R_CtoI                                                         # rates in the camera frame (rows)
+    breaks, w_C, M = _interval_rotations(t, t_ref, imu_t, gyro, R_CtoI, gyro_bias)
     grid = camera.normalized_grid().reshape(-1, 2)
     xy = grid[events["y"].astype(np.intp) * camera.width + events["x"]]      # undistorted rays, looked up
     # per event: its interval k, the rate and the rotation of that interval (gathered column by column: contiguous)
-    k = np.clip(np.searchsorted(breaks, t, side="right") - 1, 0, w.shape[0] - 1)
+    k = np.clip(np.searchsorted(breaks, t, side="right") - 1, 0, w_C.shape[0] - 1)
     dt = t - breaks[k]
     px, py, pz = (dt * w_C[:, i][k] for i in range(3))                          # phi = w_k (t_e - t_k), frame C
     x, y = xy[:, 0], xy[:, 1]                                                 # b_e = (x, y, 1)
@@ -122,7 +171,17 @@ def motion_compensated_frame(events: np.ndarray, camera: PinholeRadtan, t_ref: f
     if not (np.isfinite(blur_sigma_px) and blur_sigma_px >= 0):
         raise ValueError(f"blur_sigma_px must be a number >= 0; got {blur_sigma_px!r}")
     width, height = camera.width, camera.height
-    image = accumulate_bilinear(warp_events(events, camera, t_ref, imu_t, gyro, R_CtoI, gyro_bias), width, height)
+    if events.size and mc_backend() == "numba":
+        from evio_lib.events.warp_kernels import warp_and_count
+
+        breaks, w_C, M = _interval_rotations(events["t"], t_ref, imu_t, gyro, R_CtoI, gyro_bias)
+        intrinsics = np.array([camera.fx, camera.fy, camera.cx, camera.cy, camera.k1, camera.k2, camera.p1, camera.p2,
+                               camera.k3], dtype=np.float64)
+        image = warp_and_count(events["x"], events["y"], np.ascontiguousarray(events["t"], dtype=np.float64),
+                               camera.normalized_grid().reshape(-1, 2), breaks, np.ascontiguousarray(w_C),
+                               np.ascontiguousarray(M.reshape(-1, 9)), intrinsics, width, height).astype(np.float32)
+    else:
+        image = accumulate_bilinear(warp_events(events, camera, t_ref, imu_t, gyro, R_CtoI, gyro_bias), width, height)
     if blur_sigma_px > 0:
         image = cv2.GaussianBlur(image, (0, 0), blur_sigma_px)
     values = image[image > 1e-6]

@@ -138,3 +138,39 @@ def test_real_rotation_slices_get_sharper(real_data_dir, name):
     plain, compensated, opposite = variance(0.0), variance(1.0), variance(-1.0)
     assert compensated > 1.1 * plain
     assert opposite < 0.8 * plain
+
+
+@pytest.mark.parametrize("blur", [0.0, 0.75])
+def test_numba_kernel_makes_the_numpy_frame(camera, monkeypatch, blur):
+    """The compiled warp-and-count (events.warp_kernels) against the NumPy reference: the same frame up to the
+    rounding of the sums, on a distorted camera, with events off the sensor after the warp, before and after t_ref,
+    and with a gyro bias."""
+    from evio_lib.events.motion_compensation import mc_backend
+
+    rng = np.random.default_rng(5)
+    n = 40000
+    events = make_events(np.sort(rng.uniform(0.1, 0.13, n)), rng.integers(0, 240, n), rng.integers(0, 180, n),
+                         rng.choice([-1, 1], n))
+    imu_t = np.arange(0.0, 0.3, 0.001)
+    gyro = 3.0 * _rates(imu_t)  # fast enough that the warp moves the border events off the sensor
+    args = (events, camera, 0.117, imu_t, gyro, R_CtoI, np.array([0.01, -0.02, 0.03]))
+    frames, raw = {}, {}
+    for backend in ("numpy", "numba"):
+        monkeypatch.setenv("EVIO_MC_BACKEND", backend)
+        assert mc_backend() == backend
+        frames[backend] = motion_compensated_frame(*args, blur_sigma_px=blur, saturation_quantile=1.0)
+    np.testing.assert_allclose(frames["numba"], frames["numpy"], atol=1e-6)
+    from evio_lib.events.motion_compensation import _interval_rotations
+    from evio_lib.events.warp_kernels import warp_and_count
+
+    breaks, w_C, M = _interval_rotations(events["t"], 0.117, imu_t, gyro, R_CtoI, args[-1])
+    intrinsics = np.array([camera.fx, camera.fy, camera.cx, camera.cy, camera.k1, camera.k2, camera.p1, camera.p2,
+                           camera.k3])
+    counts = warp_and_count(events["x"], events["y"], events["t"], camera.normalized_grid().reshape(-1, 2), breaks,
+                            w_C, M.reshape(-1, 9), intrinsics, 240, 180)
+    reference = accumulate_bilinear(warp_events(*args), 240, 180)
+    np.testing.assert_allclose(counts, reference, atol=1e-4)  # float32 reference
+    assert 0.5 * n < counts.sum() < n - 100  # most events land, some leave the sensor
+    monkeypatch.setenv("EVIO_MC_BACKEND", "gpu")
+    with pytest.raises(ValueError, match="EVIO_MC_BACKEND must be one of auto, numba, numpy"):
+        mc_backend()
