@@ -174,10 +174,16 @@ def motion_compensated_frame(events: np.ndarray, camera: PinholeRadtan, t_ref: f
     if events.size and mc_backend() == "numba":
         from evio_lib.events.warp_kernels import warp_and_count
 
-        breaks, w_C, M = _interval_rotations(events["t"], t_ref, imu_t, gyro, R_CtoI, gyro_bias)
+        t = np.ascontiguousarray(events["t"], dtype=np.float64)
+        x, y = events["x"], events["y"]
+        if np.any(np.diff(t) < 0) or x.min() < 0 or y.min() < 0 or x.max() >= width or y.max() >= height:
+            raise ValueError(f"events must be sorted by time and lie on the {width} x {height} sensor")
+        breaks, w_C, M = _interval_rotations(t, t_ref, imu_t, gyro, R_CtoI, gyro_bias)
+        if not (np.isfinite(w_C).all() and np.isfinite(M).all()):
+            raise ValueError("the gyro rates (or the bias) over the window must be finite numbers")
         intrinsics = np.array([camera.fx, camera.fy, camera.cx, camera.cy, camera.k1, camera.k2, camera.p1, camera.p2,
                                camera.k3], dtype=np.float64)
-        image = warp_and_count(events["x"], events["y"], np.ascontiguousarray(events["t"], dtype=np.float64),
+        image = warp_and_count(x, y, t,
                                camera.normalized_grid().reshape(-1, 2), breaks, np.ascontiguousarray(w_C),
                                np.ascontiguousarray(M.reshape(-1, 9)), intrinsics, width, height).astype(np.float32)
     else:

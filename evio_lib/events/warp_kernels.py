@@ -14,7 +14,9 @@ undistorted ray b = (x, y, 1)::
 
 and the point (u, v) adds the bilinear weights (1 - du)(1 - dv), du (1 - dv), (1 - du) dv, du dv to its four
 neighbouring pixels (dropped unless -1 < u < W and -1 < v < H, shares off the edge lost). The sums differ from the
-NumPy path's only by rounding (the order of the additions), which the tests bound.
+NumPy path's only by rounding (the order of the additions), which the tests bound. A warp that is not finite (a NaN
+rate) drops the event here; :func:`evio_lib.events.motion_compensation.motion_compensated_frame` refuses such rates
+before either path runs.
 
 Numba compiles the kernel on first use (about a second) and caches the machine code (``cache=True``).
 """
@@ -28,13 +30,14 @@ from numba import njit
 __all__ = ["warp_and_count"]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")  # a ray at z = 0 gives inf, dropped as off the sensor
 def warp_and_count(x_pix: np.ndarray, y_pix: np.ndarray, t: np.ndarray, grid: np.ndarray, breaks: np.ndarray,
                    w_C: np.ndarray, M: np.ndarray, intrinsics: np.ndarray, width: int, height: int) -> np.ndarray:
     """Return the (height, width) float64 bilinear count of the events warped to the reference time.
 
     Args:
-        x_pix, y_pix: (N,) integer pixel of each event; t: (N,) its time [s], increasing.
+        x_pix, y_pix: (N,) integer pixel of each event, on the sensor; t: (N,) its time [s], non-decreasing (the
+            caller checks both: the kernel reads the grid at the pixel and walks the intervals forward only).
         grid: (H W, 2) undistorted normalised coordinates of every pixel (``camera.normalized_grid()``).
         breaks: (K + 1,) the gyro intervals' bounds [s]; w_C: (K, 3) each interval's rate in the camera frame.
         M: (K, 9) row-major R_{C(t_k) -> C(t_ref)} of each interval's start.

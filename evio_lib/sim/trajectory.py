@@ -371,7 +371,8 @@ class TimeScaledTrajectory(Trajectory):
         w_I(t) = s w_b(s t),  dw_I(t) = s^2 dw_b(s t)                          (chain rule, d/dt = s d/d(st))
 
     so speeds and angular rates grow by s and accelerations by s^2 (s = 2 turns the violent end of ``boxes_like``,
-    about 1.3 m/s and 2.6 rad/s on average over its last 10 s, into 2.7 m/s and 5 rad/s over 5 s).
+    about 1.6-1.8 m/s and 2.4-2.6 rad/s on average over its last 10 s, into 3.1-3.6 m/s and 4.7-5.2 rad/s over
+    5 s). The specific force an accelerometer reads, a - g, grows less than s^2 where gravity dominates it.
 
     >>> fast = TimeScaledTrajectory(boxes_like(duration=60.0, seed=0), 2.0)
     >>> fast.t_end, bool(np.allclose(fast.evaluate(10.0).v_IinG, 2 * boxes_like(seed=0).evaluate(20.0).v_IinG))

@@ -145,6 +145,7 @@ def test_numba_kernel_makes_the_numpy_frame(camera, monkeypatch, blur):
     """The compiled warp-and-count (events.warp_kernels) against the NumPy reference: the same frame up to the
     rounding of the sums, on a distorted camera, with events off the sensor after the warp, before and after t_ref,
     and with a gyro bias."""
+    pytest.importorskip("numba")
     from evio_lib.events.motion_compensation import mc_backend
 
     rng = np.random.default_rng(5)
@@ -171,6 +172,13 @@ def test_numba_kernel_makes_the_numpy_frame(camera, monkeypatch, blur):
     reference = accumulate_bilinear(warp_events(*args), 240, 180)
     np.testing.assert_allclose(counts, reference, atol=1e-4)  # float32 reference
     assert 0.5 * n < counts.sum() < n - 100  # most events land, some leave the sensor
+    bad_gyro = gyro.copy()
+    bad_gyro[110:120] = np.nan
+    monkeypatch.setenv("EVIO_MC_BACKEND", "numba")
+    with pytest.raises(ValueError, match="finite"):  # the gyro integrator refuses NaN rates
+        motion_compensated_frame(events, camera, 0.117, imu_t, bad_gyro, R_CtoI)
+    with pytest.raises(ValueError, match="sorted by time and lie on the 240 x 180 sensor"):
+        motion_compensated_frame(events[::-1], camera, 0.117, imu_t, gyro, R_CtoI)
     monkeypatch.setenv("EVIO_MC_BACKEND", "gpu")
     with pytest.raises(ValueError, match="EVIO_MC_BACKEND must be one of auto, numba, numpy"):
         mc_backend()
