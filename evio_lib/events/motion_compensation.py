@@ -30,9 +30,6 @@ f = 200 px, 4 px over a 20 ms window), so the windows stay short (see :func:`evi
 """
 from __future__ import annotations
 
-import os
-import warnings
-
 import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -57,29 +54,10 @@ def mc_backend() -> str:
     kernel makes a frame about 4-5x faster than the NumPy passes of :func:`warp_events` and
     :func:`accumulate_bilinear`, which stay the reference it is tested against.
     """
-    choice = os.environ.get(MC_BACKEND_ENV, "auto").strip().lower() or "auto"
-    if choice not in ("auto", "numba", "numpy"):
-        raise ValueError(f"{MC_BACKEND_ENV} must be one of auto, numba, numpy; got {choice!r}")
-    if choice == "numpy":
-        return "numpy"
-    if not _KERNEL_PROBLEM:
-        try:
-            import evio_lib.events.warp_kernels  # noqa: F401  (compiles lazily)
-        except ImportError as error:
-            _KERNEL_PROBLEM.append(f"the numba package does not import ({error}); pip install numba")
-        except Exception as error:  # e.g. RuntimeError: cannot cache function ...: no locator available
-            _KERNEL_PROBLEM.append(f"Numba cannot load the kernel ({type(error).__name__}: {error}); set "
-                                   f"NUMBA_CACHE_DIR to a writable folder")
-        else:
-            _KERNEL_PROBLEM.append("")
-        if _KERNEL_PROBLEM[0] and choice == "auto":
-            warnings.warn(f"motion-compensated frames with NumPy (slower, the same frames): {_KERNEL_PROBLEM[0]}; "
-                          f"{MC_BACKEND_ENV}=numpy silences this", RuntimeWarning, stacklevel=2)
-    if _KERNEL_PROBLEM[0]:
-        if choice == "numba":
-            raise RuntimeError(f"{MC_BACKEND_ENV}=numba, but {_KERNEL_PROBLEM[0]}")
-        return "numpy"
-    return "numba"
+    from evio_lib.compiled import compiled_backend
+
+    return compiled_backend(MC_BACKEND_ENV, "evio_lib.events.warp_kernels", _KERNEL_PROBLEM,
+                            "motion-compensated frames with NumPy (slower, the same frames)")
 
 
 def _interval_rotations(t: np.ndarray, t_ref: float, imu_t: ArrayLike, gyro: ArrayLike, R_CtoI: ArrayLike,

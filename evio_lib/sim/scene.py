@@ -35,8 +35,6 @@ SIGGRAPH 1983; the thesis (§2.2) for why event cameras need smooth, contrasted 
 """
 from __future__ import annotations
 
-import os
-import warnings
 from dataclasses import dataclass
 from typing import Any, Sequence
 
@@ -75,30 +73,10 @@ def renderer_backend() -> str:
     the reference they are tested against. They need the numba package and a writable cache folder for their machine
     code (``evio_lib/sim/__pycache__``, else Numba's user cache, else ``NUMBA_CACHE_DIR``).
     """
-    choice = os.environ.get(RENDERER_ENV, "auto").strip().lower() or "auto"
-    if choice not in ("auto", "numba", "numpy"):
-        raise ValueError(f"{RENDERER_ENV} must be one of auto, numba, numpy; got {choice!r}")
-    if choice == "numpy":
-        return "numpy"
-    if not _KERNELS_PROBLEM:
-        try:
-            import evio_lib.sim.render_kernels  # noqa: F401  (compiles lazily; fails here without numba or a cache)
-        except ImportError as error:
-            _KERNELS_PROBLEM.append(f"the numba package does not import ({error}); pip install numba")
-        except Exception as error:  # e.g. RuntimeError: cannot cache function ...: no locator available
-            _KERNELS_PROBLEM.append(f"Numba cannot load the kernels ({type(error).__name__}: {error}); set "
-                                    f"NUMBA_CACHE_DIR to a writable folder")
-        else:
-            _KERNELS_PROBLEM.append("")
-        if _KERNELS_PROBLEM[0] and choice == "auto":
-            warnings.warn(f"rendering with NumPy (about 2x slower, same images): {_KERNELS_PROBLEM[0]}; "
-                          f"{RENDERER_ENV}=numpy silences this", RuntimeWarning, stacklevel=2)
-    if _KERNELS_PROBLEM[0]:
-        if choice == "numba":
-            raise ValueError(f"{RENDERER_ENV}=numba cannot be used here: {_KERNELS_PROBLEM[0]}; or set "
-                             f"{RENDERER_ENV}=numpy")
-        return "numpy"
-    return "numba"
+    from evio_lib.compiled import compiled_backend
+
+    return compiled_backend(RENDERER_ENV, "evio_lib.sim.render_kernels", _KERNELS_PROBLEM,
+                            "rendering with NumPy (about 2x slower, same images)")
 
 
 _Z_NEAR = 1e-9  # near-plane for frustum culling only (metres); visibility itself needs no near plane
