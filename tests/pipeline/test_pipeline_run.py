@@ -361,6 +361,70 @@ def test_each_frame_stream_gets_its_own_pixel_noise(boxes_events, monkeypatch):
         PipelineConfig(pixel_noise_px=0)
 
 
+def test_blurred_pixel_noise_against_a_hand_computation():
+    """σ = sqrt(σ0² + (c |ω| T f)²): a turn of 2 rad/s for 20 ms at f = 200 px smears 8 px; c = 0.5 adds 4 px."""
+    from evio_lib.pipeline.run import blurred_pixel_noise, mean_rate
+
+    assert blurred_pixel_noise(3.0, 0.5, np.array([0.0, 2.0, 0.0]), 0.02, 200.0) == pytest.approx(5.0)
+    assert blurred_pixel_noise(1.0, 1.0, np.zeros(3), 0.02, 200.0) == 1.0  # still: σ0
+    rate = np.array([0.3, -1.2, 0.4])  # only the norm counts, in any frame
+    assert blurred_pixel_noise(1.0, 0.5, rate, 0.01, 199.0) == pytest.approx(
+        blurred_pixel_noise(1.0, 0.5, np.array([np.linalg.norm(rate), 0.0, 0.0]), 0.01, 199.0))
+    t = np.linspace(0.0, 1.0, 201)  # a rate rising linearly: its mean over [0.2, 0.4] is its value at 0.3
+    gyro = np.stack([t, 2 * t, -t], axis=1)
+    np.testing.assert_allclose(mean_rate(t, gyro, 0.2, 0.4), [0.3, 0.6, -0.3], atol=1e-12)
+
+
+def test_aps_noise_grows_with_the_gyro_rate_over_the_exposure(boxes_events, monkeypatch):
+    """aps_blur_noise: each APS frame's σ is sqrt(σ0² + (c |ω - b_g| T f)²) with the gyro over its exposure (T from
+    the recording's metadata), recomputed here from the IMU; the event stream's σ stays fixed."""
+    import evio_lib.pipeline.run as run_module
+    from evio_lib.msckf.experiment import observation_covariance
+
+    calls = []
+
+    def recording(camera, pixels, sigma_px):
+        calls.append(sigma_px)
+        return observation_covariance(camera, pixels, sigma_px)
+
+    monkeypatch.setattr(run_module, "observation_covariance", recording)
+    config = PipelineConfig(frames="aps+mc-events", tracker="klt", features="fast", pixel_noise_px=0.5,
+                            event_pixel_noise_px=2.5, aps_blur_noise=0.5, max_duration=0.8)
+    result = run_pipeline(boxes_events, config)
+    seq = boxes_events.sequence
+    exposure = seq.metadata["config"]["aps"]["exposure_s"]
+    aps_sigmas = [sigma for sigma in calls if sigma != 2.5]
+    is_aps = np.isin(np.round(result.t, 9), np.round(seq.frame_times, 9))
+    assert calls.count(2.5) >= 5 and len(aps_sigmas) == is_aps.sum() >= 15
+    expected = []
+    for k in np.flatnonzero(is_aps):
+        t = result.t[k]
+        window = np.linspace(t - exposure / 2, t + exposure / 2, 101)  # finer than the library's 5 samples
+        rate = np.array([np.interp(window, seq.imu.t, seq.imu.gyro[:, i]).mean() for i in range(3)])
+        rate -= result.b_g[k - 1]  # the filter's gyro bias before this frame's update
+        expected.append(np.hypot(0.5, 0.5 * np.linalg.norm(rate) * exposure * seq.camera.fx))
+    np.testing.assert_allclose(aps_sigmas, expected, rtol=0.01)  # the library averages 5 samples
+    assert max(aps_sigmas) > 0.6  # the camera turns: the blur counts
+    assert config.label().endswith(", event noise 2.5 px, APS blur noise 0.5")
+    assert any(note.startswith("APS feature noise grown with the rotation blur (c = 0.5, exposure 10 ms): ")
+               for note in result.notes)
+    assert np.all(np.isfinite(result.p_IinG)) and result.metrics["rmse_m"] < 0.2
+
+
+def test_aps_blur_noise_is_refused_where_it_cannot_apply(boxes_events):
+    for bad in (0.0, -0.5, float("nan"), float("inf"), True, "0.5"):
+        with pytest.raises(ValueError, match="aps_blur_noise must be None or a finite number > 0"):
+            PipelineConfig(aps_blur_noise=bad)
+    with pytest.raises(ValueError, match="aps_blur_noise applies to runs with APS frames; frames 'mc-events' has none"):
+        PipelineConfig(frames="mc-events", aps_blur_noise=0.5)
+    meta = dict(boxes_events.sequence.metadata)
+    meta["config"] = {key: value for key, value in meta["config"].items() if key != "aps"}
+    data = _with_sequence(boxes_events, metadata=meta)
+    with pytest.raises(ValueError, match="aps_blur_noise needs the APS frames' exposure time, which boxes_like does "
+                                         "not record"):
+        run_pipeline(data, PipelineConfig(aps_blur_noise=0.5, max_duration=0.3))
+
+
 def test_table_rows_cover_every_frame_source_and_the_help_names_them():
     import argparse
 
