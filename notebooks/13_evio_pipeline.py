@@ -1144,6 +1144,14 @@ assert all(table[key]["rmse_second_half_m"] > table[key]["rmse_first_half_m"] fo
 #
 #    *Hint:* `len(result.t) / 4` frames per second; `np.mean(result.track_lengths)`; the APS exposure is 10 ms
 #    (`evio_lib.sim.aps.ApsParams`), and an event window at this speed lasts about as long.
+# 7. In "Faster than the frames can follow" the fused run gave every APS observation the same 1 px of noise, however
+#    smeared its frame. Run it again with `aps_blur_noise=0.5`, which grows each APS frame's σ with the rotation blur
+#    the gyro predicts, $\sigma = \sqrt{\sigma_0^2 + (0.5\,|\omega|\,T f)^2}$. What σ do the frames of this stretch
+#    get, and does the error of this seed move? Why might one seed not settle it?
+#
+#    *Hint:* `PipelineConfig(tracker="klt", features="fast", frames="aps+mc-events", aps_blur_noise=0.5)` on
+#    `data_fast`; the run's `notes` give the least, median and largest σ; compare `metrics["rmse_m"]` with the table's
+#    fused row.
 #
 # Solutions, with the code to run (checked by `tests/test_solutions.py`):
 # [docs/solutions/13_evio_pipeline.md](../docs/solutions/13_evio_pipeline.md).
