@@ -918,7 +918,8 @@ assert all_rmse["KLT + FAST, APS frames"] < all_rmse["KLT + FAST, motion-compens
 # ### Faster than the frames can follow
 #
 # The thesis's premise is that fast motion blurs the APS frames while event frames stay sharp. At this simulator's
-# 10 ms exposure even the room's violent end does not blur them enough to cost KLT its tracks (above). Two settings
+# 10 ms exposure even the room's violent end does not blur them enough to cost KLT its tracks (exercise 6;
+# `docs/pipeline.md`, "Motion-compensated event frames"). Two settings
 # of the simulator make faster, blurrier motion: `speed` plays the preset's motion faster,
 # $p(t) = p_\mathrm{preset}(s t)$, so every velocity and rate is $s$ times and every acceleration $s^2$ times the
 # preset's (`evio_lib.sim.trajectory.TimeScaledTrajectory`; the accelerometer reads the acceleration minus gravity,
@@ -962,7 +963,12 @@ assert abs(window_ms - 10.0) < 1.0 and window_f.size > n_e
 # %% [markdown]
 # The APS frame is smeared by more than ten pixels of rotation alone; the events are so many that a window reaches
 # its N_e events in less than 10 ms and is held open to the 10 ms floor, and warped with the gyro they still draw thin
-# edges. Now the three KLT runs over the stretch:
+# edges. Now three KLT runs over the stretch: on the APS frames, on the motion-compensated frames, and on both
+# streams in one filter (`frames="aps+mc-events"`). In that third run each stream has its own KLT tracker, and every
+# frame of either stream is a camera clone with its own update; the filter gives the event tracks three times the
+# APS tracks' pixel noise (3 px against 1 px, `FUSED_EVENT_NOISE_FACTOR`), because they were measured about twice
+# as far from their points and come about four times as often (`docs/pipeline.md`, "Weighting the two streams").
+# So an APS observation weighs nine times an event observation.
 
 # %%
 fast_configs = {
@@ -978,8 +984,9 @@ for name, r in fast_results.items():
     per_second = len(r.t) / D_FAST  # frames the filter used per second
     fast_stats[name] = {"name": name, "percent_of_distance": r.metrics["percent_of_distance"], "rmse_m": r.metrics["rmse_m"],
                         "per_second": per_second, "track_length": float(np.mean(r.track_lengths)),
-                        "track_ms": 1e3 * float(np.mean(r.track_lengths)) / per_second,
                         "features_used": float(r.features_used.mean())}
+    if "+" not in r.config.frames:  # one stream: frames per track / frames per second (two streams mix two rates)
+        fast_stats[name]["track_ms"] = 1e3 * fast_stats[name]["track_length"] / per_second
 display(Markdown(format_table(list(fast_stats.values()), [
     ("name", "configuration"), ("rmse_m", "RMSE [m]"), ("percent_of_distance", "% of distance"),
     ("per_second", "frames used per second"), ("track_length", "mean track length [frames]"),
@@ -1005,9 +1012,10 @@ assert between_px > 20
 # frames 42 ms apart): KLT keeps a corner for less than two frames on average, and the filter uses fewer than three
 # features per frame. The event frames, made more than 80 times a second, give the filter more than twice as many
 # features per frame, over more than three frames; in time, though, their tracks are shorter than the APS frames'
-# (the table's last but one column). Here the event frames win, as the thesis found for fast motion: their RMSE is
-# below 0.6 times the APS frames'. Both streams together land in between: the APS tracks, few and smeared, still
-# count, with the 1 px noise the filter gives every APS observation (exercise 7 grows it with the blur).
+# (the table's last but one column; left out for the two-stream run, whose frames come at two rates). Here the event
+# frames win, as the thesis found for fast motion: their RMSE is below 0.6 times the APS frames'. Both streams
+# together land in between: the few, smeared APS tracks still weigh nine times an event track each. Whether weighting
+# them by their blur helps is exercise 7.
 #
 # How typical is this seed? `docs/pipeline.md` ("Faster motion") measured this stretch on six seeds, this one among
 # them (three to choose the settings, three to test them): the motion-compensated frames had the lower % of
@@ -1071,9 +1079,9 @@ assert all(table[key]["rmse_second_half_m"] > table[key]["rmse_first_half_m"] fo
 #   mattered more than on APS frames (KLT more than 2x better than SIFT).
 # - With exactly known biases, dead reckoning beat SIFT over a few seconds (section 4); a visual front-end earns its
 #   keep when the biases are unknown, which outside a simulator they always are to some degree.
-# - Played twice as fast with a 20 ms exposure (section 3), the APS frames lost KLT's tracks within two frames while
-#   motion-compensated event frames fed the filter more than twice as many features and had under 0.6 times the
-#   APS run's RMSE (seed 2; five of the six seeds in `docs/pipeline.md` went the same way).
+# - Played twice as fast with a 20 ms exposure (section 3), KLT kept an APS corner for under two frames on average,
+#   while motion-compensated event frames fed the filter more than twice as many features and had under 0.6 times
+#   the APS run's RMSE (seed 2; five of the six seeds in `docs/pipeline.md` went the same way).
 #
 # What the thesis found, and what the full table checks: on Boxes, event frames paid off where the APS frames blurred
 # (§4.5.1: the rapid motion of the latter half; whole-recording RMSE halved, Table 6); on the sparse Camp Atterbury
@@ -1099,9 +1107,9 @@ assert all(table[key]["rmse_second_half_m"] > table[key]["rmse_first_half_m"] fo
 # - A still start needs two things the moving presets do not: a static initialisation (attitude and gyro bias from
 #   the still IMU) and zero-velocity updates while the platform stands still, detected from the tracks and the IMU.
 # - Event frames are a means for fast or high-dynamic-range motion, not an improvement everywhere: at gentle speed,
-#   APS frames won here. Played twice as fast with a 20 ms exposure, KLT lost its APS tracks within two frames while
-#   motion-compensated event frames gave the filter more than twice as many features and had about half the error
-#   or less (on five of six seeds in `docs/pipeline.md`).
+#   APS frames won here. Played twice as fast with a 20 ms exposure, KLT kept an APS corner for under two frames on
+#   average, while motion-compensated event frames gave the filter more than twice as many features and had under
+#   0.6 times the APS run's RMSE (seed 2; on five of six seeds in `docs/pipeline.md` the event frames won).
 #
 # ## What you have built
 #
@@ -1151,14 +1159,17 @@ assert all(table[key]["rmse_second_half_m"] > table[key]["rmse_first_half_m"] fo
 #
 #    *Hint:* `len(result.t) / 4` frames per second; `np.mean(result.track_lengths)`; the APS exposure is 10 ms
 #    (`evio_lib.sim.aps.ApsParams`), and an event window at this speed lasts about as long.
-# 7. In "Faster than the frames can follow" the fused run gave every APS observation the same 1 px of noise, however
-#    smeared its frame. Run it again with `aps_blur_noise=0.5`, which grows each APS frame's σ with the rotation blur
-#    the gyro predicts, $\sigma = \sqrt{\sigma_0^2 + (0.5\,|\omega|\,T f)^2}$. What σ do the frames of this stretch
-#    get, and does the error of this seed move? Why might one seed not settle it?
+# 7. In "Faster than the frames can follow" the run on both streams gave every APS observation the same 1 px of
+#    noise, however smeared its frame. Run it again with `aps_blur_noise=0.5`, which grows each APS frame's σ with the
+#    rotation blur the gyro predicts, $\sigma = \sqrt{\sigma_0^2 + (0.5\,|\omega|\,T f)^2}$: $\sigma_0$ the usual
+#    1 px (`pixel_noise_px`), $|\omega|$ the gyro's rate (bias removed) averaged over the exposure, $T$ the exposure
+#    (20 ms here) and $f$ the focal length in pixels, so that $|\omega| T f$ is how far the rotation moves a point
+#    near the image centre while the shutter is open. What σ do the frames of this stretch get, and does the error of
+#    this seed move? Why might one seed not settle it?
 #
-#    *Hint:* `PipelineConfig(tracker="klt", features="fast", frames="aps+mc-events", aps_blur_noise=0.5)` on
-#    `data_fast`; the run's `notes` give the least, median and largest σ; compare `metrics["rmse_m"]` with the table's
-#    fused row.
+#    *Hint:* `PipelineConfig(tracker="klt", features="fast", frames="aps+mc-events", seed=SEED_FAST,
+#    aps_blur_noise=0.5)` on `data_fast`; the run's `notes` give the least, median and largest σ; compare
+#    `metrics["rmse_m"]` with the table's row for both streams.
 #
 # Solutions, with the code to run (checked by `tests/test_solutions.py`):
 # [docs/solutions/13_evio_pipeline.md](../docs/solutions/13_evio_pipeline.md).

@@ -237,6 +237,8 @@ class PipelineConfig:
                 raise ValueError(f"aps_blur_noise must be None or a finite number > 0; got {value!r}")
             if "aps" not in frame_streams(self.frames):
                 raise ValueError(f"aps_blur_noise applies to runs with APS frames; frames {self.frames!r} has none")
+            if self.imu_only:
+                raise ValueError("aps_blur_noise applies to runs with APS frames; imu_only processes no frame")
         if self.event_pixel_noise_px is not None and frame_streams(self.frames) == ("aps",):
             raise ValueError(f"event_pixel_noise_px applies to event frame streams; frames {self.frames!r} has none "
                              f"(use 'mc-events', 'events' or 'aps+mc-events')")
@@ -898,6 +900,8 @@ def mean_rate(t_imu: np.ndarray, gyro: np.ndarray, t0: float, t1: float, samples
     """Return the mean angular rate (rad/s, 3-vector) over [t0, t1]: the gyroscope ``gyro`` (N x 3, sampled at
     the sorted times ``t_imu``) interpolated linearly at ``samples`` evenly spread times and averaged (the rate
     held at the ends outside the IMU's span)."""
+    if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 2:
+        raise ValueError(f"samples must be an integer >= 2 (both ends of the interval are sampled); got {samples!r}")
     times = np.linspace(float(t0), float(t1), int(samples))
     return np.array([np.interp(times, t_imu, gyro[:, i]).mean() for i in range(3)])
 
@@ -908,7 +912,8 @@ def _aps_exposure(data: LoadedDataset) -> float:
     config = meta.get("config") if isinstance(meta.get("config"), dict) else {}
     aps = config.get("aps") if isinstance(config.get("aps"), dict) else {}
     exposure = aps.get("exposure_s")
-    if exposure is None or not (isinstance(exposure, (int, float)) and math.isfinite(exposure) and exposure > 0):
+    if isinstance(exposure, bool) or not (isinstance(exposure, (int, float)) and math.isfinite(exposure)
+                                          and exposure > 0):
         raise ValueError(f"aps_blur_noise needs the APS frames' exposure time, which {data.source} does not record "
                          f"(a simulated preset records it in its metadata['config']['aps']['exposure_s'])")
     return float(exposure)
