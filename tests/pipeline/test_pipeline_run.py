@@ -19,6 +19,23 @@ def _with_sequence(data: LoadedDataset, **changes) -> LoadedDataset:
     return dataclasses.replace(data, sequence=type(seq)(**fields))
 
 
+@pytest.fixture
+def recorded_sigmas(monkeypatch) -> list[float]:
+    """The feature noise σ (px) of every observation covariance the pipeline builds, in order (the covariances
+    themselves are built as usual)."""
+    import evio_lib.pipeline.run as run_module
+    from evio_lib.msckf.experiment import observation_covariance
+
+    calls: list[float] = []
+
+    def recording(camera, pixels, sigma_px):
+        calls.append(sigma_px)
+        return observation_covariance(camera, pixels, sigma_px)
+
+    monkeypatch.setattr(run_module, "observation_covariance", recording)
+    return calls
+
+
 @pytest.fixture(scope="module")
 def sift_run(boxes_aps):
     return run_pipeline(boxes_aps, PipelineConfig(features="sift"))
@@ -313,22 +330,14 @@ def test_each_frame_stream_gets_its_own_front_end(boxes_events, monkeypatch):
     assert same.frontend_config("mc-events") == same.frontend_config("aps") == same.frontend_config()
 
 
-def test_each_frame_stream_gets_its_own_pixel_noise(boxes_events, monkeypatch):
+def test_each_frame_stream_gets_its_own_pixel_noise(boxes_events, recorded_sigmas):
     """event_pixel_noise_px: the event stream's observations get covariances with their own sigma, the APS stream's
     with pixel_noise_px; unset, an event stream fused with APS frames gets FUSED_EVENT_NOISE_FACTOR times it, a
     lone event stream pixel_noise_px. Two streams get a window of twice the camera states."""
-    import evio_lib.pipeline.run as run_module
     from evio_lib.msckf.config import MsckfConfig
-    from evio_lib.msckf.experiment import observation_covariance
     from evio_lib.pipeline.run import FUSED_EVENT_NOISE_FACTOR
 
-    calls = []
-
-    def recording(camera, pixels, sigma_px):
-        calls.append(sigma_px)
-        return observation_covariance(camera, pixels, sigma_px)
-
-    monkeypatch.setattr(run_module, "observation_covariance", recording)
+    calls = recorded_sigmas
     config = PipelineConfig(frames="aps+mc-events", tracker="klt", features="fast", pixel_noise_px=0.5,
                             event_pixel_noise_px=2.5, max_duration=0.8)
     both = run_pipeline(boxes_events, config)
@@ -379,19 +388,10 @@ def test_blurred_pixel_noise_against_a_hand_computation():
             mean_rate(t, gyro, 0.2, 0.4, samples=bad)
 
 
-def test_aps_noise_grows_with_the_gyro_rate_over_the_exposure(boxes_events, monkeypatch):
+def test_aps_noise_grows_with_the_gyro_rate_over_the_exposure(boxes_events, recorded_sigmas):
     """aps_blur_noise: each APS frame's σ is sqrt(σ0² + (c |ω - b_g| T f)²) with the gyro over its exposure (T from
     the recording's metadata), recomputed here from the IMU; the event stream's σ stays fixed."""
-    import evio_lib.pipeline.run as run_module
-    from evio_lib.msckf.experiment import observation_covariance
-
-    calls = []
-
-    def recording(camera, pixels, sigma_px):
-        calls.append(sigma_px)
-        return observation_covariance(camera, pixels, sigma_px)
-
-    monkeypatch.setattr(run_module, "observation_covariance", recording)
+    calls = recorded_sigmas
     config = PipelineConfig(frames="aps+mc-events", tracker="klt", features="fast", pixel_noise_px=0.5,
                             event_pixel_noise_px=2.5, aps_blur_noise=0.5, max_duration=0.8)
     result = run_pipeline(boxes_events, config)
