@@ -14,8 +14,13 @@ With ``--frames mc-events`` the tracks run on motion-compensated event frames in
 compared with the true camera at its own time, the middle of its event window): the accuracy that the filter's pixel
 noise should describe for that stream.
 
+With ``--speed`` and ``--aps-exposure`` the preset is played faster and its APS frames exposed longer (as ``run``
+does); ``--simulate-from`` simulates only from that time on, so a stretch of a long recording costs only itself (the
+4 s stretch of ``run --start 24 --duration 4`` is the same cached recording).
+
 Usage: python bench/track_accuracy.py [--preset aerial_like] [--duration 15] [--start 5] [--seconds 3]
-       [--configs sift cnn klt sift_gap2 cnn_gap2] [--frames aps|mc-events]
+       [--configs sift cnn klt sift_gap2 cnn_gap2] [--frames aps|mc-events] [--speed 2] [--aps-exposure 0.02]
+       [--simulate-from 24]
 Measured figures: docs/pipeline.md.
 """
 import argparse
@@ -51,10 +56,18 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--frames", default="aps", choices=["aps", "mc-events"],
                         help="frame source: the APS frames or motion-compensated event frames (default aps)")
+    parser.add_argument("--speed", type=float, default=None, help="play the preset's motion this many times faster")
+    parser.add_argument("--aps-exposure", type=float, default=None, help="APS exposure time, s (default 0.01)")
+    parser.add_argument("--simulate-from", type=float, default=0.0,
+                        help="simulate [S, S + duration] s instead of [0, duration] (default 0)")
     args = parser.parse_args()
+    if not args.simulate_from <= args.start < args.simulate_from + args.duration:
+        parser.error(f"--start {args.start:g} must lie in the simulated [{args.simulate_from:g}, "
+                     f"{args.simulate_from + args.duration:g}) s")
     torch.set_num_threads(1)
     cv2.setNumThreads(1)
-    data = load_dataset(args.preset, duration=args.duration, seed=args.seed, need_events=args.frames != "aps")
+    data = load_dataset(args.preset, duration=args.duration, seed=args.seed, need_events=args.frames != "aps",
+                        start=args.simulate_from, speed=args.speed, aps_exposure_s=args.aps_exposure)
     seq, cam = data.sequence, data.sequence.camera
     scene = scene_from_preset(args.preset, seed=args.seed)
     if args.frames == "aps":
@@ -74,7 +87,9 @@ def main() -> None:
     truth = seq.groundtruth.interpolate(times)  # camera poses: R_CtoG, p_CinG
     R_CtoG, p_CinG = truth.R_BtoG, truth.p_BinG
     rotations = camera_rotation_priors(seq.imu.t, seq.imu.gyro, times, data.R_CtoI)
-    print(f"{args.preset}, seed {args.seed}: {len(times)} {args.frames} frames from t = {args.start:g} s")
+    print(f"{args.preset}, seed {args.seed}" + (f", speed {args.speed:g}" if args.speed else "")
+          + (f", APS exposure {1e3 * args.aps_exposure:g} ms" if args.aps_exposure else "")
+          + f": {len(times)} {args.frames} frames from t = {args.start:g} s")
     print(f"{'config':<6} {'tracks':>6} {'obs':>6} {'median px':>9} {'p95 px':>7} {'> 3 px':>7} | median px by age "
           f"1-2, 3-5, 6-10, 11+")
     for name in args.configs:
