@@ -61,13 +61,17 @@ def main() -> None:
     parser.add_argument("--simulate-from", type=float, default=0.0,
                         help="simulate [S, S + duration] s instead of [0, duration] (default 0)")
     args = parser.parse_args()
-    if not args.simulate_from <= args.start < args.simulate_from + args.duration:
-        parser.error(f"--start {args.start:g} must lie in the simulated [{args.simulate_from:g}, "
-                     f"{args.simulate_from + args.duration:g}) s")
+    end = args.simulate_from + args.duration
+    if not args.simulate_from <= args.start < args.start + args.seconds <= end:
+        parser.error(f"--start {args.start:g} and --seconds {args.seconds:g} must lie in the simulated "
+                     f"[{args.simulate_from:g}, {end:g}] s (--simulate-from, --duration)")
     torch.set_num_threads(1)
     cv2.setNumThreads(1)
-    data = load_dataset(args.preset, duration=args.duration, seed=args.seed, need_events=args.frames != "aps",
-                        start=args.simulate_from, speed=args.speed, aps_exposure_s=args.aps_exposure)
+    try:
+        data = load_dataset(args.preset, duration=args.duration, seed=args.seed, need_events=args.frames != "aps",
+                            start=args.simulate_from, speed=args.speed, aps_exposure_s=args.aps_exposure)
+    except ValueError as error:  # e.g. a stretch past the end of the (faster) motion
+        parser.error(str(error))
     seq, cam = data.sequence, data.sequence.camera
     scene = scene_from_preset(args.preset, seed=args.seed)
     if args.frames == "aps":
