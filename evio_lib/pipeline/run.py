@@ -223,18 +223,16 @@ class PipelineConfig:
             raise ValueError(f"zupt must be True or False; got {self.zupt!r}")
         if self.observation_outlier_px is not None:  # checked as the filter will check it, before any loading
             MsckfConfig(observation_outlier_px=self.observation_outlier_px)
-        for name in ("pixel_noise_px", "event_pixel_noise_px"):
+        for name, expected in (("pixel_noise_px", "a finite number of pixels > 0"),
+                               ("event_pixel_noise_px", "a finite number of pixels > 0"),
+                               ("aps_blur_noise", "None or a finite number > 0")):
             value = getattr(self, name)
-            if value is None and name == "event_pixel_noise_px":
+            if value is None and name != "pixel_noise_px":
                 continue
             if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
                     or not (math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a finite number of pixels > 0; got {value!r}")
+                raise ValueError(f"{name} must be {expected}; got {value!r}")
         if self.aps_blur_noise is not None:
-            value = self.aps_blur_noise
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
-                    or not (math.isfinite(value) and value > 0):
-                raise ValueError(f"aps_blur_noise must be None or a finite number > 0; got {value!r}")
             if "aps" not in frame_streams(self.frames):
                 raise ValueError(f"aps_blur_noise applies to runs with APS frames; frames {self.frames!r} has none")
             if self.imu_only:
