@@ -8,8 +8,10 @@ from skimage.metrics import structural_similarity
 
 from evio_lib.events.reconstruct import create_reconstructor
 from evio_lib.events.reconstruction.data import ReconstructionDataConfig, reconstruction_dataset
-from evio_lib.events.reconstruction.training import (ReconstructionTrainConfig, main_reconstruct_train, ssim_torch,
-                                                  train_reconstructor, warp_with_homography)
+from evio_lib.events.reconstruction.evaluation import normalize_for_metrics
+from evio_lib.events.reconstruction.training import (ReconstructionTrainConfig, learning_rate, main_reconstruct_train,
+                                                  sequence_loss, ssim_torch, stretch_torch, train_reconstructor,
+                                                  warp_with_homography)
 
 DATA = ReconstructionDataConfig(height=32, width=32, duration=0.3, windows=3)
 
@@ -95,3 +97,68 @@ def test_init_from_starts_from_the_checkpoint_and_refuses_another_network(tmp_pa
                                       **base)
     with pytest.raises(ValueError, match="holds a firenet network"):
         train_reconstructor(wider, tmp_path / "c", data=data, val_data=val, progress=False)
+
+
+def test_stretch_matches_the_metrics_normalisation():
+    rng = np.random.default_rng(1)
+    images = rng.gamma(2.0, 0.1, (3, 1, 20, 30)).astype(np.float64)   # skewed, spread well above the floor
+    ours = stretch_torch(torch.from_numpy(images)).numpy()
+    for k in range(3):
+        np.testing.assert_allclose(ours[k, 0], normalize_for_metrics(images[k, 0]), atol=1e-9)
+    flat = torch.full((1, 1, 8, 8), 0.3) + 0.001 * torch.arange(64.0).reshape(1, 1, 8, 8) / 64
+    assert float(stretch_torch(flat).max()) < 0.03          # a nearly flat image is not blown up to [0, 1]
+
+
+class _AffineOfTruth(torch.nn.Module):
+    """A stand-in network whose k-th output is gain * frame_k + offset (the truth up to an affine map)."""
+
+    def __init__(self, frames: torch.Tensor, gain: float, offset: float) -> None:
+        super().__init__()
+        self.frames, self.gain, self.offset, self.k = frames, gain, offset, 0
+        self.weight = torch.nn.Parameter(torch.ones(()))
+
+    def forward(self, voxels, state):
+        out = self.weight * (self.gain * self.frames[:, self.k:self.k + 1] + self.offset)
+        self.k += 1
+        return out, state
+
+
+def test_the_stretched_terms_ignore_gain_and_offset_and_reach_the_loss():
+    rng = np.random.default_rng(2)
+    frames = torch.from_numpy(rng.uniform(0.1, 0.9, (2, 3, 24, 24)).astype(np.float32))
+    voxels = torch.zeros(2, 3, 5, 24, 24)
+    plain = ReconstructionTrainConfig(data=DATA, lambda_tc=0.0)
+    stretched = ReconstructionTrainConfig(data=DATA, lambda_tc=0.0, lambda_stretched=0.5)
+    loss_plain, parts_plain = sequence_loss(_AffineOfTruth(frames, 0.4, 0.3), voxels, frames, None, plain)
+    loss_s, parts_s = sequence_loss(_AffineOfTruth(frames, 0.4, 0.3), voxels, frames, None, stretched)
+    assert parts_plain["ssim"] < 0.9 and parts_s["ssim_stretched"] > 0.999       # raw terms see the affine map
+    assert parts_plain["ssim_stretched"] == 0.0                                  # not computed in training without it
+    assert abs(loss_s.item() - loss_plain.item()) < 0.5 * 2e-3                   # the stretched terms are ~0 here
+    loss_w, parts_w = sequence_loss(_AffineOfTruth(torch.flip(frames, dims=[2]), 1.0, 0.0), voxels, frames, None,
+                                    stretched)                                   # wrong structure: the terms count
+    loss_w_plain, _ = sequence_loss(_AffineOfTruth(torch.flip(frames, dims=[2]), 1.0, 0.0), voxels, frames, None,
+                                    plain)
+    assert loss_w.item() - loss_w_plain.item() > 0.5 * (1 - parts_w["ssim_stretched"])
+    with torch.no_grad():                                                        # validation always measures it
+        _, parts_val = sequence_loss(_AffineOfTruth(frames, 0.4, 0.3), voxels, frames, None, plain)
+    assert parts_val["ssim_stretched"] > 0.999
+
+
+def test_cosine_schedule_and_selection_by_the_stretched_ssim(tmp_path, tiny_data):
+    data, val = tiny_data
+    config = ReconstructionTrainConfig(data=DATA, n_train=6, n_val=2, batch_size=2, crop=24, steps=4, validate_every=2,
+                                       lr=2e-3, lr_schedule="cosine", lr_final_fraction=0.1, lambda_stretched=1.0,
+                                       select_by="ssim_stretched")
+    rates = [learning_rate(config, k) for k in range(5)]
+    assert rates[0] == pytest.approx(2e-3) and rates[-1] == pytest.approx(2e-4) and np.all(np.diff(rates) < 0)
+    summary = train_reconstructor(config, tmp_path / "c", data=data, val_data=val, progress=False)
+    ckpt = torch.load(tmp_path / "c" / "last.pt", weights_only=True)
+    assert ckpt["optimizer"]["param_groups"][0]["lr"] == pytest.approx(learning_rate(config, 3))
+    scores = [entry["val_ssim_stretched"] for entry in ckpt["history"]]
+    assert summary["best_val_ssim"] == pytest.approx(max(scores))
+    with pytest.raises(ValueError, match="lr_schedule"):
+        ReconstructionTrainConfig(data=DATA, lr_schedule="linear")
+    with pytest.raises(ValueError, match="select_by"):
+        ReconstructionTrainConfig(data=DATA, select_by="mse")
+    with pytest.raises(ValueError, match="lambda_stretched"):
+        ReconstructionTrainConfig(data=DATA, lambda_stretched=-1.0)

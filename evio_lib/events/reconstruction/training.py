@@ -7,6 +7,11 @@ back-propagation through time over L windows, from a zero state):
 
 - L1 and SSIM (Wang et al. 2004; Gaussian window sigma 1.5, C1 = 0.01^2, C2 = 0.03^2, data range 1) against the sharp
   intensity I_k at the end of window k;
+- optionally (``lambda_stretched`` > 0) the same L1 and SSIM terms between the 1st/99th-percentile stretches of
+  prediction and truth, S(x) = clip((x - q01(x)) / max(q99(x) - q01(x), 0.05), 0, 1), the normalisation under which the
+  reconstructions are scored (:func:`evio_lib.events.reconstruction.evaluation.normalize_for_metrics`): events fix
+  intensity only up to an offset and a gain, so this term asks for the structure the metric rewards and leaves the
+  unobservable global brightness and contrast to the raw terms (gradients flow through the prediction's quantiles);
 - temporal consistency (Lai et al., ECCV 2018, as E2VID+ uses it): TC_k = mean( M_k . |I^_k - W_k(I^_k-1)| ), where W_k
   warps the previous prediction into view k with the true motion (the simulator's homography) and
   M_k = exp(-alpha |I_k - W_k(I_k-1)|^2), alpha = 50, masks pixels where the warp does not explain the true images
@@ -23,7 +28,11 @@ previous window's end: one window fewer), and no temporal-consistency term (the 
 A polarity swap alone is not used: it stands for the negated log image, whose linear intensity 1/I is not an image in
 [0, 1] the network can output.
 
-The checkpoint kept as ``best.pt`` is the one with the highest validation SSIM.
+The learning rate is constant or (``lr_schedule="cosine"``) follows lr_k = lr_min + (lr - lr_min)(1 + cos(pi k / steps)) / 2
+with lr_min = ``lr_final_fraction`` lr, a function of the step alone (so ``--resume`` continues the same schedule).
+
+The checkpoint kept as ``best.pt`` is the one with the highest validation SSIM: raw (``select_by="ssim"``, the
+default) or after the stretch S above (``select_by="ssim_stretched"``, the form of the benchmark's metric).
 
 E2VID's perceptual LPIPS term needs an ImageNet-pretrained VGG/AlexNet, whose weights cannot be downloaded here; it is
 left out rather than imitated.
@@ -49,10 +58,17 @@ from evio_lib.cli_args import parse_set_options, settings_from_dict
 from evio_lib.io.checkpoint import load_state, read_checkpoint
 from evio_lib.events.reconstruction.training_options import add_reconstruct_train_arguments  # no torch
 
-__all__ = ["ReconstructionTrainConfig", "ssim_torch", "warp_with_homography", "warp_with_flow",
+__all__ = ["ReconstructionTrainConfig", "LR_SCHEDULES", "SELECTION_METRICS", "ssim_torch", "stretch_torch",
+           "learning_rate", "warp_with_homography", "warp_with_flow",
            "flow_from_homographies", "temporal_consistency_loss", "SequenceSource", "open_split",
            "sequence_loss", "train_reconstructor", "evaluate_on_samples", "add_reconstruct_train_arguments",
            "main_reconstruct_train"]
+
+
+LR_SCHEDULES = ("constant", "cosine")
+SELECTION_METRICS = ("ssim", "ssim_stretched")
+#: Smallest percentile spread the stretch divides by: a nearly flat crop is not blown up into amplified noise.
+STRETCH_MIN_SPREAD = 0.05
 
 
 @dataclass(frozen=True)
@@ -80,6 +96,10 @@ class ReconstructionTrainConfig:
     training_set: str | None = None    # a reconstruct-data folder; None: planar samples drawn by `data`, n_train, n_val
     time_reversal: float = 0.2         # probability of playing a batch backwards
     preload: bool = False              # read the whole training set into memory first (fast steps on a GPU)
+    lambda_stretched: float = 0.0      # weight of L1 + (1 - SSIM) between the percentile-stretched images
+    lr_schedule: str = "constant"      # or "cosine": lr decays to lr_final_fraction * lr over `steps`
+    lr_final_fraction: float = 0.05
+    select_by: str = "ssim"            # validation metric of best.pt: "ssim" (raw) or "ssim_stretched"
 
     def __post_init__(self) -> None:
         if isinstance(self.data, dict):
@@ -97,6 +117,14 @@ class ReconstructionTrainConfig:
         build_network(self.architecture, self.data.num_bins, **self.network_options)  # fails early on a bad name
         if self.init_from is not None and not Path(self.init_from).is_file():
             raise ValueError(f"init_from must be a reconstruct-train checkpoint file; {self.init_from!r} does not exist")
+        if not (np.isfinite(self.lambda_stretched) and self.lambda_stretched >= 0):
+            raise ValueError(f"lambda_stretched must be >= 0; got {self.lambda_stretched!r}")
+        if self.lr_schedule not in LR_SCHEDULES:
+            raise ValueError(f"lr_schedule must be one of {LR_SCHEDULES}; got {self.lr_schedule!r}")
+        if not (np.isfinite(self.lr_final_fraction) and 0 <= self.lr_final_fraction <= 1):
+            raise ValueError(f"lr_final_fraction must lie in [0, 1]; got {self.lr_final_fraction!r}")
+        if self.select_by not in SELECTION_METRICS:
+            raise ValueError(f"select_by must be one of {SELECTION_METRICS}; got {self.select_by!r}")
         if not (np.isfinite(self.time_reversal) and 0 <= self.time_reversal <= 1):
             raise ValueError(f"time_reversal must be a probability in [0, 1]; got {self.time_reversal!r}")
         if self.training_set is not None:
@@ -138,6 +166,32 @@ def ssim_torch(a: torch.Tensor, b: torch.Tensor, data_range: float = 1.0) -> tor
     cov = F.conv2d(a * b, window) - mu_a * mu_b
     ssim_map = (2 * mu_a * mu_b + c1) * (2 * cov + c2) / ((mu_a ** 2 + mu_b ** 2 + c1) * (var_a + var_b + c2))
     return ssim_map.mean()
+
+
+def stretch_torch(image: torch.Tensor, min_spread: float = STRETCH_MIN_SPREAD) -> torch.Tensor:
+    """Return each (H, W) image of an (N, 1, H, W) batch stretched so its 1st/99th percentiles become 0/1 (clipped).
+
+    The differentiable form of :func:`~evio_lib.events.reconstruction.evaluation.normalize_for_metrics` (the same
+    linearly interpolated percentiles), except that the spread is at least ``min_spread``.
+    """
+    flat = image.flatten(1)
+    q = torch.quantile(flat, torch.tensor([0.01, 0.99], dtype=image.dtype, device=image.device), dim=1)
+    lo, hi = q[0].view(-1, 1, 1, 1), q[1].view(-1, 1, 1, 1)
+    return ((image - lo) / (hi - lo).clamp(min=min_spread)).clamp(0.0, 1.0)
+
+
+def learning_rate(config: "ReconstructionTrainConfig", step: int) -> float:
+    """Return the learning rate of optimisation step ``step`` (0-based) under the config's schedule.
+
+    >>> cfg = ReconstructionTrainConfig(lr=1e-3, steps=100, lr_schedule="cosine", lr_final_fraction=0.1)
+    >>> [round(learning_rate(cfg, k), 6) for k in (0, 50, 100)]
+    [0.001, 0.00055, 0.0001]
+    """
+    if config.lr_schedule == "constant":
+        return config.lr
+    low = config.lr_final_fraction * config.lr
+    progress = min(max(step / config.steps, 0.0), 1.0)
+    return low + (config.lr - low) * 0.5 * (1.0 + math.cos(math.pi * progress))
 
 
 def warp_with_homography(image: torch.Tensor, H_cur_to_prev: torch.Tensor) -> torch.Tensor:
@@ -199,7 +253,7 @@ def sequence_loss(net: torch.nn.Module, voxels: torch.Tensor, frames: torch.Tens
 
     ``flow=None`` leaves out the temporal-consistency term (a batch played backwards).
     """
-    state, prev, parts = None, None, {"l1": 0.0, "ssim": 0.0, "tc": 0.0}
+    state, prev, parts = None, None, {"l1": 0.0, "ssim": 0.0, "tc": 0.0, "ssim_stretched": 0.0}
     total = voxels.new_zeros(())
     n_windows = voxels.shape[1]
     for k in range(n_windows):
@@ -210,6 +264,14 @@ def sequence_loss(net: torch.nn.Module, voxels: torch.Tensor, frames: torch.Tens
         loss = l1 + config.lambda_ssim * (1 - ssim)
         parts["l1"] += l1.item() / n_windows
         parts["ssim"] += ssim.item() / n_windows
+        if config.lambda_stretched > 0 or not torch.is_grad_enabled():   # always measured in validation
+            pred_s = stretch_torch(pred)
+            with torch.no_grad():
+                target_s = stretch_torch(target)
+            ssim_s = ssim_torch(pred_s, target_s)
+            parts["ssim_stretched"] += ssim_s.item() / n_windows
+            if config.lambda_stretched > 0:
+                loss = loss + config.lambda_stretched * ((pred_s - target_s).abs().mean() + 1 - ssim_s)
         if prev is not None and config.lambda_tc > 0 and flow is not None:
             tc = temporal_consistency_loss(pred, prev, target, frames[:, k - 1:k], flow[:, k], config.tc_alpha)
             loss = loss + config.lambda_tc * tc
@@ -297,7 +359,7 @@ def evaluate_on_samples(net: torch.nn.Module, data, config: ReconstructionTrainC
     ``data``: a stack of planar samples (:func:`reconstruction_dataset`) or a sequence source of a training set.
     """
     data = _as_source(data)
-    sums, count = {"l1": 0.0, "ssim": 0.0, "tc": 0.0, "loss": 0.0}, 0
+    sums, count = {"l1": 0.0, "ssim": 0.0, "tc": 0.0, "ssim_stretched": 0.0, "loss": 0.0}, 0
     was_training = net.training
     net.eval()
     with torch.no_grad():
@@ -434,6 +496,8 @@ def train_reconstructor(config: ReconstructionTrainConfig, out: str | Path, resu
                                         torch.from_numpy(f.astype(np.float32)).to(config.device),
                                         None if w is None else torch.from_numpy(w.astype(np.float32)).to(config.device),
                                         config)
+            for group in optimizer.param_groups:
+                group["lr"] = learning_rate(config, step)
             optimizer.zero_grad()
             loss.backward()
             torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)
@@ -447,8 +511,8 @@ def train_reconstructor(config: ReconstructionTrainConfig, out: str | Path, resu
             if step % config.validate_every == 0 or step == config.steps or out_of_time:
                 val = evaluate_on_samples(net, val_data, config)
                 history.append({"step": step, "train_loss": running, **{f"val_{k}": x for k, x in val.items()}})
-                if val["ssim"] > best:
-                    best = val["ssim"]
+                if val[config.select_by] > best:
+                    best = val[config.select_by]
                     _save(out / "best.pt", net, optimizer, config, step, history, rng, best, manifest)
                 _save(last, net, optimizer, config, step, history, rng, best, manifest)
                 (out / "history.json").write_text(json.dumps(history, indent=1) + "\n")
