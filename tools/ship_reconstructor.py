@@ -3,6 +3,8 @@
 Usage:
     python tools/ship_reconstructor.py --stage RUN1/best.pt "COMMAND 1" [--stage RUN2/best.pt "COMMAND 2" ...] \\
         --out evio_lib/weights/reconstruction_firenet.pt
+    python tools/ship_reconstructor.py --base evio_lib/weights/reconstruction_firenet.pt \
+        --stage RUN3/best.pt "COMMAND 3" --out evio_lib/weights/reconstruction_firenet.pt   # one stage more
     python tools/ship_reconstructor.py --int8-ranges evio_lib/weights/reconstruction_firenet.pt   # only add those
 
 The last stage's weights are shipped; every stage's command, config, training-set manifest and validation history
@@ -25,6 +27,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--stage", nargs=2, action="append", metavar=("CHECKPOINT", "COMMAND"))
     parser.add_argument("--out", type=Path)
+    parser.add_argument("--base", type=Path, metavar="SHIPPED",
+                        help="a shipped checkpoint whose stages come first (the new stages fine-tune its weights)")
     parser.add_argument("--int8-ranges", type=Path, metavar="FILE", help="only add the int8 calibration to FILE")
     args = parser.parse_args()
     if args.int8_ranges is not None:
@@ -36,7 +40,12 @@ def main() -> None:
     if not args.stage or args.out is None:
         parser.error("--stage and --out are needed (or --int8-ranges FILE)")
     history, stages, offset, last = [], [], 0, None
-    for number, (path, command) in enumerate(args.stage, start=1):
+    if args.base is not None:
+        base = torch.load(args.base, map_location="cpu", weights_only=True)
+        if "stages" not in base:
+            parser.error(f"--base {args.base} holds no stages: not a file written by this tool")
+        history, stages, offset = list(base["history"]), list(base["stages"]), int(base["step"])
+    for number, (path, command) in enumerate(args.stage, start=len(stages) + 1):
         ckpt = torch.load(path, map_location="cpu", weights_only=True)
         for entry in ckpt["history"]:
             history.append({**entry, "step": entry["step"] + offset, "stage": number})
