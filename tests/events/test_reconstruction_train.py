@@ -162,3 +162,36 @@ def test_cosine_schedule_and_selection_by_the_stretched_ssim(tmp_path, tiny_data
         ReconstructionTrainConfig(data=DATA, select_by="mse")
     with pytest.raises(ValueError, match="lambda_stretched"):
         ReconstructionTrainConfig(data=DATA, lambda_stretched=-1.0)
+
+
+def test_ship_tool_appends_a_stage_to_the_shipped_file(tmp_path, tiny_data):
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from evio_lib.events.reconstruct import shipped_checkpoint
+
+    data, val = tiny_data
+    config = ReconstructionTrainConfig(data=DATA, n_train=6, n_val=2, batch_size=2, crop=24, steps=2, validate_every=1)
+    train_reconstructor(config, tmp_path / "run", data=data, val_data=val, progress=False)
+    tool = Path(__file__).resolve().parents[2] / "tools" / "ship_reconstructor.py"
+    out = tmp_path / "shipped.pt"
+    subprocess.run([sys.executable, str(tool), "--base", str(shipped_checkpoint("firenet")), "--stage",
+                    str(tmp_path / "run" / "last.pt"), "the third stage's command", "--out", str(out)], check=True,
+                   capture_output=True)
+    base = torch.load(shipped_checkpoint("firenet"), map_location="cpu", weights_only=True)
+    new = torch.load(out, map_location="cpu", weights_only=True)
+    trained = torch.load(tmp_path / "run" / "last.pt", map_location="cpu", weights_only=True)
+    assert [s["command"] for s in new["stages"]] == [s["command"] for s in base["stages"]] + ["the third stage's command"]
+    assert new["step"] == base["step"] + trained["step"] and new["command"] == "the third stage's command"
+    assert new["history"][:len(base["history"])] == base["history"]
+    added = new["history"][len(base["history"]):]
+    assert [h["stage"] for h in added] == [len(base["stages"]) + 1] * 2
+    assert [h["step"] for h in added] == [base["step"] + 1, base["step"] + 2]
+    for key, value in trained["state_dict"].items():
+        torch.testing.assert_close(new["state_dict"][key], value)
+    assert new["int8_ranges"]["weights_sha1"] != base["int8_ranges"]["weights_sha1"]
+    failed = subprocess.run([sys.executable, str(tool), "--base", str(tmp_path / "run" / "best.pt"), "--stage",
+                             str(tmp_path / "run" / "best.pt"), "x", "--out", str(tmp_path / "x.pt")],
+                            capture_output=True, text=True)
+    assert failed.returncode == 2 and "holds no stages" in failed.stderr and not (tmp_path / "x.pt").exists()
