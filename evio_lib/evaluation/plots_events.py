@@ -112,7 +112,8 @@ def plot_adaptive_window(count: np.ndarray, active: np.ndarray, ratio: float, n_
 
 
 def plot_training_history(history: Sequence[Mapping[str, float]]) -> plt.Figure:
-    """Return the validation SSIM and loss of a reconstructor training run against the step.
+    """Return the validation SSIM of a reconstructor training run against the step: raw, and after the benchmark's
+    percentile stretch where the run recorded it (``val_ssim_stretched``).
 
     Entries with a ``stage`` key (a fine-tuning stage on other data, with its own validation set) are drawn as one
     line per stage.
@@ -124,14 +125,16 @@ def plot_training_history(history: Sequence[Mapping[str, float]]) -> plt.Figure:
         steps = [h["step"] for h in part]
         label = f"stage {stage}" if len(stages) > 1 else None
         a.plot(steps, [h["val_ssim"] for h in part], "o-", color=f"C{stage - 1}", label=label)
-        b.plot(steps, [h["val_loss"] for h in part], "o-", color=f"C{stage - 1}", label=label)
+        stretched = [(h["step"], h["val_ssim_stretched"]) for h in part if "val_ssim_stretched" in h]
+        if stretched:
+            b.plot(*zip(*stretched), "o-", color=f"C{stage - 1}", label=label)
     a.set_xlabel("training step (batches)")
     a.set_ylabel("validation SSIM (1 = identical)")
     b.set_xlabel("training step (batches)")
-    b.set_ylabel("validation loss (L1 + (1 - SSIM) + temporal)")
+    b.set_ylabel("validation SSIM, both stretched")
     for ax in (a, b):
         ax.grid(alpha=0.3)
-        if len(stages) > 1:
+        if len(stages) > 1 and ax.get_legend_handles_labels()[0]:
             ax.legend()
     fig.tight_layout()
     return fig

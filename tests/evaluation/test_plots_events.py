@@ -35,10 +35,13 @@ def test_figures_have_their_panels():
     assert len(fig4.axes) == 2
     assert [ax.get_xlabel() for ax in fig4.axes] == ["training step (batches)"] * 2
     staged = [{"step": 1, "val_ssim": 0.5, "val_loss": 0.9, "stage": 1}, {"step": 2, "val_ssim": 0.6, "val_loss": 0.8,
-                                                                         "stage": 2}]
+                                                                         "stage": 2},
+              {"step": 3, "val_ssim": 0.6, "val_ssim_stretched": 0.45, "stage": 3},
+              {"step": 4, "val_ssim": 0.61, "val_ssim_stretched": 0.48, "stage": 3}]
     fig5 = plot_training_history(staged)
-    assert [len(ax.lines) for ax in fig5.axes] == [2, 2]       # one curve per stage on each panel
-    assert [t.get_text() for t in fig5.axes[0].get_legend().get_texts()] == ["stage 1", "stage 2"]
+    assert [len(ax.lines) for ax in fig5.axes] == [3, 1]       # raw SSIM per stage; stretched where recorded
+    assert [t.get_text() for t in fig5.axes[0].get_legend().get_texts()] == ["stage 1", "stage 2", "stage 3"]
+    assert fig5.axes[1].lines[0].get_ydata().tolist() == [0.45, 0.48]
     plt.close("all")
 
 
