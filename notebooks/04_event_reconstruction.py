@@ -437,22 +437,23 @@ print("(SSIM / MSE)")
 
 # %%
 classical = {name: max(scores[name, "direct"]["ssim"], scores[name, "high_pass"]["ssim"]) for name in stretches}
-for name in ("boxes_like_slow", "boxes_like_fast"):
-    assert scores[name, "firenet"]["ssim"] > classical[name] + 0.03, name
-assert 0 < scores["aerial_like", "firenet"]["ssim"] - classical["aerial_like"] < 0.03
-assert scores["aerial_like", "firenet"]["mse"] > 1.5 * scores["aerial_like", "high_pass"]["mse"]
-assert scores["aerial_like", "firenet"]["mse"] > scores["aerial_like", "direct"]["mse"]
+for name in stretches:
+    assert scores[name, "firenet"]["ssim"] > classical[name] + 0.05, name
+margin = {name: scores[name, "firenet"]["ssim"] - classical[name] for name in stretches}
+assert min(margin, key=margin.get) == "aerial_like" and margin["aerial_like"] < 0.1
+assert scores["aerial_like", "high_pass"]["mse"] < scores["aerial_like", "firenet"]["mse"] < 1.15 * scores[
+    "aerial_like", "high_pass"]["mse"]
 integrator_mse = min(scores["boxes_like_fast", m]["mse"] for m in ("direct", "high_pass"))
 assert scores["boxes_like_fast", "firenet"]["mse"] < 0.6 * integrator_mse
 
 # %% [markdown]
-# On both boxes stretches the learned network scores a higher SSIM than both classical integrators, by more than 0.03.
-# Over the sparse terrain it is ahead by less than 0.03 SSIM, too small a margin on a few windows of one stretch to
-# call a win, and its MSE there is more than 1.5 times the high-pass filter's.
+# On all three stretches the learned network scores a higher SSIM than both classical integrators, by more than 0.05;
+# over the sparse terrain the margin is smallest (under 0.1), and its MSE there is slightly higher than the high-pass
+# filter's (by less than 15 %).
 # Direct integration and the high-pass filter only know where the log intensity changed, so flat regions stay at an
 # arbitrary gray and old noise lingers; the network has learned what images look like and fills them in, which pays
 # off in structure (SSIM) where many edges move and costs where it guesses a large flat field's brightness wrongly:
-# a wrong field is wrong everywhere, which MSE punishes more than SSIM. Where the camera moves fast and events cover
+# a wrong field is wrong everywhere, which MSE punishes more than SSIM (hence the terrain's MSE). Where the camera moves fast and events cover
 # the whole view (the violent boxes) its MSE is also below both integrators', less than 0.6 times the better
 # one's.
 
@@ -535,17 +536,17 @@ spread = {name: max(v[1:]) - min(v[1:]) for name, v in sweep.items()}   # from n
 print("spread of SSIM from n = 0.1 up:", {name: round(f, 3) for name, f in spread.items()})
 for name, values in sweep.items():
     assert best_n[name] <= 0.1 and values[-1] == min(values), name    # small windows best, n = 1 worst
-assert spread["boxes_like_slow"] > 0.05 and spread["aerial_like"] < 0.04
-assert sweep["boxes_like_slow"][1] - sweep["boxes_like_slow"][-1] > 0.05    # n = 0.1 against n = 1
+assert spread["boxes_like_slow"] > 0.1 and spread["aerial_like"] > 0.04
+assert sweep["boxes_like_slow"][1] - sweep["boxes_like_slow"][-1] > 0.1     # n = 0.1 against n = 1
 train_data = checkpoint["training_set_manifest"]["config"]  # the shipped network's training set, in its checkpoint
 print(f"the shipped network was trained on windows of n = {train_data['fraction_min']}-{train_data['fraction_max']} "
       f"and on time windows ({train_data['time_window_probability']:.0%} of the sequences)")
 assert (train_data["fraction_min"], train_data["fraction_max"]) == (0.05, 1.0)
 
 # %% [markdown]
-# Both scenes score best with the smallest windows tried here (n = 0.05-0.1) and worst with the largest (n = 1). Over
-# the terrain the whole range from n = 0.1 up lies within 0.04 SSIM; on the gentle boxes SSIM falls by more than 0.05
-# from n = 0.1 to n = 1, and the thesis's n = 0.7 (dotted line) is not the best there. Mind the scale: one stretch per
+# Both scenes score best with the smallest windows tried here (n = 0.05-0.1) and worst with the largest (n = 1). On
+# the gentle boxes SSIM falls by more than 0.1 from n = 0.1 to n = 1, over the terrain by more than 0.04, and the
+# thesis's n (dotted lines) is the best on neither. Mind the scale: one stretch per
 # scene, a few scored windows, and part of the trend may be the start-up: every stretch starts from an empty memory,
 # and with smaller windows the network has seen more of them by the time scoring begins (0.1 s in). The thesis's n
 # were chosen by eye, on real recordings, for E2VID (its refs. 16 and 17); ours are measured against a truth, on
@@ -623,12 +624,11 @@ else:
     assert len(slider["frame_times"]) == 5 and 0.16 < np.ptp(slider["events"]["t"]) < 0.18
     assert slider["frame_times"][0] < slider["events"]["t"][0] and len(real["firenet"]["per_frame"]) == 4
     assert real["firenet"]["ssim"] > max(real["direct"]["ssim"], real["high_pass"]["ssim"]) + 0.05
-    assert abs(real["firenet"]["mse"] - real["high_pass"]["mse"]) < 0.01
+    assert real["firenet"]["mse"] < min(real["direct"]["mse"], real["high_pass"]["mse"]) - 0.01
 
 # %% [markdown]
 # On the real slider the network's SSIM is more than 0.05 above both integrators', on a sensor and a scene it never
-# saw in training; its MSE is within 0.01 of the high-pass filter's: it gets more of the structure right, not the
-# overall brightness. For orientation only (other frames, windows and normalisation): EVREAL reports SSIM on the ECD
+# saw in training, and its MSE is lower than both, by more than 0.01. For orientation only (other frames, windows and normalisation): EVREAL reports SSIM on the ECD
 # of 0.42 for E2VID and 0.50 for FireNet trained on far more data.
 
 # %% [markdown]
@@ -672,9 +672,10 @@ assert summary["best_val_ssim"] > untrained["ssim"]
 # - SSIM compares local means, contrasts and correlations in a Gaussian window; the project scores it after
 #   stretching both images' 1st/99th percentiles to 0/1, because events carry no absolute brightness.
 # - A 38 k-parameter recurrent network (two ConvGRU cells, whose update gate decides how much memory to keep) trained
-#   on a simulated training set of many short sequences beats both integrators on SSIM on the simulated boxes and on
-#   real events; over sparse terrain it is ahead on SSIM by less than 0.03 and its MSE is higher than the
-#   integrators' there; on this simulator the APS frames still score higher.
+#   on a simulated training set of many short sequences beats both integrators on SSIM by more than 0.05 on every
+#   simulated stretch and on real events (its last training stage also scored the stretched images, as the benchmark
+#   does); over sparse terrain its MSE is still slightly above the high-pass filter's; on this simulator the APS
+#   frames still score higher.
 # - `precision="int8"` runs the network's convolutions on 8-bit integers (x ≈ s (q − z), ranges calibrated once),
 #   at an SSIM within 0.02 of the float network on the violent stretch.
 # - Measure the window fraction n on your own scene (here both simulated scenes scored best with small windows, one
