@@ -3,7 +3,7 @@
 Usage:
     python tools/ship_reconstructor.py --stage RUN1/best.pt "COMMAND 1" [--stage RUN2/best.pt "COMMAND 2" ...] \\
         --out evio_lib/weights/reconstruction_firenet.pt
-    python tools/ship_reconstructor.py --base evio_lib/weights/reconstruction_firenet.pt \
+    python tools/ship_reconstructor.py --base evio_lib/weights/reconstruction_firenet.pt \\
         --stage RUN3/best.pt "COMMAND 3" --out evio_lib/weights/reconstruction_firenet.pt   # one stage more
     python tools/ship_reconstructor.py --int8-ranges evio_lib/weights/reconstruction_firenet.pt   # only add those
 
@@ -45,6 +45,12 @@ def main() -> None:
         if "stages" not in base:
             parser.error(f"--base {args.base} holds no stages: not a file written by this tool")
         history, stages, offset = list(base["history"]), list(base["stages"]), int(base["step"])
+        network = (base["architecture"], base["num_bins"], dict(base.get("network_options") or {}))
+        for path, _ in args.stage:
+            ckpt = torch.load(path, map_location="cpu", weights_only=True)
+            if (ckpt["architecture"], ckpt["num_bins"], dict(ckpt.get("network_options") or {})) != network:
+                parser.error(f"{path} holds another network than --base {args.base} ({network[0]}, "
+                             f"{network[1]} bins, options {network[2]})")
     for number, (path, command) in enumerate(args.stage, start=len(stages) + 1):
         ckpt = torch.load(path, map_location="cpu", weights_only=True)
         for entry in ckpt["history"]:
@@ -63,7 +69,9 @@ def main() -> None:
     shipped.update(step=offset, history=history, stages=stages, command=stages[-1]["command"])
     _add_int8_ranges(shipped)
     _save(shipped, args.out)
-    print(f"wrote {args.out}: {len(stages)} stages, {offset} steps, validation SSIM {shipped['best_val_ssim']:.3f}")
+    metric = (last["config"] or {}).get("select_by", "ssim")
+    print(f"wrote {args.out}: {len(stages)} stages, {offset} steps, best validation {metric} "
+          f"{shipped['best_val_ssim']:.3f}")
 
 
 def _add_int8_ranges(shipped: dict) -> None:

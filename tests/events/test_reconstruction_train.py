@@ -195,3 +195,33 @@ def test_ship_tool_appends_a_stage_to_the_shipped_file(tmp_path, tiny_data):
                              str(tmp_path / "run" / "best.pt"), "x", "--out", str(tmp_path / "x.pt")],
                             capture_output=True, text=True)
     assert failed.returncode == 2 and "holds no stages" in failed.stderr and not (tmp_path / "x.pt").exists()
+    wider = ReconstructionTrainConfig(data=DATA, n_train=6, n_val=2, batch_size=2, crop=24, steps=1, validate_every=1,
+                                      network_options={"channels": 8})
+    train_reconstructor(wider, tmp_path / "wide", data=data, val_data=val, progress=False)
+    failed = subprocess.run([sys.executable, str(tool), "--base", str(shipped_checkpoint("firenet")), "--stage",
+                             str(tmp_path / "wide" / "last.pt"), "x", "--out", str(tmp_path / "x.pt")],
+                            capture_output=True, text=True)
+    assert failed.returncode == 2 and "another network" in failed.stderr and not (tmp_path / "x.pt").exists()
+
+
+def test_resume_keeps_a_cosine_schedule_and_accepts_runs_saved_before_the_new_settings(tmp_path, tiny_data):
+    data, val = tiny_data
+    base = dict(data=DATA, n_train=6, n_val=2, batch_size=2, crop=24, validate_every=2)
+    cosine = ReconstructionTrainConfig(steps=4, lr_schedule="cosine", **base)
+    train_reconstructor(ReconstructionTrainConfig(steps=4, lr_schedule="cosine", max_minutes=1e-9, **base),
+                        tmp_path / "c", data=data, val_data=val, progress=False)         # stops after one step
+    longer = ReconstructionTrainConfig(steps=8, lr_schedule="cosine", **base)
+    with pytest.raises(ValueError, match="cosine schedule over steps = 4"):
+        train_reconstructor(longer, tmp_path / "c", resume=True, data=data, val_data=val, progress=False)
+    assert train_reconstructor(cosine, tmp_path / "c", resume=True, data=data, val_data=val,
+                               progress=False)["steps"] == 4
+    # a last.pt written before lambda_stretched, lr_schedule, lr_final_fraction and select_by existed
+    plain = ReconstructionTrainConfig(steps=2, **base)
+    train_reconstructor(plain, tmp_path / "old", data=data, val_data=val, progress=False)
+    ckpt = torch.load(tmp_path / "old" / "last.pt", weights_only=True)
+    for key in ("lambda_stretched", "lr_schedule", "lr_final_fraction", "select_by"):
+        del ckpt["config"][key]
+    torch.save(ckpt, tmp_path / "old" / "last.pt")
+    more = ReconstructionTrainConfig(steps=4, **base)
+    assert train_reconstructor(more, tmp_path / "old", resume=True, data=data, val_data=val,
+                               progress=False)["steps"] == 4

@@ -382,6 +382,10 @@ def evaluate_on_samples(net: torch.nn.Module, data, config: ReconstructionTrainC
 _RESUMABLE_KEYS = ("steps", "max_minutes", "threads", "device", "validate_every")
 
 
+#: Settings added after runs were first saved, with the values those runs had in effect.
+_ADDED_SETTINGS = {"lambda_stretched": 0.0, "lr_schedule": "constant", "lr_final_fraction": 0.05, "select_by": "ssim"}
+
+
 def _run_defining(values: dict) -> dict:
     """Return the settings that define a run (everything but :data:`_RESUMABLE_KEYS`)."""
     return {k: v for k, v in values.items() if k not in _RESUMABLE_KEYS}
@@ -454,8 +458,14 @@ def train_reconstructor(config: ReconstructionTrainConfig, out: str | Path, resu
         if missing:
             raise ValueError(f"--resume: {last} lacks {missing}: not the last.pt of a reconstruct-train run "
                              f"(start a new --out folder)")
-        if not isinstance(ckpt["config"], dict) or _run_defining(ckpt["config"]) != _run_defining(config.to_dict()):
+        if not isinstance(ckpt["config"], dict):
+            raise ValueError(f"--resume: {last} holds no config; start a new --out folder")
+        theirs = {**_ADDED_SETTINGS, **ckpt["config"]}                 # runs saved before these settings existed
+        if _run_defining(theirs) != _run_defining(config.to_dict()):
             raise ValueError(f"--resume: {last} was trained with a different config; start a new --out folder")
+        if config.lr_schedule == "cosine" and theirs.get("steps") != config.steps:
+            raise ValueError(f"--resume: {last} follows a cosine schedule over steps = {theirs.get('steps')}; resume "
+                             f"with that --steps (another would move the schedule) or start a new --out folder")
         try:
             load_state(net, ckpt["state_dict"], last, f"its state_dict does not fit this run's {config.architecture} "
                        f"network")
