@@ -39,20 +39,19 @@ def main() -> None:
         return
     if not args.stage or args.out is None:
         parser.error("--stage and --out are needed (or --int8-ranges FILE)")
-    history, stages, offset, last = [], [], 0, None
+    history, stages, offset, last, network = [], [], 0, None, None
     if args.base is not None:
         base = torch.load(args.base, map_location="cpu", weights_only=True)
         if "stages" not in base:
             parser.error(f"--base {args.base} holds no stages: not a file written by this tool")
         history, stages, offset = list(base["history"]), list(base["stages"]), int(base["step"])
         network = (base["architecture"], base["num_bins"], dict(base.get("network_options") or {}))
-        for path, _ in args.stage:
-            ckpt = torch.load(path, map_location="cpu", weights_only=True)
-            if (ckpt["architecture"], ckpt["num_bins"], dict(ckpt.get("network_options") or {})) != network:
-                parser.error(f"{path} holds another network than --base {args.base} ({network[0]}, "
-                             f"{network[1]} bins, options {network[2]})")
     for number, (path, command) in enumerate(args.stage, start=len(stages) + 1):
         ckpt = torch.load(path, map_location="cpu", weights_only=True)
+        if network is not None and (ckpt["architecture"], ckpt["num_bins"],
+                                    dict(ckpt.get("network_options") or {})) != network:
+            parser.error(f"{path} holds another network than --base {args.base} ({network[0]}, {network[1]} bins, "
+                         f"options {network[2]})")
         for entry in ckpt["history"]:
             history.append({**entry, "step": entry["step"] + offset, "stage": number})
         manifest = ckpt.get("training_set_manifest")

@@ -382,10 +382,6 @@ def evaluate_on_samples(net: torch.nn.Module, data, config: ReconstructionTrainC
 _RESUMABLE_KEYS = ("steps", "max_minutes", "threads", "device", "validate_every")
 
 
-#: Settings added after runs were first saved, with the values those runs had in effect.
-_ADDED_SETTINGS = {"lambda_stretched": 0.0, "lr_schedule": "constant", "lr_final_fraction": 0.05, "select_by": "ssim"}
-
-
 def _run_defining(values: dict) -> dict:
     """Return the settings that define a run (everything but :data:`_RESUMABLE_KEYS`)."""
     return {k: v for k, v in values.items() if k not in _RESUMABLE_KEYS}
@@ -460,7 +456,8 @@ def train_reconstructor(config: ReconstructionTrainConfig, out: str | Path, resu
                              f"(start a new --out folder)")
         if not isinstance(ckpt["config"], dict):
             raise ValueError(f"--resume: {last} holds no config; start a new --out folder")
-        theirs = {**_ADDED_SETTINGS, **ckpt["config"]}                 # runs saved before these settings existed
+        # a setting added after the run was saved had its default in effect (each default keeps the old behaviour)
+        theirs = {**ReconstructionTrainConfig().to_dict(), **ckpt["config"]}
         if _run_defining(theirs) != _run_defining(config.to_dict()):
             raise ValueError(f"--resume: {last} was trained with a different config; start a new --out folder")
         if config.lr_schedule == "cosine" and theirs.get("steps") != config.steps:
