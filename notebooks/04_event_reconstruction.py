@@ -351,8 +351,10 @@ assert difference < 1e-5
 # photographs, farmland and procedural textures, some blurred; motion from slow to violent; a contrast threshold C per
 # sequence from E2VID's N(0.18, 0.03) or E2VID+'s wider U(0.2, 1.5), with per-pixel mismatch, a refractory period,
 # background and leak noise and hot pixels; 40 windows per sequence, either of n H W events with n drawn between 0.05
-# and 1 (lowered when a sequence has too few events) or of equal duration, each with the sharp image at its end. Three of its training sequences, made here from their
-# seeds (sequence i of a set made with seed 0 and the default settings):
+# and 1 or of equal duration, each with the sharp image at its end. A sequence with too few events for its 40 windows
+# of n H W is simulated again for longer (the same scene and motion, up to 30 s), so that large windows are trained on
+# as often as small ones. Three of its training sequences, made here from their seeds (sequence i of a set made with
+# seed 0 and the default settings):
 
 # %%
 from evio_lib.evaluation.plots_events import plot_training_sequences

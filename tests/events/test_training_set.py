@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import json
 
+import cv2
 import numpy as np
 import pytest
 import torch
 
 from evio_lib.events.array import make_events
+from evio_lib.events.reconstruction.data import SmoothCameraMotion, fold_time
 from evio_lib.events.reconstruction.training import _augment_batch, warp_with_flow
 from evio_lib.events.reconstruction.training_set import (_LayeredScene, TrainingSetConfig, load_sequence,
                                                          make_sequence, make_training_set, read_training_set)
@@ -30,13 +32,54 @@ def test_sequences_are_deterministic_and_shaped():
     assert meta_a["contrast_pos"] > 0 and meta_a["events"] >= 4 * 0.05 * 32 * 32
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
-def test_flow_maps_each_pixel_to_where_it_was(seed):
+def test_fold_time_is_a_triangle_wave():
+    period = 1.5
+    t = np.array([0.0, 0.7, 1.5, 2.0, 3.0, 3.4, 4.5, 6.0])
+    want = np.array([0.0, 0.7, 1.5, 1.0, 0.0, 0.4, 1.5, 0.0])      # up to 1.5, down to 0 at 3, up again
+    np.testing.assert_allclose([fold_time(float(x), period) for x in t], want, atol=1e-12)
+    dense = np.linspace(0.0, 10.0, 20001)
+    folded = np.array([fold_time(float(x), period) for x in dense])
+    assert folded.min() >= 0.0 and folded.max() <= period
+    assert np.abs(np.diff(folded)).max() <= (dense[1] - dense[0]) + 1e-12     # continuous, slope +-1
+
+
+def test_motion_stays_within_its_bounds_beyond_its_duration():
+    """The rotation and translation bounds drawn for 1 s hold over 10 s: the drift turns round, the sinusoids go on."""
+    for seed in range(5):
+        motion = SmoothCameraMotion(np.random.default_rng(seed), 3.0, 1.2, 2.0, 1.0, 0.5)
+        for t in np.linspace(0.0, 10.0, 401):
+            R, p = motion.pose(float(t))
+            theta = np.linalg.norm(cv2.Rodrigues(R)[0])
+            assert theta <= 0.6 * np.sqrt(3) + 1e-9
+            assert np.abs(-R.T @ p).max() <= 0.5 + 1e-9             # the centre in C0
+
+
+def test_a_slow_sequence_is_lengthened_to_hold_the_windows_drawn():
+    """Count windows of n = 0.8 H W events on a slow camera: generator version 2 cut n to the events of 1 s; now the
+    same scene is simulated for longer, and n is what was drawn."""
+    config = TrainingSetConfig(height=32, width=32, windows=8, duration_min=1.0, duration_max=1.0,
+                               fraction_min=0.8, fraction_max=0.8, time_window_probability=0.0, speed_min=0.2,
+                               speed_max=0.2, max_foreground=0)
+    lengthened = 0
+    for seed in range(3):
+        arrays, meta = make_sequence(np.random.default_rng(seed), "train", config)
+        assert meta["rule"] == "count" and meta["fraction_drawn"] == pytest.approx(0.8)
+        assert meta["duration"] <= config.duration_extend_max
+        if meta["duration"] < config.duration_extend_max:           # not at the limit: the events were enough
+            assert meta["fraction"] == pytest.approx(0.8, abs=1 / (32 * 32))
+        lengthened += meta["duration"] > 1.0
+        assert np.isfinite(arrays["flow"].astype(np.float32)).all()
+    assert lengthened >= 2                                           # 1 s of this motion is too short for most
+
+
+@pytest.mark.parametrize("seed, t0", [(0, 0.30), (1, 0.30), (2, 0.30), (0, 1.62), (1, 2.45)])
+def test_flow_maps_each_pixel_to_where_it_was(seed, t0):
     """Warping the earlier render by the stored flow reproduces the later render (the TC loss's truth), far better than
-    no warp, on a scene with several independently moving planes."""
+    no warp, on a scene with several independently moving planes; also beyond the drawn time, where the drift runs
+    back (1.62 s: after the first turn at 1 s; 2.45 s: after the second)."""
     config = TrainingSetConfig(height=48, width=48, max_foreground=3, speed_min=1.0, speed_max=2.0)
     scene = _LayeredScene(np.random.default_rng(seed), "val", config, 1.0)
-    t0, t1 = 0.30, 0.34
+    t1 = t0 + 0.04
     prev, cur = scene.render(t0), scene.render(t1)
     flow = scene.flow_to(t1, t0)
     warped = warp_with_flow(torch.from_numpy(prev)[None, None], torch.from_numpy(flow)[None])[0, 0].numpy()

@@ -136,6 +136,14 @@ def _texture(rng: np.random.Generator, split: str, size: tuple[int, int], config
     return random_contrast(rng, tex)
 
 
+def fold_time(t: float, period: float) -> float:
+    """Return t folded into [0, period] back and forth (a triangle wave): t for t <= period, then 2 period - t, ..."""
+    if t <= period or period <= 0:
+        return t
+    phase = t % (2 * period)
+    return phase if phase <= period else 2 * period - phase
+
+
 class SmoothCameraMotion:
     """Random smooth 6-DoF camera motion: per axis a drift plus one sinusoid, for the rotation vector theta(t) and the
     camera centre c(t) in the reference frame C0, scaled by ``speed`` (about view widths per second).
@@ -143,10 +151,15 @@ class SmoothCameraMotion:
     theta(t) = d t + a (sin(2 pi f t + phi) - sin(phi)), and likewise c(t) (translations scaled by ``depth``); drift and
     amplitude are shrunk so that, over ``duration``, each axis turns by at most 0.6 rad and moves by at most
     ``translation_limit``: the scene stays in front of the camera. :meth:`pose` returns (R_C0toCt, p_C0inCt).
+
+    Beyond ``duration`` the drift runs back and forth (its time folded into [0, duration]: the camera retraces its
+    path and turns round), so that a motion can be sampled for as long as wanted and stays within the same bounds;
+    the sinusoids go on as they are.
     """
 
     def __init__(self, rng: np.random.Generator, speed: float, view_angle: float, depth: float, duration: float,
                  translation_limit: float) -> None:
+        self.duration = float(duration)
         self.rot = [rng.normal(0.0, 0.4, 3) * speed * view_angle * np.array([1.0, 1.0, 0.5]),
                     rng.uniform(0.0, 0.25, 3) * speed * view_angle, rng.uniform(0.5, 3.0, 3), rng.uniform(0, 2 * np.pi, 3)]
         self.pos = [rng.normal(0.0, 0.3, 3) * speed * depth * view_angle * np.array([1.0, 1.0, 0.5]),
@@ -160,9 +173,11 @@ class SmoothCameraMotion:
 
     def pose(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Return (R_C0toCt, p_C0inCt) at time t."""
+        t_drift = fold_time(t, self.duration)
+
         def curve(params):
             drift, amp, freq, phase = params
-            return drift * t + amp * (np.sin(2 * np.pi * freq * t + phase) - np.sin(phase))
+            return drift * t_drift + amp * (np.sin(2 * np.pi * freq * t + phase) - np.sin(phase))
 
         R = cv2.Rodrigues(curve(self.rot))[0].T                  # exp(theta^) = R_CttoC0, transposed
         return R, -R @ curve(self.pos)

@@ -16,7 +16,7 @@ def add_reconstruct_data_arguments(parser: argparse.ArgumentParser) -> argparse.
     parser.add_argument("--out", type=output_folder(), required=True,
                         help="the set's folder: training_set.json, train/, val/, test/ (run again to resume or extend)")
     parser.add_argument("--sequences", type=int, default=2000,
-                        help="training sequences (default 2000: about 8 minutes on two idle cores, 1.9 GB)")
+                        help="training sequences (default 2000: about 20 minutes on two idle cores, 1.9 GB)")
     parser.add_argument("--val", type=int, default=64, help="validation sequences (default 64)")
     parser.add_argument("--test", type=int, default=64, help="test sequences (default 64)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the set (default 0)")

@@ -31,8 +31,11 @@ every machine, for any number of worker processes, and in a set of any size.
   C- = C U(0.8, 1.25); per-pixel mismatch sigma = C U(0, 0.15); refractory period U(0, 1 ms); background activity
   U(0, 1) Hz per pixel; leak events U(0, 0.2) Hz per pixel; hot pixels (up to 0.1 % of the pixels, 100-1000 Hz).
 - **Windows**, so that one network serves every window rule: with probability 0.7 windows of N_e = n H W events with
-  n log-uniform over [0.05, 1.0] (lowered when the sequence has too few events), else windows of a fixed duration
-  (the sequence's length / L). L windows per sequence (40 by default), each stored as a normalised voxel grid with
+  n log-uniform over [0.05, 1.0], else windows of a fixed duration (the sequence's length / L). The rule and n are
+  drawn first; a sequence with fewer than L N_e events is simulated again, the same scene, sensor and motion over a
+  longer time (up to ``duration_extend_max``; the motion's drift then runs back and forth), so that the windows have the n drawn (generator version 2 cut n to
+  the events there were: its median count-window n was 0.11 instead of 0.22, and only 6 % of its count sequences
+  had n >= 0.5 instead of 23 %). L windows per sequence (40 by default), each stored as a normalised voxel grid with
   B bins, the sharp intensity at its end, and the true flow of every pixel into the previous window's end view (for the
   temporal-consistency loss): flow_k(u) = pi(H_j(t_k-1) H_j(t_k)^-1 u) - u with j the plane visible at u.
 
@@ -54,6 +57,7 @@ import numpy as np
 
 from evio_lib.events.array import concatenate_events
 from evio_lib.events.reconstruction.data import (_SPLIT_SEED_OFFSET, SPLIT_PHOTOS, SmoothCameraMotion, _photo,
+                                                 fold_time,
                                                  hot_pixel_events, random_contrast, random_crop)
 from evio_lib.events.representations import count_windows, time_windows, voxel_grid
 from evio_lib.events.simulate import EventCameraParams, simulate_events
@@ -65,9 +69,10 @@ __all__ = ["TrainingSetConfig", "SPLITS", "make_sequence", "make_training_set", 
 SPLITS = ("train", "val", "test")
 MANIFEST_NAME = "training_set.json"
 _FORMAT = "evio-reconstruction-set-v1"
-#: Raised whenever the generator draws differently for the same settings (2: zoomed and blurred textures), so that a
-#: set is never resumed or extended with sequences of another generator.
-GENERATOR_VERSION = 2
+#: Raised whenever the generator draws differently for the same settings (2: zoomed and blurred textures; 3: the
+#: window rule drawn first and the sequence lengthened to hold it), so that a set is never resumed or extended with
+#: sequences of another generator.
+GENERATOR_VERSION = 3
 _ARRAYS = ("voxels", "frames", "flow")
 
 
@@ -81,6 +86,7 @@ class TrainingSetConfig:
     num_bins: int = 5                     # voxel-grid bins B
     duration_min: float = 1.0             # seconds simulated per sequence ~ U(duration_min, duration_max)
     duration_max: float = 2.0
+    duration_extend_max: float = 30.0     # a sequence too short for its windows is simulated again up to this long
     fraction_min: float = 0.05            # count windows: n log-uniform over [fraction_min, fraction_max]
     fraction_max: float = 1.0
     time_window_probability: float = 0.3  # else count windows
@@ -108,6 +114,9 @@ class TrainingSetConfig:
                 raise ValueError(f"need 0 < {low} <= {high}; got {lo}, {hi}")
         if self.duration_max > 30:
             raise ValueError(f"duration_max must be <= 30 s per sequence; got {self.duration_max}")
+        if not (np.isfinite(self.duration_extend_max) and self.duration_max <= self.duration_extend_max <= 30):
+            raise ValueError(f"need duration_max <= duration_extend_max <= 30 s; got {self.duration_max}, "
+                             f"{self.duration_extend_max}")
         if self.fraction_max > 10:
             raise ValueError(f"fraction_max must be <= 10; got {self.fraction_max}")
         if not 0 <= self.time_window_probability <= 1:
@@ -219,9 +228,10 @@ class _LayeredScene:
     def homographies(self, t: float) -> list[np.ndarray]:
         """Return H_k(t) for every layer: reference-view pixels of plane k -> pixels of the view at t."""
         R, p = self.motion.pose(t)
+        t_drift = fold_time(t, self.motion.duration)             # beyond the drawn time the planes move back too
         out = []
         for _, _, normal, depth, velocity in self.layers:
-            p_k = p + R @ velocity * t                           # the plane's own motion, seen from Ct
+            p_k = p + R @ velocity * t_drift                     # the plane's own motion, seen from Ct
             H = self.K @ (R + np.outer(p_k, normal) / depth) @ self.K_inv
             out.append(H / H[2, 2])
         return out
@@ -284,32 +294,47 @@ def make_sequence(rng: np.random.Generator, split: str = "train", config: Traini
     intensity at each window's end), ``flow`` (L, 2, H, W) float16 (pixel k -> its place in view k - 1, minus itself;
     zero for k = 0). metadata: the drawn contrast, window rule, speed, events and duration.
 
-    A sequence with too few events for L windows of at least 0.05 H W events each (almost no motion, or very high
-    thresholds) is drawn again, up to ``max_tries`` times.
+    The window rule (and for count windows n) is drawn first. A sequence with fewer than L n H W events is simulated
+    again (at most twice) with the same scene, sensor and motion (the generator's state restored) over a longer time,
+    at most ``config.duration_extend_max`` (beyond the drawn time the motion's drift runs back and forth:
+    :class:`~evio_lib.events.reconstruction.data.SmoothCameraMotion`); only then is n lowered to the events there
+    are. A sequence with too few events
+    even for L windows of 0.05 H W events (almost no motion, or very high thresholds) is drawn again, up to
+    ``max_tries`` times.
     """
     if split not in SPLITS:
         raise ValueError(f"split must be one of {SPLITS}; got {split!r}")
     h, w, L = config.height, config.width, config.windows
     for _ in range(max_tries):
+        rule = "time" if rng.random() < config.time_window_probability else "count"
+        fraction = float(np.exp(rng.uniform(np.log(config.fraction_min), np.log(config.fraction_max))))
+        needed = L * fraction * h * w if rule == "count" else L * 0.05 * h * w
         duration = float(rng.uniform(config.duration_min, config.duration_max))
-        scene = _LayeredScene(rng, split, config, duration)
-        params = _sensor(rng, config)
-        events, _ = simulate_events(scene.render, 0.0, duration, w, h, params=params, rng=rng, change_quantile=0.99,
-                                    dt_min=1e-5)
-        events = concatenate_events([events, hot_pixel_events(rng, w, h, duration, config.hot_pixel_fraction_max)])
+        state, drawn_duration = rng.bit_generator.state, duration
+        for _lengthen in range(3):
+            scene = _LayeredScene(rng, split, config, drawn_duration)
+            params = _sensor(rng, config)
+            events, _ = simulate_events(scene.render, 0.0, duration, w, h, params=params, rng=rng,
+                                        change_quantile=0.99, dt_min=1e-5)
+            events = concatenate_events([events, hot_pixel_events(rng, w, h, duration,
+                                                                  config.hot_pixel_fraction_max)])
+            if events.size >= needed or duration >= config.duration_extend_max:
+                break
+            # the same scene and motion sampled for longer (beyond the drawn time the drift runs back and forth):
+            # the events grow about in proportion to the time; aim 20 % above the need
+            duration = min(config.duration_extend_max, 1.2 * duration * needed / max(events.size, 1))
+            rng.bit_generator.state = state
         if events.size >= L * 0.05 * h * w:
             break
     else:
         raise RuntimeError(f"no sequence with {L} windows of >= 0.05 H W events in {max_tries} tries; "
                            f"lower the thresholds' range or raise speed_min")
-    if rng.random() < config.time_window_probability:
-        rule = "time"
+    fraction_drawn = fraction if rule == "count" else None
+    if rule == "time":
         bounds, t_end = time_windows(events, duration / L, t_start=0.0, t_end=duration)
         bounds, t_end = bounds[:L], t_end[:L]
         fraction = float(np.mean(np.diff(bounds, axis=1))) / (h * w)
     else:
-        rule = "count"
-        fraction = float(np.exp(rng.uniform(np.log(config.fraction_min), np.log(config.fraction_max))))
         n_events = min(int(round(fraction * h * w)), events.size // L)
         fraction = n_events / (h * w)
         bounds = count_windows(events, n_events)[:L]
@@ -319,7 +344,7 @@ def make_sequence(rng: np.random.Generator, split: str = "train", config: Traini
     flow = np.stack([np.zeros((2, h, w), np.float32)] +
                     [scene.flow_to(float(t_end[k]), float(t_end[k - 1])) for k in range(1, L)]).astype(np.float16)
     meta = {"contrast_pos": params.contrast_pos, "contrast_neg": params.contrast_neg, "rule": rule,
-            "fraction": fraction, "speed": scene.speed, "layers": len(scene.layers), "events": int(events.size),
+            "fraction": fraction, "fraction_drawn": fraction_drawn, "speed": scene.speed, "layers": len(scene.layers), "events": int(events.size),
             "duration": duration, "noise_hz": params.background_rate_hz}
     return {"voxels": voxels, "frames": frames, "flow": flow}, meta
 
