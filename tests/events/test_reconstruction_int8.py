@@ -116,9 +116,10 @@ def test_int8_stays_close_to_float32_over_a_whole_sequence(firenet):
     assert int8_images.dtype == np.float32 and 0.0 <= int8_images.min() and int8_images.max() <= 1.0
     assert h1.dtype == h2.dtype == torch.float32 and h1.shape == (1, 16, 64, 64)
     difference = np.abs(int8_images - float_images)
-    # measured: 0.012 on the mean, 0.016 in the worst window with the stage-3 weights shipped since 2026-12-01
-    # (0.0043 / 0.0049 with the stage-2 weights before them); a wrong kernel or range is off by far more
-    assert difference.mean() < 0.02 and difference.mean(axis=(1, 2)).max() < 0.025
+    # measured with the stage-3 weights shipped since 2026-12-01: 0.0055 on the mean, 0.011 in the worst window since
+    # the calibration sequences come from generator version 3 (0.012 / 0.016 from version 2's, whose windows were
+    # mostly small; 0.0043 / 0.0049 with the stage-2 weights); a wrong kernel or range is off by far more
+    assert difference.mean() < 0.01 and difference.mean(axis=(1, 2)).max() < 0.02
 
 
 def test_the_state_is_exchangeable_with_the_float_networks(firenet, voxels, ranges):

@@ -294,7 +294,8 @@ def _float_forward_recording(net: FireNet, voxels: torch.Tensor, state: list | N
 
 def calibration_voxels(sequences: int = 4, seed: int = 0) -> list[np.ndarray]:
     """Return ``sequences`` voxel-grid sequences (each (40, 5, 64, 64) float32) of the training-set generator's
-    validation split, seed ``seed``: the calibration data of :func:`calibrate_firenet` (about 0.5 s of CPU each)."""
+    validation split, seed ``seed``: the calibration data of :func:`calibrate_firenet` (0.5-2 s of CPU each; since
+    generator version 3 they hold windows of the n drawn, and the ranges they give differ from version 2's)."""
     from evio_lib.events.reconstruction.training_set import TrainingSetConfig, make_sequence
 
     rng = np.random.default_rng(seed)
