@@ -15,6 +15,7 @@ from evio_lib.events.reconstruction.training import _augment_batch, warp_with_fl
 from evio_lib.events.reconstruction.training_set import (_LayeredScene, TrainingSetConfig, load_sequence,
                                                          make_sequence, make_training_set, read_training_set)
 from evio_lib.events.representations import voxel_grid
+from evio_lib.events.simulate import simulate_events
 
 SMALL = TrainingSetConfig(height=32, width=32, windows=4, duration_min=0.3, duration_max=0.4)
 
@@ -70,6 +71,28 @@ def test_a_slow_sequence_is_lengthened_to_hold_the_windows_drawn():
         lengthened += meta["duration"] > 1.0
         assert np.isfinite(arrays["flow"].astype(np.float32)).all()
     assert lengthened >= 2                                           # 1 s of this motion is too short for most
+
+
+def test_a_sequence_still_short_after_its_last_try_reports_the_time_it_simulated(monkeypatch):
+    """When three tries are not enough (here a camera whose events stop after 1.5 s), n is lowered and the metadata
+    keep the duration of the last simulation, not the longer one a fourth try would have asked for."""
+    import evio_lib.events.reconstruction.training_set as training_set
+
+    simulated = []
+
+    def runs_dry(render, t_start, t_end, *args, **kwargs):
+        simulated.append(t_end)
+        return simulate_events(render, t_start, min(t_end, 1.5), *args, **kwargs)
+
+    monkeypatch.setattr(training_set, "simulate_events", runs_dry)
+    config = TrainingSetConfig(height=32, width=32, windows=8, duration_min=1.0, duration_max=1.0,
+                               fraction_min=0.5, fraction_max=0.5, time_window_probability=0.0, speed_min=0.2,
+                               speed_max=0.2, max_foreground=0)
+    for seed in (0, 1):
+        simulated.clear()
+        _, meta = make_sequence(np.random.default_rng(seed), "train", config)
+        assert len(simulated) == 3 and simulated[-1] < config.duration_extend_max    # every try fell short
+        assert meta["duration"] == simulated[-1] and meta["fraction"] < 0.5
 
 
 @pytest.mark.parametrize("seed, t0", [(0, 0.30), (1, 0.30), (2, 0.30), (0, 1.62), (1, 2.45)])

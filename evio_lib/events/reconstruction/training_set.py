@@ -33,9 +33,9 @@ every machine, for any number of worker processes, and in a set of any size.
 - **Windows**, so that one network serves every window rule: with probability 0.7 windows of N_e = n H W events with
   n log-uniform over [0.05, 1.0], else windows of a fixed duration (the sequence's length / L). The rule and n are
   drawn first; a sequence with fewer than L N_e events is simulated again, the same scene, sensor and motion over a
-  longer time (up to ``duration_extend_max``; the motion's drift then runs back and forth), so that the windows have the n drawn (generator version 2 cut n to
-  the events there were: its median count-window n was 0.11 instead of 0.22, and only 6 % of its count sequences
-  had n >= 0.5 instead of 23 %). L windows per sequence (40 by default), each stored as a normalised voxel grid with
+  longer time (up to ``duration_extend_max``; the motion's drift then runs back and forth), so that the windows
+  have the n drawn (generator version 2 cut n to the events there were: its median count-window n was 0.11 instead
+  of 0.22, and only 6 % of its count sequences had n >= 0.5 instead of 23 %). L windows per sequence (40 by default), each stored as a normalised voxel grid with
   B bins, the sharp intensity at its end, and the true flow of every pixel into the previous window's end view (for the
   temporal-consistency loss): flow_k(u) = pi(H_j(t_k-1) H_j(t_k)^-1 u) - u with j the plane visible at u.
 
@@ -298,9 +298,8 @@ def make_sequence(rng: np.random.Generator, split: str = "train", config: Traini
     again (at most twice) with the same scene, sensor and motion (the generator's state restored) over a longer time,
     at most ``config.duration_extend_max`` (beyond the drawn time the motion's drift runs back and forth:
     :class:`~evio_lib.events.reconstruction.data.SmoothCameraMotion`); only then is n lowered to the events there
-    are. A sequence with too few events
-    even for L windows of 0.05 H W events (almost no motion, or very high thresholds) is drawn again, up to
-    ``max_tries`` times.
+    are. A sequence with too few events even for L windows of 0.05 H W events (almost no motion, or very high
+    thresholds) is drawn again, up to ``max_tries`` times.
     """
     if split not in SPLITS:
         raise ValueError(f"split must be one of {SPLITS}; got {split!r}")
@@ -311,15 +310,15 @@ def make_sequence(rng: np.random.Generator, split: str = "train", config: Traini
         needed = L * fraction * h * w if rule == "count" else L * 0.05 * h * w
         duration = float(rng.uniform(config.duration_min, config.duration_max))
         state, drawn_duration = rng.bit_generator.state, duration
-        for _lengthen in range(3):
+        for attempt in range(3):
             scene = _LayeredScene(rng, split, config, drawn_duration)
             params = _sensor(rng, config)
             events, _ = simulate_events(scene.render, 0.0, duration, w, h, params=params, rng=rng,
                                         change_quantile=0.99, dt_min=1e-5)
             events = concatenate_events([events, hot_pixel_events(rng, w, h, duration,
                                                                   config.hot_pixel_fraction_max)])
-            if events.size >= needed or duration >= config.duration_extend_max:
-                break
+            if events.size >= needed or duration >= config.duration_extend_max or attempt == 2:
+                break                                   # (after the last try ``duration`` stays the one simulated)
             # the same scene and motion sampled for longer (beyond the drawn time the drift runs back and forth):
             # the events grow about in proportion to the time; aim 20 % above the need
             duration = min(config.duration_extend_max, 1.2 * duration * needed / max(events.size, 1))
@@ -344,8 +343,8 @@ def make_sequence(rng: np.random.Generator, split: str = "train", config: Traini
     flow = np.stack([np.zeros((2, h, w), np.float32)] +
                     [scene.flow_to(float(t_end[k]), float(t_end[k - 1])) for k in range(1, L)]).astype(np.float16)
     meta = {"contrast_pos": params.contrast_pos, "contrast_neg": params.contrast_neg, "rule": rule,
-            "fraction": fraction, "fraction_drawn": fraction_drawn, "speed": scene.speed, "layers": len(scene.layers), "events": int(events.size),
-            "duration": duration, "noise_hz": params.background_rate_hz}
+            "fraction": fraction, "fraction_drawn": fraction_drawn, "speed": scene.speed, "layers": len(scene.layers),
+            "events": int(events.size), "duration": duration, "noise_hz": params.background_rate_hz}
     return {"voxels": voxels, "frames": frames, "flow": flow}, meta
 
 
