@@ -15,9 +15,8 @@ import sys
 
 import torch
 
-from evio_lib.events.reconstruction.nets import build_network
+from evio_lib.events.reconstruct import LearnedReconstructor
 from evio_lib.events.reconstruction.training import ReconstructionTrainConfig, evaluate_on_samples, open_split
-from evio_lib.io.checkpoint import load_state, read_checkpoint
 
 
 def main() -> int:
@@ -39,10 +38,8 @@ def main() -> int:
     print(f"| checkpoint | {args.split} sequences | stretched SSIM | raw SSIM | L1 |")
     print("|---|---|---|---|---|")
     for path in args.checkpoints:
-        try:  # a missing, damaged or foreign file: one line naming it
-            ckpt = read_checkpoint(path, "reconstructor")
-            net = build_network(ckpt["architecture"], ckpt.get("num_bins", 5), **ckpt.get("network_options", {}))
-            load_state(net, ckpt["state_dict"], path, "its state_dict does not fit its own architecture")
+        try:  # a missing, damaged or foreign file: one line naming it (the checks of LearnedReconstructor)
+            net = LearnedReconstructor(64, 64, path, device="cpu", threads=args.threads).net
         except ValueError as error:
             print(f"error: {error}", file=sys.stderr)
             return 2
