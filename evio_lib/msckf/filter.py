@@ -122,6 +122,8 @@ class StepRefusedError(ValueError):
 # H_o N_C = 0 (4 conditions). "eq86": the thesis's per-camera H_C u = 0 (2 per camera), which on aerial_like
 # (features at ~250 m) alters the position columns by 0.5-3.5 % and diverges on 4 of 10 seeds of 40 s.
 OC_UPDATE_MODES = ("projected", "eq86")
+# triangulation failures that mean "too little parallax for a depth" rather than "inconsistent observations"
+_FAR_POINT_REASONS = ("behind_camera", "too_far", "insufficient_baseline")
 
 
 def whitening_matrices(xy_cov: ArrayLike) -> NDArray[np.float64]:
@@ -309,6 +311,7 @@ class Msckf:
             max_depth=config.triangulation_max_depth,
             max_rms_residual=config.triangulation_max_reprojection_px / config.focal_length_px,
         )
+        self._far_depth = config.triangulation_max_depth  # where far_point_fallback puts a low-parallax track
         self._frame_counters: Counter[str] = Counter()
         self.faults: Counter[str] = Counter()
         self._imu_fed = 0  # IMU samples accepted by feed_imu so far, dropped ones included
@@ -805,8 +808,17 @@ class Msckf:
         if self.config.observation_outlier_px is not None:
             uses, results = self._drop_outlier_observations(uses, results, R_C, p_C)
         ok: list[tuple[int, _FeatureUse, NDArray[np.float64]]] = []
+        far = self.config.far_point_fallback
         for k, (u, res) in enumerate(zip(uses, results)):
-            if not res.success:
+            if far and res.reason in _FAR_POINT_REASONS and np.count_nonzero(u.involved) >= 2:
+                # low parallax: the depth is not observable from this track, its bearing is. A point far along
+                # the anchor's bearing; the nullspace projection removes its position error to first order, so
+                # the rows constrain the rotation between the cameras; the chi-square gate below judges them.
+                self.rejections["far_point_fallback"] += 1
+                a = u.window_idx[res.anchor]
+                alpha, beta, _ = res.inverse_depth
+                ok.append((k, u, p_C[a] + R_C[a].T @ (np.array([alpha, beta, 1.0]) * self._far_depth)))
+            elif not res.success:
                 self.rejections[res.reason] += 1
             elif np.count_nonzero(u.involved) < 2:  # 2 rows cannot survive the 3-column nullspace projection
                 self.rejections["too_few_observations"] += 1

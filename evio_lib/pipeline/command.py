@@ -81,6 +81,10 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--outlier-px", type=real(above=0.0), default=None, metavar="PX",
                    help="drop a track's observations that reproject farther than PX pixels from its triangulated "
                         "point, and keep the rest of the track (default: off)")
+    p.add_argument("--far-points", action="store_true",
+                   help="use a track whose triangulation fails for lack of parallax (behind a camera, beyond 1 000 m, "
+                        "no baseline) with its point placed far on its bearing: it still constrains the rotation "
+                        "(default: such tracks are dropped)")
     p.add_argument("--pixel-noise", type=real(above=0.0), default=1.0, metavar="PX",
                    help="the filter's feature noise sigma in pixels of the APS frames' tracks, and of a lone event "
                         "stream's; the base of the --event-pixel-noise default (default 1.0)")
@@ -179,6 +183,7 @@ def main_run(args: argparse.Namespace) -> int:
                                 bias_init=_bias(args.bias_init), imu_only=args.imu_only, oc=not args.no_oc,
                                 zupt=not args.no_zupt, max_duration=args.max_duration, seed=args.seed,
                                 observation_outlier_px=args.outlier_px, track_gap=args.track_gap,
+                                far_points=args.far_points,
                                 pixel_noise_px=args.pixel_noise, event_pixel_noise_px=args.event_pixel_noise,
                                 aps_blur_noise=args.aps_blur_noise)
     except ValueError as error:  # the message names the config field; the user typed the option

@@ -140,6 +140,10 @@ class PipelineConfig:
         zupt: detect standstill and apply zero-velocity updates there (module docstring).
         observation_outlier_px: the filter drops a track's observations that reproject farther than this after
             triangulation and keeps the rest (``MsckfConfig.observation_outlier_px``; None: off).
+        far_points: a track whose triangulation lands behind a camera, beyond 1 000 m or without baseline is
+            used with its point placed far on its bearing instead of dropped (``MsckfConfig.far_point_fallback``):
+            such tracks still tell the rotation between the cameras. Off by default (docs/pipeline.md, "Tracks
+            without parallax").
         track_gap: frames a descriptor track may miss and still continue with its id
             (``FrontendConfig.max_gap_frames`` and ``MsckfConfig.max_track_gap``; 0: a missed detection ends the
             track, the thesis's tracker and the default). KLT never searches for a lost patch: with KLT on every
@@ -175,6 +179,7 @@ class PipelineConfig:
     zupt: bool = True
     observation_outlier_px: float | None = None
     track_gap: int = 0
+    far_points: bool = False
 
     def __post_init__(self) -> None:
         if self.frames not in FRAME_SOURCES:
@@ -219,8 +224,9 @@ class PipelineConfig:
             raise ValueError(f"max_duration must be None or a number of seconds > 0; got {self.max_duration!r}")
         if isinstance(self.detector_options, dict):
             object.__setattr__(self, "detector_options", tuple(sorted(self.detector_options.items())))
-        if not isinstance(self.zupt, bool):
-            raise ValueError(f"zupt must be True or False; got {self.zupt!r}")
+        for name in ("zupt", "far_points"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"{name} must be True or False; got {getattr(self, name)!r}")
         if self.observation_outlier_px is not None:  # checked as the filter will check it, before any loading
             MsckfConfig(observation_outlier_px=self.observation_outlier_px)
         for name, expected in (("pixel_noise_px", "a finite number of pixels > 0"),
@@ -317,7 +323,8 @@ class PipelineConfig:
             noise = f", event noise {self.event_pixel_noise_px:g} px"  # only when set: the default is in the docs
         if self.aps_blur_noise is not None:
             noise += f", APS blur noise {self.aps_blur_noise:g}"
-        return label + (f", track gap {self.track_gap}" if self.track_gap else "") + noise
+        return (label + (f", track gap {self.track_gap}" if self.track_gap else "") + noise
+                + (", far points" if self.far_points else ""))
 
 
 @dataclass(eq=False)
@@ -525,6 +532,7 @@ def msckf_config_for(config: PipelineConfig, data: LoadedDataset) -> MsckfConfig
     changes: dict[str, Any] = dict(pixel_noise_sigma=config.pixel_noise_px, focal_length_px=math.sqrt(cam.fx * cam.fy),
                                    observability_constrained=config.oc, imu_only=config.imu_only,
                                    observation_outlier_px=config.observation_outlier_px,
+                                   far_point_fallback=config.far_points,
                                    max_track_gap=_filter_track_gaps(config),
                                    max_camera_states=cfg.max_camera_states * len(frame_streams(config.frames)))
     if gravity is not None:

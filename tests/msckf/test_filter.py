@@ -738,3 +738,36 @@ def test_outlier_observation_option_helps_a_run_with_jumps_and_is_checked():
     for bad in (0.0, -1.0, float("nan"), True):
         with pytest.raises(ValueError, match="observation_outlier_px"):
             MsckfConfig(observation_outlier_px=bad)
+
+
+def _attitude_errors(traj, outputs):
+    """Return the angle [rad] between the estimated and the true orientation at each output."""
+    truth = traj.evaluate(np.array([o.t for o in outputs]))
+    R_est = np.swapaxes(quat_to_rot(np.array([o.q_GtoI for o in outputs])), 1, 2)  # R_ItoG
+    cos = (np.einsum("kij,kij->k", R_est, truth.R_ItoG) - 1.0) / 2.0
+    return np.arccos(np.clip(cos, -1.0, 1.0))
+
+
+def test_far_point_fallback_uses_low_parallax_tracks_for_the_rotation_and_still_gates_outliers():
+    """Landmarks 3-8 km away, seen from the aerial preset's 20 m/s: no track has the parallax for a depth, so the
+    plain filter rejects almost all (too far, behind a camera, too little baseline) and dead-reckons. With
+    ``far_point_fallback`` each is placed at the max depth on its bearing, its rows (feature position projected
+    out) constrain the rotation, and the attitude error stays several times smaller; moving points are still
+    refused by the chi-square gate."""
+    traj, imu, frames, cfg, state = simulation(seed=3, duration=6.0, preset="aerial_like", depth=(3000.0, 8000.0),
+                                               life=(5, 30), n_movers=4, mover_speed=40.0)
+    plain = Msckf(cfg, state)
+    out_plain = plain.run(imu.t, imu.gyro, imu.accel, frames)
+    far = Msckf(dataclasses.replace(cfg, far_point_fallback=True), state)
+    out_far = far.run(imu.t, imu.gyro, imu.accel, frames)
+    assert_finite(out_far)
+    used_plain, used_far = (sum(o.n_features_used for o in out) for out in (out_plain, out_far))
+    print(f"features used: plain {used_plain}, far points {used_far}; rejections {dict(far.rejections)}")
+    assert far.rejections["far_point_fallback"] > 100 and used_far > 100 and used_plain < 0.05 * used_far
+    assert far.rejections["chi2"] > 0  # the moving points among them
+    att_plain, att_far = _attitude_errors(traj, out_plain), _attitude_errors(traj, out_far)
+    print(f"attitude error at the end: plain {np.degrees(att_plain[-1]):.3f} deg, far points "
+          f"{np.degrees(att_far[-1]):.3f} deg")
+    assert att_far[-1] < 0.3 * att_plain[-1]
+    with pytest.raises(ValueError, match="far_point_fallback"):
+        MsckfConfig(far_point_fallback=1)

@@ -127,6 +127,7 @@ def test_static_initialisation_refuses_a_moving_start(boxes_aps):
     (dict(frames="events", reconstructor="no/such.pt"), "or a reconstruct-train checkpoint file; got 'no/such.pt'"),
     (dict(track_gap=-1), r"track_gap must be an integer >= 0 \(frames\); got -1"),
     (dict(track_gap=1.0), "track_gap must be an integer"),
+    (dict(far_points=1), "far_points must be True or False; got 1"),
     (dict(tracker="klt", features="fast", track_gap=2), "track_gap applies to the descriptor tracker"),
     (dict(frames="aps+mc-events", tracker="klt", event_tracker="klt", track_gap=1),
      "track_gap applies to the descriptor tracker"),
@@ -266,6 +267,18 @@ def test_a_track_gap_reaches_the_tracker_and_the_filter(boxes_aps):
     assert msckf_config_for(gap.config, boxes_aps).max_track_gap == 2  # the filter keeps the tracks open
     assert gap.config.frontend_config().max_gap_frames == 2
     assert gap.config.label() == "SIFT on APS frames, track gap 2" and plain.config.label() == "SIFT on APS frames"
+
+
+def test_far_points_reach_the_filter_and_the_label(boxes_aps):
+    """far_points: the filter's far_point_fallback is set, the label says so, and the run stays on course (its
+    numbers over the whole presets are in docs/pipeline.md, "Tracks without parallax")."""
+    config = PipelineConfig(features="sift", far_points=True)
+    assert msckf_config_for(config, boxes_aps).far_point_fallback
+    assert not msckf_config_for(PipelineConfig(features="sift"), boxes_aps).far_point_fallback  # the default
+    assert config.label() == "SIFT on APS frames, far points"
+    result = run_pipeline(boxes_aps, config)
+    assert result.rejections["far_point_fallback"] > 0
+    assert result.metrics["rmse_m"] < 0.3 and np.isfinite(result.p_IinG).all()
 
 
 def test_two_frame_streams_in_one_run(boxes_events):
