@@ -33,7 +33,7 @@ the gate sees the whole track: more degrees of freedom, more power against movin
 residuals, ``update.gating_mean_shrink``); the survivors are stacked, QR-compressed
 (Eqs. 51-55) and applied in one Joseph-form Kalman update (Eqs. 56-58). Features are processed in batches of equal
 observation count, so the per-feature work is vectorised. Every dropped feature is counted in ``rejections`` with
-its reason.
+its reason (``far_point_fallback`` counts the low-parallax tracks kept as far points, before the gate).
 
 Guards (issue 17), all counted in ``Msckf.faults`` and announced by a ``MsckfWarning`` (the first time, then at
 10, 100, ... occurrences) or an exception:
@@ -252,7 +252,8 @@ class Msckf:
     Attributes:
         config: the configuration.
         rejections: Counter of dropped features by reason (too_few_observations, the triangulation reasons of
-            ``TRIANGULATION_REASONS``, chi2).
+            ``TRIANGULATION_REASONS``, chi2) and of the far-point candidates (far_point_fallback, counted before
+            the gate).
         faults: Counter of bad input and refused steps (module docstring): imu_accel_out_of_range and
             imu_gyro_out_of_range (samples dropped; a sample beyond both counts in both), gyro_units_suspect (1
             once a gyro stream looked like deg/s), imu_gaps (gaps longer than imu_max_gap bridged), imu_gap_refused
@@ -808,12 +809,15 @@ class Msckf:
         if self.config.observation_outlier_px is not None:
             uses, results = self._drop_outlier_observations(uses, results, R_C, p_C)
         ok: list[tuple[int, _FeatureUse, NDArray[np.float64]]] = []
-        far = self.config.far_point_fallback
+        far = self.config.far_point_fallback and self.config.chi2_gating  # never ungated: no residual check ran
         for k, (u, res) in enumerate(zip(uses, results)):
             if far and res.reason in _FAR_POINT_REASONS and np.count_nonzero(u.involved) >= 2:
                 # low parallax: the depth is not observable from this track, its bearing is. A point far along
                 # the anchor's bearing; the nullspace projection removes its position error to first order, so
                 # the rows constrain the rotation between the cameras; the chi-square gate below judges them.
+                # Counted here as a candidate (the gate may still refuse it, then counted there too). The bearing
+                # is the fitted (α, β) of the anchor (finite on every failure path; with no baseline at all, the
+                # starting guess, i.e. about the anchor's own observation).
                 self.rejections["far_point_fallback"] += 1
                 a = u.window_idx[res.anchor]
                 alpha, beta, _ = res.inverse_depth
@@ -937,7 +941,7 @@ class Msckf:
         p_FinC = np.einsum("fmij,fmj->fmi", R, p_F[:, None, :] - p_C[widx])  # R_GtoC (p_F - p_C)       (Eq. 42)
         Z = p_FinC[..., 2]
         front = np.all(Z > 1e-9, axis=1)
-        if not np.all(front):  # cannot happen after a successful triangulation; guarded anyway
+        if not np.all(front):  # a far point (far_point_fallback) of an inconsistent track; else guarded anyway
             self.rejections["behind_camera"] += int(np.count_nonzero(~front))
             Z = np.where(front[:, None], Z, 1.0)
         inv_Z = 1.0 / Z
