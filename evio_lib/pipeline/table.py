@@ -64,6 +64,7 @@ TABLE_ROWS = (
     TableRow("sift_aps_gap2", "SIFT, APS frames, tracks surviving 2 missed frames",
              (("features", "sift"), ("track_gap", 2))),
     TableRow("cnn_aps", "CNN, APS frames", (("features", "superpoint"),)),
+    TableRow("cnn_aps_far", "CNN, APS frames, far points", (("features", "superpoint"), ("far_points", True))),
     TableRow("cnn_narrow_aps", "CNN (distilled, half width), APS frames",
              (("features", "superpoint"), ("detector_options", (("weights", "distilled_narrow"),)))),
     TableRow("sift_events", "SIFT, event frames", (("features", "sift"), ("frames", "events"))),
@@ -79,6 +80,8 @@ TABLE_ROWS = (
              (("features", "sift"), ("frames", "mc-events"), ("track_gap", 2))),
     TableRow("cnn_mc_events", "CNN, motion-compensated event frames",
              (("features", "superpoint"), ("frames", "mc-events"))),
+    TableRow("cnn_mc_events_far", "CNN, motion-compensated event frames, far points",
+             (("features", "superpoint"), ("frames", "mc-events"), ("far_points", True))),
     TableRow("klt_mc_events", "KLT + FAST, motion-compensated event frames",
              (("tracker", "klt"), ("features", "fast"), ("frames", "mc-events"))),
     TableRow("klt_aps_mc_events", "KLT + FAST, APS + motion-compensated event frames",
@@ -87,7 +90,7 @@ TABLE_ROWS = (
 
 
 #: Rows run only when named (``keys``): beside the thesis's configurations, not part of the default table.
-OPTIONAL_ROWS = ("cnn_narrow_aps", "sift_aps_gap2", "sift_mc_events_gap2")
+OPTIONAL_ROWS = ("cnn_narrow_aps", "sift_aps_gap2", "sift_mc_events_gap2", "cnn_aps_far", "cnn_mc_events_far")
 
 
 def table_rows(keys: Sequence[str] | None = None, events_cnn: str | None = None) -> list[TableRow]:
