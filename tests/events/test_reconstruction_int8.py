@@ -182,8 +182,11 @@ def test_the_shipped_checkpoint_stores_the_int8_calibration_of_its_own_weights(f
     stored = torch.load(shipped_checkpoint("firenet"), map_location="cpu", weights_only=True)["int8_ranges"]
     fresh = stored_ranges(firenet)  # float convolutions: the last bits may differ on another CPU or torch build
     assert stored["weights_sha1"] == fresh["weights_sha1"]
+    # rtol 2e-3: on a Xeon without bfloat16 (2026-12-03) one bound came out 1.7e-4 (relative) from the stored one,
+    # the recurrence carrying the CPU's rounding over the calibration windows; a stale calibration (another
+    # generator's voxels) moved the bounds by 10-50 % (e.g. [-39, 38] against [-31, 25]), far beyond this.
     for name, (lo, hi) in fresh["ranges"].items():
-        np.testing.assert_allclose(stored["ranges"][name], [lo, hi], rtol=1e-4, atol=1e-6)
+        np.testing.assert_allclose(stored["ranges"][name], [lo, hi], rtol=2e-3, atol=1e-6)
     assert int8_forward(firenet, stored).ranges.ranges == {k: tuple(v) for k, v in stored["ranges"].items()}
     foreign = {"weights_sha1": "0" * 40, "ranges": {name: [-1.0, 1.0] for name in RANGE_NAMES}}
     assert int8_forward(firenet, foreign).ranges.ranges != {k: tuple(v) for k, v in foreign["ranges"].items()}
