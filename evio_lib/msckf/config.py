@@ -172,8 +172,9 @@ class MsckfConfig:
     triangulation_max_depth: float = _param(1000.0, "m", "reject features farther than this")
     triangulation_min_baseline_ratio: float = _param(0.002, "", "reject if max baseline / depth is below this")
     triangulation_max_reprojection_px: float = _param(5.0, "px", "reject if the RMS reprojection error exceeds")
-    far_point_fallback: bool = _param(False, "", "a track whose triangulation lands behind a camera or beyond the "
-                                                 "max depth: placed at the max depth on its anchor bearing, gated")
+    far_point_fallback: bool = _param(False, "", "a track whose triangulation lands behind a camera, beyond the max "
+                                                 "depth or without baseline: placed at the max depth on its anchor "
+                                                 "bearing, gated")
     # filter variants and modes
     observability_constrained: bool = _param(True, "", "observability-constrained EKF (thesis §3.3.8)")
     oc_update: str = _param("projected", "", "update-side OC: 'projected' (on the projected feature Jacobian) or "

@@ -312,7 +312,6 @@ class Msckf:
             max_depth=config.triangulation_max_depth,
             max_rms_residual=config.triangulation_max_reprojection_px / config.focal_length_px,
         )
-        self._far_depth = config.triangulation_max_depth  # where far_point_fallback puts a low-parallax track
         self._frame_counters: Counter[str] = Counter()
         self.faults: Counter[str] = Counter()
         self._imu_fed = 0  # IMU samples accepted by feed_imu so far, dropped ones included
@@ -821,7 +820,8 @@ class Msckf:
                 self.rejections["far_point_fallback"] += 1
                 a = u.window_idx[res.anchor]
                 alpha, beta, _ = res.inverse_depth
-                ok.append((k, u, p_C[a] + R_C[a].T @ (np.array([alpha, beta, 1.0]) * self._far_depth)))
+                p_FinA = np.array([alpha, beta, 1.0]) * self.config.triangulation_max_depth
+                ok.append((k, u, p_C[a] + R_C[a].T @ p_FinA))
             elif not res.success:
                 self.rejections[res.reason] += 1
             elif np.count_nonzero(u.involved) < 2:  # 2 rows cannot survive the 3-column nullspace projection

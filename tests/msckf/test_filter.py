@@ -10,6 +10,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from evio_lib.evaluation.trajectory_metrics import orientation_errors
 from evio_lib.geometry.rotation import quat_to_rot
 from evio_lib.msckf.config import MsckfConfig
 from evio_lib.msckf.filter import FilterOutput, Msckf, _FeatureUse, apply_correction, whitening_matrices
@@ -744,8 +745,7 @@ def _attitude_errors(traj, outputs):
     """Return the angle [rad] between the estimated and the true orientation at each output."""
     truth = traj.evaluate(np.array([o.t for o in outputs]))
     R_est = np.swapaxes(quat_to_rot(np.array([o.q_GtoI for o in outputs])), 1, 2)  # R_ItoG
-    cos = (np.einsum("kij,kij->k", R_est, truth.R_ItoG) - 1.0) / 2.0
-    return np.arccos(np.clip(cos, -1.0, 1.0))
+    return orientation_errors(R_est, truth.R_ItoG)[0]
 
 
 def test_far_point_fallback_uses_low_parallax_tracks_for_the_rotation_and_still_gates_outliers():
