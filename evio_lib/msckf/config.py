@@ -40,6 +40,7 @@ _POSITIVE = (
 # > 0, and math.inf allowed (switches the guard off)
 _POSITIVE_OR_INF = (
     "accel_full_scale", "gyro_full_scale", "imu_max_gap", "imu_max_bridged_gap", "max_normalized_coordinate",
+    "far_point_starvation",
 )
 _INTEGER_MIN = {"max_camera_states": 2, "min_track_length": 2, "triangulation_max_iterations": 1}
 _BOOLEAN = ("marginalize_third", "chi2_gating", "observability_constrained", "imu_only", "far_point_fallback")
@@ -81,6 +82,11 @@ class MsckfConfig:
             (Eq. 50) removes the point's error to first order, so what remains constrains the rotation between
             the cameras. Kept the CNN on course over the aerial terrain (docs/pipeline.md, "Tracks without
             parallax"); off by default, since it cost SIFT and KLT accuracy (KLT in the room 0.29 -> 0.37 %).
+        far_point_starvation: when far points are used [inf: always, with ``far_point_fallback``]. With a finite
+            value s, only while the filter starves: while the features it triangulated (as usual, not far points)
+            and used, per image over the last second of image times, average fewer than s (before the first image
+            there is nothing to average, and no far point). A filter fed by enough tracks with parallax is then left
+            as it was, and one that stops finding them (a distant scene, short tracks) gets the far points' rows.
         max_track_gap: images of its stream a track may miss and still continue [0]. With 0 a track ends at the first
             image without it and is used then; with g > 0 it is kept (its observations need not come from
             consecutive clones) until more than g images in a row lack it, so a front-end that finds a feature
@@ -175,6 +181,8 @@ class MsckfConfig:
     far_point_fallback: bool = _param(False, "", "a track whose triangulation lands behind a camera, beyond the max "
                                                  "depth or without baseline: placed at the max depth on its anchor "
                                                  "bearing, gated")
+    far_point_starvation: float = _param(math.inf, "features/image", "far points only while the triangulated "
+                                         "features used per image over the last second average below this")
     # filter variants and modes
     observability_constrained: bool = _param(True, "", "observability-constrained EKF (thesis §3.3.8)")
     oc_update: str = _param("projected", "", "update-side OC: 'projected' (on the projected feature Jacobian) or "

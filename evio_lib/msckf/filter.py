@@ -59,7 +59,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from collections import Counter
+from collections import Counter, deque
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -293,6 +293,8 @@ class Msckf:
         self._track_stream: dict[int, int] = {}  # the frame stream of each track (one stream: all 0)
         self._track_last_image: dict[int, int] = {}  # the stream's image count when each track was last observed
         self._stream_images: Counter[int] = Counter()  # images processed per stream
+        self._triangulated_used: deque[tuple[float, int]] = deque()  # (image time, tracks triangulated and used)
+        self._far_used = 0  # far points used by the last update
         self._next_camera_id = max(state.camera_ids, default=-1) + 1
         self._tracking_rate = 1.0
         self._imu_t = np.zeros(0)
@@ -546,8 +548,11 @@ class Msckf:
             pruned = self._collect_pruned_features(remove)
             self._frame_counters["lost_tried"] += len(lost)
             self._frame_counters["prune_tried"] += len(pruned)
-            used_mask = self._update(lost + pruned)
+            used_mask = self._update(lost + pruned, far=self._far_points_now(t))
             used = int(np.count_nonzero(used_mask))
+            self._triangulated_used.append((t, used - self._far_used))
+            while self._triangulated_used[0][0] < t - 1.0:  # keep the last second
+                self._triangulated_used.popleft()
             self._frame_counters["lost_used"] += int(np.count_nonzero(used_mask[:len(lost)]))
             self._frame_counters["prune_used"] += int(np.count_nonzero(used_mask[len(lost):]))
         self._marginalize(remove)
@@ -789,7 +794,18 @@ class Msckf:
     def _window_positions(self) -> dict[int, int]:
         return {cid: i for i, cid in enumerate(self._state.camera_ids)}
 
-    def _update(self, uses: list[_FeatureUse]) -> NDArray[np.bool_]:
+    def _far_points_now(self, t: float) -> bool:
+        """Return whether this image's update may use far points: ``far_point_fallback`` on (and the gate), and
+        ``far_point_starvation`` infinite or above the mean number of triangulated features used per image in
+        the last second of image times (before ``t``)."""
+        if not (self.config.far_point_fallback and self.config.chi2_gating):  # never ungated: no residual check
+            return False
+        if math.isinf(self.config.far_point_starvation):
+            return True
+        recent = [n for t_i, n in self._triangulated_used if t_i >= t - 1.0]
+        return bool(recent) and sum(recent) < self.config.far_point_starvation * len(recent)
+
+    def _update(self, uses: list[_FeatureUse], far: bool = False) -> NDArray[np.bool_]:
         """Triangulate, gate, build, stack and apply ONE compressed EKF update; return which of ``uses`` were used.
 
         Gating tests each feature on ALL its observations in the window (dof 2M - 3), also when only some of them
@@ -797,6 +813,7 @@ class Msckf:
         degrees of freedom biases the kept residuals less (``update.gating_mean_shrink``).
         """
         used = np.zeros(len(uses), dtype=bool)
+        self._far_used = 0  # far points among the used (read by the caller for far_point_starvation)
         if not uses:
             return used
         state = self._state
@@ -808,7 +825,7 @@ class Msckf:
         if self.config.observation_outlier_px is not None:
             uses, results = self._drop_outlier_observations(uses, results, R_C, p_C)
         ok: list[tuple[int, _FeatureUse, NDArray[np.float64]]] = []
-        far = self.config.far_point_fallback and self.config.chi2_gating  # never ungated: no residual check ran
+        far_items: set[int] = set()
         for k, (u, res) in enumerate(zip(uses, results)):
             if far and res.reason in _FAR_POINT_REASONS and np.count_nonzero(u.involved) >= 2:
                 # low parallax: the depth is not observable from this track, its bearing is. A point far along
@@ -822,6 +839,7 @@ class Msckf:
                 alpha, beta, _ = res.inverse_depth
                 p_FinA = np.array([alpha, beta, 1.0]) * self.config.triangulation_max_depth
                 ok.append((k, u, p_C[a] + R_C[a].T @ p_FinA))
+                far_items.add(k)
             elif not res.success:
                 self.rejections[res.reason] += 1
             elif np.count_nonzero(u.involved) < 2:  # 2 rows cannot survive the 3-column nullspace projection
@@ -873,6 +891,7 @@ class Msckf:
             col_parts.append(cols[keep])
         if not np.any(used) or not self._apply_update(H_parts, r_parts, col_parts):
             used[:] = False
+        self._far_used = int(np.count_nonzero(used[sorted(far_items)])) if far_items else 0
         return used
 
     def _drop_outlier_observations(self, uses: list[_FeatureUse], results: list[Any], R_C: NDArray[np.float64],

@@ -83,6 +83,10 @@ class TriangulationResult:
         anchor: index of the anchor camera within the feature's track.
         baseline_ratio: max_i |p_CinG_i - p_AinG| / Z_A = max baseline * ρ, the translation-to-depth ratio
             (0 when ρ <= 0).
+        inverse_depth_std: (3,) standard deviations of (α, β, ρ) per unit of measurement noise, sqrt(diag((J^T
+            J)^-1)) with J the Jacobian (Eqs. 72-78) at the returned estimate; multiply by the noise σ of z in
+            normalised units. Its ρ entry says whether the track measured a depth at all: |ρ| within a few of it
+            means the point may as well lie at infinity. ``inf`` where J^T J is singular (no baseline).
     """
 
     p_FinG: NDArray[np.float64]
@@ -95,6 +99,7 @@ class TriangulationResult:
     inverse_depth: NDArray[np.float64]
     anchor: int
     baseline_ratio: float
+    inverse_depth_std: NDArray[np.float64]
 
 
 # ----------------------------------------------------------------------------------------------------- input checks
@@ -433,6 +438,18 @@ def _solve_sym3(A: NDArray[np.float64], b: NDArray[np.float64]) -> tuple[NDArray
     return x, ok & np.isfinite(x).all(axis=1)
 
 
+def _sym3_inverse_diagonal(A: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Return diag(A^-1) (K, 3) of symmetric 3x3 matrices A (K, 3, 3) by cofactors; inf where A is singular."""
+    a, bb, c = A[:, 0, 0], A[:, 0, 1], A[:, 0, 2]
+    d, e, f = A[:, 1, 1], A[:, 1, 2], A[:, 2, 2]
+    cof = np.column_stack([d * f - e * e, a * f - c * c, a * d - bb * bb])
+    det = a * cof[:, 0] + bb * (c * e - bb * f) + c * (bb * e - c * d)
+    scale = np.abs(A).max(axis=(1, 2)) if A.shape[0] else np.zeros(0)
+    ok = det > 1e-12 * np.maximum(scale, 1e-300) ** 3
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(ok[:, None], cof / np.where(ok, det, 1.0)[:, None], np.inf)
+
+
 def _levenberg_marquardt(
     theta: NDArray[np.float64],
     D: NDArray[np.float64],
@@ -610,6 +627,11 @@ def _triangulate(
     for code, failed in checks:
         reason = np.where((reason == _OK) & failed, code, reason)
 
+    # standard deviations of θ per unit noise: sqrt(diag((J^T J)^-1)) at the estimate (Ω = σ^-2 I, Eq. 71)
+    _, J_end, _ = _evaluate(theta, D, c, zp)
+    J_end = J_end.reshape(K, -1, 3)
+    theta_std = np.sqrt(np.maximum(_sym3_inverse_diagonal(np.swapaxes(J_end, 1, 2) @ J_end), 0.0))
+
     # p_FinG = R_GtoA^T [α, β, 1]^T / ρ + p_AinG      (Eq. 79); the anchor centre where ρ <= 0
     bearing = np.column_stack([theta[:, :2], np.ones(K)])
     p_FinG = np.einsum("kji,kj->ki", R_GtoA, bearing) / rho_safe[:, None] + p_AinG
@@ -628,6 +650,7 @@ def _triangulate(
             inverse_depth=theta[k],
             anchor=int(anchors[k]),
             baseline_ratio=float(ratio[k]),
+            inverse_depth_std=theta_std[k],
         )
         for k in range(K)
     ]

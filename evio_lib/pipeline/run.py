@@ -59,11 +59,18 @@ from evio_lib.pipeline.frames import (FRAME_SOURCES, STREAM_ID_OFFSET, aps_frame
                                       mc_event_frames)
 from evio_lib.threads import set_threads, single_threaded_blas  # re-exported: `from evio_lib.pipeline.run import set_threads` keeps working
 
-__all__ = ["FUSED_EVENT_NOISE_FACTOR", "INIT_MODES", "MIN_PERCENT_DISTANCE_M",
+__all__ = ["FAR_POINT_MODES", "FAR_POINT_STARVATION", "FUSED_EVENT_NOISE_FACTOR", "INIT_MODES", "MIN_PERCENT_DISTANCE_M",
            "PipelineConfig", "PipelineResult", "run_pipeline", "run_pipelines",
            "set_threads"]
 
 INIT_MODES = ("auto", "groundtruth", "static")
+#: When the filter uses tracks without parallax as far points (``PipelineConfig.far_points``): never, only while it
+#: starves (fewer than FAR_POINT_STARVATION triangulated features used per image over the last second), or always.
+FAR_POINT_MODES = ("off", "starved", "always")
+#: The starvation level of ``far_points='starved'``, features per image (``MsckfConfig.far_point_starvation``).
+#: Healthy runs use 2.5-4.7 per image, runs that diverged over the terrain 0.1-0.7 (docs/pipeline.md, "Tracks
+#: without parallax"); chosen halfway (on a log scale) before it was measured.
+FAR_POINT_STARVATION = 1.0
 #: Shortest ground-truth path for which the % of distance is reported, m. Over a shorter path the mean error divided
 #: by the length measures the noise of standing still, not drift per metre travelled.
 MIN_PERCENT_DISTANCE_M = 0.5
@@ -140,10 +147,11 @@ class PipelineConfig:
         zupt: detect standstill and apply zero-velocity updates there (module docstring).
         observation_outlier_px: the filter drops a track's observations that reproject farther than this after
             triangulation and keeps the rest (``MsckfConfig.observation_outlier_px``; None: off).
-        far_points: a track whose triangulation lands behind a camera, beyond 1 000 m or without baseline is
-            used with its point placed far on its bearing instead of dropped (``MsckfConfig.far_point_fallback``):
-            such tracks still tell the rotation between the cameras. Off by default (docs/pipeline.md, "Tracks
-            without parallax").
+        far_points: when a track whose triangulation lands behind a camera, beyond 1 000 m or without baseline is
+            used with its point placed far on its bearing instead of dropped (``MsckfConfig.far_point_fallback``;
+            such tracks still tell the rotation between the cameras): 'off' (never), 'starved' (the default: only
+            while the filter starves, ``FAR_POINT_STARVATION``) or 'always'; True and False mean 'always' and
+            'off' (docs/pipeline.md, "Tracks without parallax").
         track_gap: frames a descriptor track may miss and still continue with its id
             (``FrontendConfig.max_gap_frames`` and ``MsckfConfig.max_track_gap``; 0: a missed detection ends the
             track, the thesis's tracker and the default). KLT never searches for a lost patch: with KLT on every
@@ -179,7 +187,7 @@ class PipelineConfig:
     zupt: bool = True
     observation_outlier_px: float | None = None
     track_gap: int = 0
-    far_points: bool = False
+    far_points: str = "starved"
 
     def __post_init__(self) -> None:
         if self.frames not in FRAME_SOURCES:
@@ -224,9 +232,13 @@ class PipelineConfig:
             raise ValueError(f"max_duration must be None or a number of seconds > 0; got {self.max_duration!r}")
         if isinstance(self.detector_options, dict):
             object.__setattr__(self, "detector_options", tuple(sorted(self.detector_options.items())))
-        for name in ("zupt", "far_points"):
-            if not isinstance(getattr(self, name), bool):
-                raise ValueError(f"{name} must be True or False; got {getattr(self, name)!r}")
+        if not isinstance(self.zupt, bool):
+            raise ValueError(f"zupt must be True or False; got {self.zupt!r}")
+        if isinstance(self.far_points, bool):  # the option's first form (2026-12-03 morning): a switch
+            object.__setattr__(self, "far_points", "always" if self.far_points else "off")
+        if self.far_points not in FAR_POINT_MODES:
+            raise ValueError(f"far_points must be one of {', '.join(FAR_POINT_MODES)} (or True / False for 'always' / "
+                             f"'off'); got {self.far_points!r}")
         if self.observation_outlier_px is not None:  # checked as the filter will check it, before any loading
             MsckfConfig(observation_outlier_px=self.observation_outlier_px)
         for name, expected in (("pixel_noise_px", "a finite number of pixels > 0"),
@@ -324,7 +336,7 @@ class PipelineConfig:
         if self.aps_blur_noise is not None:
             noise += f", APS blur noise {self.aps_blur_noise:g}"
         return (label + (f", track gap {self.track_gap}" if self.track_gap else "") + noise
-                + (", far points" if self.far_points else ""))
+                + {"off": ", no far points", "starved": "", "always": ", far points always"}[self.far_points])
 
 
 @dataclass(eq=False)
@@ -532,7 +544,9 @@ def msckf_config_for(config: PipelineConfig, data: LoadedDataset) -> MsckfConfig
     changes: dict[str, Any] = dict(pixel_noise_sigma=config.pixel_noise_px, focal_length_px=math.sqrt(cam.fx * cam.fy),
                                    observability_constrained=config.oc, imu_only=config.imu_only,
                                    observation_outlier_px=config.observation_outlier_px,
-                                   far_point_fallback=config.far_points,
+                                   far_point_fallback=config.far_points != "off",
+                                   far_point_starvation=(FAR_POINT_STARVATION if config.far_points == "starved"
+                                                         else math.inf),
                                    max_track_gap=_filter_track_gaps(config),
                                    max_camera_states=cfg.max_camera_states * len(frame_streams(config.frames)))
     if gravity is not None:

@@ -780,3 +780,35 @@ def test_far_point_fallback_uses_low_parallax_tracks_for_the_rotation_and_still_
     assert ungated.rejections["far_point_fallback"] == 0
     with pytest.raises(ValueError, match="far_point_fallback"):
         MsckfConfig(far_point_fallback=1)
+
+
+def test_far_points_only_while_the_filter_starves():
+    """``far_point_starvation``: far points only while the tracks triangulated as usual and used average fewer than
+    s per image over the last second. Over the distant landmarks (the test above) the filter starves, so it takes
+    the far points and keeps its attitude as the always-on option does; in the room's simulation, fed by tracks with
+    parallax, the same setting uses none and gives the plain filter's result exactly, where the always-on option
+    does use some."""
+    options = dict(seed=3, duration=6.0, preset="aerial_like", depth=(3000.0, 8000.0), life=(5, 30))
+    traj, imu, frames, cfg, state = simulation(**options)
+    starving = Msckf(dataclasses.replace(cfg, far_point_fallback=True, far_point_starvation=1.0), state)
+    out = starving.run(imu.t, imu.gyro, imu.accel, frames)
+    always = Msckf(dataclasses.replace(cfg, far_point_fallback=True), state)
+    out_always = always.run(imu.t, imu.gyro, imu.accel, frames)
+    att, att_always = _attitude_errors(traj, out)[-1], _attitude_errors(traj, out_always)[-1]
+    n_far, n_always = starving.rejections["far_point_fallback"], always.rejections["far_point_fallback"]
+    print(f"distant: far points {n_far} (always {n_always}), attitude {np.degrees(att):.3f} deg (always "
+          f"{np.degrees(att_always):.3f}; the plain filter's 43 deg in the test above)")
+    assert n_far > 0.5 * n_always and att < 1.5 * att_always
+
+    traj, imu, frames, cfg, state = simulation(seed=4, duration=4.0)
+    plain = Msckf(cfg, state).run(imu.t, imu.gyro, imu.accel, frames)
+    fed = Msckf(dataclasses.replace(cfg, far_point_fallback=True, far_point_starvation=1.0), state)
+    out_fed = fed.run(imu.t, imu.gyro, imu.accel, frames)
+    always = Msckf(dataclasses.replace(cfg, far_point_fallback=True), state)
+    always.run(imu.t, imu.gyro, imu.accel, frames)
+    print(f"room: far points {fed.rejections['far_point_fallback']} (always {always.rejections['far_point_fallback']})")
+    assert fed.rejections["far_point_fallback"] == 0 < always.rejections["far_point_fallback"]
+    np.testing.assert_array_equal(np.array([o.p_IinG for o in out_fed]), np.array([o.p_IinG for o in plain]))
+    for bad in (0.0, -1.0, float("nan"), True):
+        with pytest.raises(ValueError, match="far_point_starvation"):
+            MsckfConfig(far_point_starvation=bad)

@@ -4,6 +4,7 @@ differences, the batched solver against the single one, and bad input."""
 import numpy as np
 import pytest
 from scipy.optimize import least_squares
+from scipy.stats import norm
 from scipy.spatial.transform import Rotation
 
 from evio_lib.msckf.triangulation import (
@@ -158,7 +159,36 @@ def test_batch_matches_single_calls(rng):
         assert (one.reason, one.success, one.iterations, one.anchor) == (many.reason, many.success, many.iterations,
                                                                          many.anchor)
         np.testing.assert_allclose(many.p_FinG, one.p_FinG, atol=1e-10)
+        np.testing.assert_allclose(many.inverse_depth_std, one.inverse_depth_std, rtol=1e-9)
     assert triangulate_inverse_depth_batch([]) == []
+
+
+def test_inverse_depth_std_matches_the_spread_over_noise_draws(rng):
+    """The reported σ of (α, β, ρ) against the empirical spread of the estimates over 1 500 noise draws, for a
+    distant point seen over a short baseline (aerial-like: 300 m away, 3 m of travel): ρ's noise is then about as
+    large as ρ itself, so a fair share of the draws land behind the cameras, as the filter sees in flight."""
+    M, sigma = 6, 1.0 / FOCAL_PX
+    p_F = np.array([20.0, -10.0, 300.0])
+    p = np.column_stack([np.linspace(0.0, 3.0, M), np.zeros(M), np.zeros(M)])
+    R = Rotation.from_rotvec(rng.normal(scale=0.02, size=(M, 3))).as_matrix().transpose(0, 2, 1)
+    obs = project(R, p, p_F)
+    draws = [(R, p, obs + rng.normal(scale=sigma, size=obs.shape)) for _ in range(1500)]
+    results = triangulate_inverse_depth_batch(draws, max_depth=1e9)
+    theta = np.array([r.inverse_depth for r in results])
+    reported = sigma * np.array([r.inverse_depth_std for r in results])
+    empirical = theta.std(axis=0)
+    print(f"rho {1 / 300:.5f}: empirical std {empirical.round(6)}, reported (median) {np.median(reported, 0).round(6)}")
+    np.testing.assert_allclose(np.median(reported, axis=0), empirical, rtol=0.1)
+    # noise alone puts some behind the cameras, as many as a normal ρ with that σ predicts
+    behind, predicted = np.mean(theta[:, 2] <= 0), norm.cdf(-(1 / 300) / empirical[2])
+    assert behind > 0.02 and behind == pytest.approx(predicted, abs=0.02)
+    # the noise-free track: the closed form for a lateral baseline, σ_ρ ≈ σ / sqrt(Σ (b_i - b̄)^2)
+    exact = triangulate_inverse_depth(R, p, obs, max_depth=1e9)
+    b = p[:, 0] - p[0, 0]
+    assert sigma * exact.inverse_depth_std[2] == pytest.approx(sigma / np.sqrt(np.sum((b - b.mean()) ** 2)), rel=0.1)
+    # without a baseline the depth is not measured at all
+    same_centre = triangulate_inverse_depth(R, np.zeros((M, 3)), obs)
+    assert same_centre.reason == "insufficient_baseline" and same_centre.inverse_depth_std[2] == np.inf
 
 
 # ---------------------------------------------------------------- rejections

@@ -1,12 +1,13 @@
 """Tests of evio_lib.pipeline.run: the chain on simulated recordings, its metrics and its robustness."""
 import dataclasses
+import math
 
 import numpy as np
 import pytest
 
 from evio_lib.frontend import create_tracker
 from evio_lib.pipeline.dataset import LoadedDataset
-from evio_lib.pipeline.run import PipelineConfig, msckf_config_for, run_pipeline
+from evio_lib.pipeline.run import FAR_POINT_STARVATION, PipelineConfig, msckf_config_for, run_pipeline
 from evio_lib.sequence import ImuSamples
 
 
@@ -127,7 +128,8 @@ def test_static_initialisation_refuses_a_moving_start(boxes_aps):
     (dict(frames="events", reconstructor="no/such.pt"), "or a reconstruct-train checkpoint file; got 'no/such.pt'"),
     (dict(track_gap=-1), r"track_gap must be an integer >= 0 \(frames\); got -1"),
     (dict(track_gap=1.0), "track_gap must be an integer"),
-    (dict(far_points=1), "far_points must be True or False; got 1"),
+    (dict(far_points=1), r"far_points must be one of off, starved, always \(or True / False for 'always' / 'off'\); got 1"),
+    (dict(far_points="sometimes"), "far_points must be one of off, starved, always"),
     (dict(tracker="klt", features="fast", track_gap=2), "track_gap applies to the descriptor tracker"),
     (dict(frames="aps+mc-events", tracker="klt", event_tracker="klt", track_gap=1),
      "track_gap applies to the descriptor tracker"),
@@ -270,15 +272,25 @@ def test_a_track_gap_reaches_the_tracker_and_the_filter(boxes_aps):
 
 
 def test_far_points_reach_the_filter_and_the_label(boxes_aps):
-    """far_points: the filter's far_point_fallback is set, the label says so, and the run stays on course (its
-    numbers over the whole presets are in docs/pipeline.md, "Tracks without parallax")."""
-    config = PipelineConfig(features="sift", far_points=True)
-    assert msckf_config_for(config, boxes_aps).far_point_fallback
-    assert not msckf_config_for(PipelineConfig(features="sift"), boxes_aps).far_point_fallback  # the default
-    assert config.label() == "SIFT on APS frames, far points"
-    result = run_pipeline(boxes_aps, config)
+    """far_points: 'starved' (the default) sets the filter's far_point_fallback with the starvation level,
+    'always' with none (inf), 'off' clears it; True / False are read as 'always' / 'off'; the label names the
+    two that are not the default. A run fed by tracks with parallax, as in the room, starves nowhere and uses no far
+    point, where 'always' does and stays on course (numbers over the whole presets: docs/pipeline.md, "Tracks
+    without parallax")."""
+    starved, always, off = (msckf_config_for(PipelineConfig(features="sift", far_points=mode), boxes_aps)
+                            for mode in ("starved", "always", "off"))
+    assert PipelineConfig().far_points == "starved"
+    assert starved.far_point_fallback and starved.far_point_starvation == FAR_POINT_STARVATION
+    assert always.far_point_fallback and always.far_point_starvation == math.inf
+    assert not off.far_point_fallback
+    assert PipelineConfig(far_points=True).far_points == "always" and PipelineConfig(far_points=False).far_points == "off"
+    assert PipelineConfig(features="sift", far_points="always").label() == "SIFT on APS frames, far points always"
+    assert PipelineConfig(features="sift", far_points="off").label() == "SIFT on APS frames, no far points"
+    assert PipelineConfig(features="sift").label() == "SIFT on APS frames"
+    result = run_pipeline(boxes_aps, PipelineConfig(features="sift", far_points="always"))
     assert result.rejections["far_point_fallback"] > 0
     assert result.metrics["rmse_m"] < 0.3 and np.isfinite(result.p_IinG).all()
+    assert run_pipeline(boxes_aps, PipelineConfig(features="sift")).rejections.get("far_point_fallback", 0) == 0
 
 
 def test_two_frame_streams_in_one_run(boxes_events):
