@@ -81,7 +81,8 @@ class MsckfConfig:
             ``chi2_gating`` off there is no gate, and the option does nothing). The nullspace projection
             (Eq. 50) removes the point's error to first order, so what remains constrains the rotation between
             the cameras. Kept the CNN on course over the aerial terrain (docs/pipeline.md, "Tracks without
-            parallax"); off by default, since it cost SIFT and KLT accuracy (KLT in the room 0.29 -> 0.37 %).
+            parallax"). Off here (the thesis's filter); the pipeline turns it on with ``far_point_starvation``,
+            since used always it cost SIFT and KLT accuracy (KLT in the room 0.29 -> 0.37 %).
         far_point_starvation: when far points are used [inf: always, with ``far_point_fallback``]. With a finite
             value s, only while the filter starves: while the features it triangulated (as usual, not far points)
             and used, per image over the last second of image times, average fewer than s (before the first image
