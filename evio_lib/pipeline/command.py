@@ -259,7 +259,7 @@ _OPTIONS = {"reconstructor": "--reconstructor", "reconstructor_precision": "--re
             "method": "--tracker", "observation_outlier_px": "--outlier-px",
             "track_gap": "--track-gap", "pixel_noise_px": "--pixel-noise",
             "event_pixel_noise_px": "--event-pixel-noise", "event_tracker": "--event-tracker",
-            "aps_exposure_s": "--aps-exposure", "aps_blur_noise": "--aps-blur-noise"}
+            "aps_exposure_s": "--aps-exposure", "aps_blur_noise": "--aps-blur-noise", "far_points": "--far-points"}
 
 
 def add_aps_exposure_argument(p: argparse.ArgumentParser) -> None:

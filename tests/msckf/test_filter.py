@@ -558,7 +558,7 @@ def test_long_tracks_each_observation_enters_at_most_one_update_with_its_own_cam
     seen, n_checked = set(), [0]
     update = f._update
 
-    def checked_update(uses):
+    def checked_update(uses, far=False):
         window = f.state.camera_ids
         for u in uses:
             cams = [window[j] for j in u.window_idx]
@@ -570,7 +570,7 @@ def test_long_tracks_each_observation_enters_at_most_one_update_with_its_own_cam
                     assert (cam, fid) not in seen  # never in two updates
                     seen.add((cam, fid))
                     n_checked[0] += 1
-        return update(uses)
+        return update(uses, far=far)
 
     f._update = checked_update
     outputs = f.run(imu.t, imu.gyro, imu.accel, frames)
@@ -652,7 +652,7 @@ def test_a_track_gap_keeps_tracks_whole_across_missed_observations():
         update = f._update
         counts = {"obs": 0, "gapped": 0}
 
-        def checked_update(uses, f=f, update=update, counts=counts, gap=gap):
+        def checked_update(uses, far=False, f=f, update=update, counts=counts, gap=gap):
             window = f.state.camera_ids
             for u in uses:
                 cams = [window[j] for j in u.window_idx]
@@ -663,7 +663,7 @@ def test_a_track_gap_keeps_tracks_whole_across_missed_observations():
                 assert np.all(steps >= 1) and np.all(steps <= gap + 1)
                 counts["gapped"] += int(np.any(steps > 1))
                 counts["obs"] += int(np.count_nonzero(u.involved))
-            return update(uses)
+            return update(uses, far=far)
 
         f._update = checked_update
         outputs = f.run(imu.t, imu.gyro, imu.accel, [(t, ids, xy, None, stream) for t, ids, xy in holed])
