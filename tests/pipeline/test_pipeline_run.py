@@ -272,25 +272,26 @@ def test_a_track_gap_reaches_the_tracker_and_the_filter(boxes_aps):
 
 
 def test_far_points_reach_the_filter_and_the_label(boxes_aps):
-    """far_points: 'starved' (the default) sets the filter's far_point_fallback with the starvation level,
-    'always' with none (inf), 'off' clears it; True / False are read as 'always' / 'off'; the label names the
-    two that are not the default. A run fed by tracks with parallax, as in the room, starves nowhere and uses no far
-    point, where 'always' does and stays on course (numbers over the whole presets: docs/pipeline.md, "Tracks
-    without parallax")."""
+    """far_points: 'starved' sets the filter's far_point_fallback with the starvation level, 'always' with none
+    (inf), 'off' (the default) clears it; True / False are read as 'always' / 'off'; the label names the two that
+    are not the default. A run fed by tracks with parallax, as in the room, starves nowhere and uses no far point
+    with 'starved', where 'always' does and stays on course (numbers over the whole presets: docs/pipeline.md,
+    "Tracks without parallax")."""
     starved, always, off = (msckf_config_for(PipelineConfig(features="sift", far_points=mode), boxes_aps)
                             for mode in ("starved", "always", "off"))
-    assert PipelineConfig().far_points == "starved"
+    assert PipelineConfig().far_points == "off" and not msckf_config_for(PipelineConfig(), boxes_aps).far_point_fallback
     assert starved.far_point_fallback and starved.far_point_starvation == FAR_POINT_STARVATION
     assert always.far_point_fallback and always.far_point_starvation == math.inf
     assert not off.far_point_fallback
     assert PipelineConfig(far_points=True).far_points == "always" and PipelineConfig(far_points=False).far_points == "off"
     assert PipelineConfig(features="sift", far_points="always").label() == "SIFT on APS frames, far points always"
-    assert PipelineConfig(features="sift", far_points="off").label() == "SIFT on APS frames, no far points"
+    assert PipelineConfig(features="sift", far_points="starved").label() == "SIFT on APS frames, far points when starved"
     assert PipelineConfig(features="sift").label() == "SIFT on APS frames"
     result = run_pipeline(boxes_aps, PipelineConfig(features="sift", far_points="always"))
     assert result.rejections["far_point_fallback"] > 0
     assert result.metrics["rmse_m"] < 0.3 and np.isfinite(result.p_IinG).all()
-    assert run_pipeline(boxes_aps, PipelineConfig(features="sift")).rejections.get("far_point_fallback", 0) == 0
+    starving = run_pipeline(boxes_aps, PipelineConfig(features="sift", far_points="starved"))
+    assert starving.rejections.get("far_point_fallback", 0) == 0
 
 
 def test_two_frame_streams_in_one_run(boxes_events):
