@@ -85,11 +85,13 @@ class MsckfConfig:
             used always it cost SIFT and KLT accuracy (KLT in the room 0.29 -> 0.37 %).
         far_point_starvation: when far points are used [inf: always, with ``far_point_fallback``]. With a finite
             value s, only while the filter starves: while the features it triangulated (as usual, not far points)
-            and used, per image over the last second of image times, average fewer than s (before the first image
-            there is nothing to average, and no far point). A filter fed by enough tracks with parallax is then left
-            as it was, and one that stops finding them (a distant scene, short tracks) gets the far points' rows.
-            Measured at s = 2: no divergence left over the terrain, but the CNN, which uses 2.6-3.1 per image,
-            starved in the room too and diverged on a test seed (docs/pipeline.md).
+            and used, per image over the last second of image times, average fewer than s. Every image counts, of
+            every frame stream, and one whose update used nothing counts 0: at the first image there is nothing to
+            average (no far point), but over the rest of a run's first second, before tracks have ended, the
+            filter counts as starving. A filter fed by enough tracks with parallax is then left as it was, and one
+            that stops finding them (a distant scene, short tracks) gets the far points' rows. Measured at s = 2
+            (docs/pipeline.md): on the test seeds no divergence was left over the terrain, but the CNN, which uses
+            2.6-3.1 per image, starved in the room too and diverged on one.
         max_track_gap: images of its stream a track may miss and still continue [0]. With 0 a track ends at the first
             image without it and is used then; with g > 0 it is kept (its observations need not come from
             consecutive clones) until more than g images in a row lack it, so a front-end that finds a feature
