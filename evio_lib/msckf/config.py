@@ -31,7 +31,7 @@ _NON_NEGATIVE = (
     "gyro_noise_density", "accel_noise_density", "gyro_random_walk", "accel_random_walk",
     "init_sigma_attitude", "init_sigma_gyro_bias", "init_sigma_velocity", "init_sigma_accel_bias",
     "init_sigma_position", "keyframe_rotation_threshold", "keyframe_translation_threshold",
-    "triangulation_min_baseline_ratio", "static_init_duration",
+    "triangulation_min_baseline_ratio", "static_init_duration", "far_point_scene_depth",
 )
 _POSITIVE = (
     "pixel_noise_sigma", "focal_length_px", "triangulation_tolerance", "triangulation_min_depth",
@@ -92,6 +92,12 @@ class MsckfConfig:
             that stops finding them (a distant scene, short tracks) gets the far points' rows. Measured at s = 2
             (docs/pipeline.md): on the test seeds no divergence was left over the terrain, but the CNN, which uses
             2.6-3.1 per image, starved in the room too and diverged on one.
+        far_point_scene_depth: far points only in a distant scene [0 m: no test]. With d > 0, only while the median
+            depth (in its anchor camera) of the points triangulated over the last second of image times is at
+            least d (a point that triangulated beyond ``triangulation_max_depth`` counts at that depth); when none
+            was in that second, the last median stands (0 before the first).
+            In a near scene (a room, depths of metres) a track that fails triangulation is more likely a wrong track
+            than a far one; over a terrain seen from 250 m the opposite holds.
         max_track_gap: images of its stream a track may miss and still continue [0]. With 0 a track ends at the first
             image without it and is used then; with g > 0 it is kept (its observations need not come from
             consecutive clones) until more than g images in a row lack it, so a front-end that finds a feature
@@ -188,6 +194,8 @@ class MsckfConfig:
                                                  "bearing, gated")
     far_point_starvation: float = _param(math.inf, "features/image", "far points only while the triangulated "
                                          "features used per image over the last second average below this")
+    far_point_scene_depth: float = _param(0.0, "m", "far points only while the median depth of the points "
+                                                    "triangulated over the last second is at least this")
     # filter variants and modes
     observability_constrained: bool = _param(True, "", "observability-constrained EKF (thesis §3.3.8)")
     oc_update: str = _param("projected", "", "update-side OC: 'projected' (on the projected feature Jacobian) or "

@@ -295,6 +295,9 @@ class Msckf:
         self._stream_images: Counter[int] = Counter()  # images processed per stream
         self._triangulated_used: deque[tuple[float, int]] = deque()  # (image time, tracks triangulated and used)
         self._far_used = 0  # far points used by the last update
+        self._last_depths: list[float] = []  # depths of the points the last update triangulated (anchor camera)
+        self._scene_depths: deque[tuple[float, float]] = deque()  # (image time, depth) over the last second
+        self._scene_depth = 0.0  # their median (kept while none comes): far_point_scene_depth
         self._next_camera_id = max(state.camera_ids, default=-1) + 1
         self._tracking_rate = 1.0
         self._imu_t = np.zeros(0)
@@ -553,6 +556,11 @@ class Msckf:
             self._triangulated_used.append((t, used - self._far_used))
             while self._triangulated_used[0][0] < t - 1.0:  # keep the last second
                 self._triangulated_used.popleft()
+            self._scene_depths.extend((t, d) for d in self._last_depths)
+            while self._scene_depths and self._scene_depths[0][0] < t - 1.0:
+                self._scene_depths.popleft()
+            if self._scene_depths:
+                self._scene_depth = float(np.median([d for _, d in self._scene_depths]))
             self._frame_counters["lost_used"] += int(np.count_nonzero(used_mask[:len(lost)]))
             self._frame_counters["prune_used"] += int(np.count_nonzero(used_mask[len(lost):]))
         self._marginalize(remove)
@@ -797,8 +805,10 @@ class Msckf:
     def _far_points_now(self, t: float) -> bool:
         """Return whether this image's update may use far points: ``far_point_fallback`` on (and the gate), and
         ``far_point_starvation`` infinite or above the mean number of triangulated features used per image in
-        the last second of image times (before ``t``)."""
+        the last second of image times (before ``t``), and the scene at least ``far_point_scene_depth`` deep."""
         if not (self.config.far_point_fallback and self.config.chi2_gating):  # never ungated: no residual check
+            return False
+        if self._scene_depth < self.config.far_point_scene_depth:  # a near scene: failed tracks are wrong ones
             return False
         if math.isinf(self.config.far_point_starvation):
             return True
@@ -814,6 +824,7 @@ class Msckf:
         """
         used = np.zeros(len(uses), dtype=bool)
         self._far_used = 0  # far points among the used (read by the caller for far_point_starvation)
+        self._last_depths = []  # depths of the points triangulated here (read by the caller: far_point_scene_depth)
         if not uses:
             return used
         state = self._state
@@ -846,6 +857,9 @@ class Msckf:
                 self.rejections["too_few_observations"] += 1
             else:
                 ok.append((k, u, res.p_FinG))
+        # the scene's depth (far_point_scene_depth): the points triangulated, and those beyond the max depth at it
+        self._last_depths = [1.0 / res.inverse_depth[2] if res.success else self.config.triangulation_max_depth
+                             for res in results if res.success or res.reason == "too_far"]
         if self.config.observability_constrained:
             cams = state.cameras.values()
             R_null = quat_to_rot(np.array([c.q_GtoC_null for c in cams]))

@@ -81,11 +81,13 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--outlier-px", type=real(above=0.0), default=None, metavar="PX",
                    help="drop a track's observations that reproject farther than PX pixels from its triangulated "
                         "point, and keep the rest of the track (default: off)")
-    p.add_argument("--far-points", choices=["off", "starved", "always"], default="off",
+    p.add_argument("--far-points", choices=["off", "starved", "far-scene", "always"], default="off",
                    help="when to use a track whose triangulation fails for lack of parallax (behind a camera, beyond "
                         "1 000 m, no baseline) with its point placed far on its bearing, where it still constrains "
                         "the rotation: off, starved (only while the filter finds too few triangulated features: "
-                        "pipeline.run.FAR_POINT_STARVATION per image over the last second) or always "
+                        "pipeline.run.FAR_POINT_STARVATION per image over the last second), far-scene (only while "
+                        "it starves and its triangulated points lie at least pipeline.run.FAR_POINT_SCENE_DEPTH "
+                        "away) or always "
                         "(default: off, such tracks are dropped)")
     p.add_argument("--pixel-noise", type=real(above=0.0), default=1.0, metavar="PX",
                    help="the filter's feature noise sigma in pixels of the APS frames' tracks, and of a lone event "

@@ -59,14 +59,15 @@ from evio_lib.pipeline.frames import (FRAME_SOURCES, STREAM_ID_OFFSET, aps_frame
                                       mc_event_frames)
 from evio_lib.threads import set_threads, single_threaded_blas  # re-exported: `from evio_lib.pipeline.run import set_threads` keeps working
 
-__all__ = ["FAR_POINT_MODES", "FAR_POINT_STARVATION", "FUSED_EVENT_NOISE_FACTOR", "INIT_MODES", "MIN_PERCENT_DISTANCE_M",
+__all__ = ["FAR_POINT_MODES", "FAR_POINT_SCENE_DEPTH", "FAR_POINT_STARVATION", "FUSED_EVENT_NOISE_FACTOR", "INIT_MODES", "MIN_PERCENT_DISTANCE_M",
            "PipelineConfig", "PipelineResult", "run_pipeline", "run_pipelines",
            "set_threads"]
 
 INIT_MODES = ("auto", "groundtruth", "static")
-#: When the filter uses tracks without parallax as far points (``PipelineConfig.far_points``): never, only while it
-#: starves (fewer than FAR_POINT_STARVATION triangulated features used per image over the last second), or always.
-FAR_POINT_MODES = ("off", "starved", "always")
+#: When the filter uses tracks without parallax as far points (``PipelineConfig.far_points``): never; only while it
+#: starves (fewer than FAR_POINT_STARVATION triangulated features used per image over the last second); only while it
+#: starves in a distant scene (median depth of its triangulated points at least FAR_POINT_SCENE_DEPTH); or always.
+FAR_POINT_MODES = ("off", "starved", "far-scene", "always")
 #: The starvation level of ``far_points='starved'``, features per image (``MsckfConfig.far_point_starvation``).
 #: Chosen on the validation seeds (docs/pipeline.md, "Tracks without parallax"): at 1.0 the CNN on motion-compensated
 #: event frames over the terrain stayed diverged (seed 3: 189 %), at 2.0 it reached 23 %; SIFT and KLT, which lose
@@ -74,6 +75,9 @@ FAR_POINT_MODES = ("off", "starved", "always")
 #: their results on 7 of 10 runs. On the test seeds the CNN, which uses 2.6-3.1 per image, starved at this level in
 #: the room too and diverged (seed 0).
 FAR_POINT_STARVATION = 2.0
+#: The scene depth of ``far_points='far-scene'``, m (``MsckfConfig.far_point_scene_depth``): between the room's
+#: few metres (and those of the real ECD and EuRoC recordings) and the terrain's 250 m, set before measuring.
+FAR_POINT_SCENE_DEPTH = 50.0
 #: Shortest ground-truth path for which the % of distance is reported, m. Over a shorter path the mean error divided
 #: by the length measures the noise of standing still, not drift per metre travelled.
 MIN_PERCENT_DISTANCE_M = 0.5
@@ -153,8 +157,9 @@ class PipelineConfig:
         far_points: when a track whose triangulation lands behind a camera, beyond 1 000 m or without baseline is
             used with its point placed far on its bearing instead of dropped (``MsckfConfig.far_point_fallback``;
             such tracks still tell the rotation between the cameras): 'off' (never; the default), 'starved' (only
-            while the filter starves, ``FAR_POINT_STARVATION``) or 'always'; True and False mean 'always' and
-            'off'. Neither is the default: 'always' costs SIFT and KLT accuracy in the room, 'starved' made the CNN
+            while the filter starves, ``FAR_POINT_STARVATION``), 'far-scene' (only while it starves and the points
+            it triangulates lie at least ``FAR_POINT_SCENE_DEPTH`` away) or 'always'; True and False mean 'always'
+            and 'off'. Neither is the default: 'always' costs SIFT and KLT accuracy in the room, 'starved' made the CNN
             diverge there on a test seed (docs/pipeline.md, "Tracks without parallax").
         track_gap: frames a descriptor track may miss and still continue with its id
             (``FrontendConfig.max_gap_frames`` and ``MsckfConfig.max_track_gap``; 0: a missed detection ends the
@@ -340,7 +345,8 @@ class PipelineConfig:
         if self.aps_blur_noise is not None:
             noise += f", APS blur noise {self.aps_blur_noise:g}"
         return (label + (f", track gap {self.track_gap}" if self.track_gap else "") + noise
-                + {"off": "", "starved": ", far points when starved", "always": ", far points always"}[self.far_points])
+                + {"off": "", "starved": ", far points when starved", "far-scene": ", far points when starved far away",
+                   "always": ", far points always"}[self.far_points])
 
 
 @dataclass(eq=False)
@@ -549,8 +555,11 @@ def msckf_config_for(config: PipelineConfig, data: LoadedDataset) -> MsckfConfig
                                    observability_constrained=config.oc, imu_only=config.imu_only,
                                    observation_outlier_px=config.observation_outlier_px,
                                    far_point_fallback=config.far_points != "off",
-                                   far_point_starvation=(FAR_POINT_STARVATION if config.far_points == "starved"
+                                   far_point_starvation=(FAR_POINT_STARVATION
+                                                         if config.far_points in ("starved", "far-scene")
                                                          else math.inf),
+                                   far_point_scene_depth=(FAR_POINT_SCENE_DEPTH if config.far_points == "far-scene"
+                                                          else 0.0),
                                    max_track_gap=_filter_track_gaps(config),
                                    max_camera_states=cfg.max_camera_states * len(frame_streams(config.frames)))
     if gravity is not None:

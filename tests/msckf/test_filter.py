@@ -6,6 +6,7 @@ propagation, degenerate input (no features, one pixel, no baseline) and bad inpu
 The feature tracks are made here (random landmarks spawned in front of the simulated camera, projected with noise),
 independently of the library's track simulator."""
 import dataclasses
+import math
 
 import numpy as np
 import pytest
@@ -812,3 +813,25 @@ def test_far_points_only_while_the_filter_starves():
     for bad in (0.0, -1.0, float("nan"), True):
         with pytest.raises(ValueError, match="far_point_starvation"):
             MsckfConfig(far_point_starvation=bad)
+
+
+def test_far_points_only_in_a_distant_scene():
+    """``far_point_scene_depth``: far points only while the median depth of the points triangulated over the last
+    second (those beyond the max depth counted at it) is at least d. Over landmarks 3-8 km away the scene is far and
+    the far points are used as without the test; in the room (depths of metres) none is used even with far points
+    always on, and the run is the plain filter's exactly."""
+    options = dict(seed=3, duration=6.0, preset="aerial_like", depth=(3000.0, 8000.0), life=(5, 30))
+    traj, imu, frames, cfg, state = simulation(**options)
+    scene = Msckf(dataclasses.replace(cfg, far_point_fallback=True, far_point_scene_depth=50.0), state)
+    scene.run(imu.t, imu.gyro, imu.accel, frames)
+    assert scene.rejections["far_point_fallback"] > 100 and scene._scene_depth >= 50.0
+
+    traj, imu, frames, cfg, state = simulation(seed=4, duration=4.0)
+    plain = Msckf(cfg, state).run(imu.t, imu.gyro, imu.accel, frames)
+    room = Msckf(dataclasses.replace(cfg, far_point_fallback=True, far_point_scene_depth=50.0), state)
+    out = room.run(imu.t, imu.gyro, imu.accel, frames)
+    assert room.rejections["far_point_fallback"] == 0 and 0.5 < room._scene_depth < 50.0
+    np.testing.assert_array_equal(np.array([o.p_IinG for o in out]), np.array([o.p_IinG for o in plain]))
+    for bad in (-1.0, float("nan"), math.inf):
+        with pytest.raises(ValueError, match="far_point_scene_depth"):
+            MsckfConfig(far_point_scene_depth=bad)
