@@ -164,6 +164,7 @@ def table_job(preset: str, duration: float, seed: int, row: TableRow, threads: i
         record["tracked_per_frame"] = float(np.mean(result.tracking["tracked"]))
         record["mean_track_length"] = float(np.mean(result.track_lengths)) if len(result.track_lengths) else 0.0
     record["faults"] = int(sum(result.faults.values()))
+    record["rejections"] = {k: int(v) for k, v in sorted(result.rejections.items())}  # the filter's, by reason
     return record
 
 

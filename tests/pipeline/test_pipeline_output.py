@@ -169,7 +169,9 @@ def test_table_fast_command(pipeline_cache, tmp_path, capsys):
     assert "IMU only (no bias correction)" in text and "IMU only (bias correction)" in text
     rows = json.loads((out / "table.json").read_text())
     assert [r["row"] for r in rows] == ["imu", "imu_bias"] and all(r["failed"] == 0 for r in rows)
-    assert all("aps_exposure_s" not in r for r in json.loads((out / "runs.json").read_text()))
+    records = json.loads((out / "runs.json").read_text())
+    assert all("aps_exposure_s" not in r for r in records)
+    assert all(r["rejections"] == {} for r in records)  # IMU only: the filter drops no track
 
 
 def test_aps_exposure_reaches_the_recording(pipeline_cache, tmp_path, monkeypatch, capsys):
@@ -190,6 +192,7 @@ def test_aps_exposure_reaches_the_recording(pipeline_cache, tmp_path, monkeypatc
                  "--out", str(tmp_path / "table")]) == 0
     (record,) = json.loads((tmp_path / "table" / "runs.json").read_text())
     assert record["aps_exposure_s"] == 0.02 and "error" not in record
+    assert record["rejections"] and all(isinstance(n, int) and n > 0 for n in record["rejections"].values())
     assert len(asked) >= 2 and set(asked[1:]) == {0.02}  # the table's simulation and its run
 
 
