@@ -293,11 +293,12 @@ class Msckf:
         self._track_stream: dict[int, int] = {}  # the frame stream of each track (one stream: all 0)
         self._track_last_image: dict[int, int] = {}  # the stream's image count when each track was last observed
         self._stream_images: Counter[int] = Counter()  # images processed per stream
-        self._triangulated_used: deque[tuple[float, int]] = deque()  # (image time, tracks triangulated and used)
+        # the last second of updates, kept for the far-point tests (only with far_point_fallback): (image time,
+        # tracks triangulated and used, depths of the points triangulated); the depths' median persists
+        self._recent_updates: deque[tuple[float, int, list[float]]] = deque()
         self._far_used = 0  # far points used by the last update
         self._last_depths: list[float] = []  # depths of the points the last update triangulated (anchor camera)
-        self._scene_depths: deque[tuple[float, float]] = deque()  # (image time, depth) over the last second
-        self._scene_depth = 0.0  # their median (kept while none comes): far_point_scene_depth
+        self._scene_depth = 0.0  # median depth over the last second with any (far_point_scene_depth)
         self._next_camera_id = max(state.camera_ids, default=-1) + 1
         self._tracking_rate = 1.0
         self._imu_t = np.zeros(0)
@@ -553,14 +554,8 @@ class Msckf:
             self._frame_counters["prune_tried"] += len(pruned)
             used_mask = self._update(lost + pruned, far=self._far_points_now(t))
             used = int(np.count_nonzero(used_mask))
-            self._triangulated_used.append((t, used - self._far_used))
-            while self._triangulated_used[0][0] < t - 1.0:  # keep the last second
-                self._triangulated_used.popleft()
-            self._scene_depths.extend((t, d) for d in self._last_depths)
-            while self._scene_depths and self._scene_depths[0][0] < t - 1.0:
-                self._scene_depths.popleft()
-            if self._scene_depths:
-                self._scene_depth = float(np.median([d for _, d in self._scene_depths]))
+            if self.config.far_point_fallback:
+                self._remember_update(t, used - self._far_used)
             self._frame_counters["lost_used"] += int(np.count_nonzero(used_mask[:len(lost)]))
             self._frame_counters["prune_used"] += int(np.count_nonzero(used_mask[len(lost):]))
         self._marginalize(remove)
@@ -802,6 +797,16 @@ class Msckf:
     def _window_positions(self) -> dict[int, int]:
         return {cid: i for i, cid in enumerate(self._state.camera_ids)}
 
+    def _remember_update(self, t: float, triangulated_used: int) -> None:
+        """Add this image's update to the last second kept for ``_far_points_now`` and refresh the scene depth."""
+        recent = self._recent_updates
+        recent.append((t, triangulated_used, self._last_depths))
+        while recent[0][0] < t - 1.0:  # keep the last second
+            recent.popleft()
+        depths = [d for _, _, ds in recent for d in ds]
+        if depths:
+            self._scene_depth = float(np.median(depths))
+
     def _far_points_now(self, t: float) -> bool:
         """Return whether this image's update may use far points: ``far_point_fallback`` on (and the gate), and
         ``far_point_starvation`` infinite or above the mean number of triangulated features used per image in
@@ -812,7 +817,7 @@ class Msckf:
             return False
         if math.isinf(self.config.far_point_starvation):
             return True
-        recent = [n for t_i, n in self._triangulated_used if t_i >= t - 1.0]
+        recent = [n for t_i, n, _ in self._recent_updates if t_i >= t - 1.0]
         return bool(recent) and sum(recent) < self.config.far_point_starvation * len(recent)
 
     def _update(self, uses: list[_FeatureUse], far: bool = False) -> NDArray[np.bool_]:
@@ -857,9 +862,9 @@ class Msckf:
                 self.rejections["too_few_observations"] += 1
             else:
                 ok.append((k, u, res.p_FinG))
-        # the scene's depth (far_point_scene_depth): the points triangulated, and those beyond the max depth at it
-        self._last_depths = [1.0 / res.inverse_depth[2] if res.success else self.config.triangulation_max_depth
-                             for res in results if res.success or res.reason == "too_far"]
+        if self.config.far_point_fallback:  # the scene's depth: points triangulated, those beyond the max depth at it
+            self._last_depths = [1.0 / res.inverse_depth[2] if res.success else self.config.triangulation_max_depth
+                                 for res in results if res.success or res.reason == "too_far"]
         if self.config.observability_constrained:
             cams = state.cameras.values()
             R_null = quat_to_rot(np.array([c.q_GtoC_null for c in cams]))

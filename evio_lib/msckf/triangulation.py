@@ -417,14 +417,19 @@ def triangulation_jacobian(inverse_depth: ArrayLike, R_AtoC: ArrayLike, p_AinC: 
 # ------------------------------------------------------------------------------------------- Levenberg-Marquardt
 
 
-def _solve_sym3(A: NDArray[np.float64], b: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
-    """Return (x (K, 3), ok (K,)) solving the symmetric 3x3 systems A x = b by the adjugate (no exceptions)."""
+def _sym3_adjugate(A: NDArray[np.float64]) -> tuple[tuple[NDArray[np.float64], ...], NDArray[np.float64]]:
+    """Return ((c00, c01, c02, c11, c12, c22), det A) of symmetric 3x3 matrices A (K, 3, 3): the cofactors of
+    [[a, b, c], [b, d, e], [c, e, f]], i.e. the upper triangle of the symmetric adj(A), with A^-1 = adj(A) / det A."""
     a, bb, c = A[:, 0, 0], A[:, 0, 1], A[:, 0, 2]
     d, e, f = A[:, 1, 1], A[:, 1, 2], A[:, 2, 2]
-    # cofactors of [[a, bb, c], [bb, d, e], [c, e, f]]; adj(A) is symmetric, A^-1 = adj(A) / det A
     c00, c01, c02 = d * f - e * e, c * e - bb * f, bb * e - c * d
     c11, c12, c22 = a * f - c * c, bb * c - a * e, a * d - bb * bb
-    det = a * c00 + bb * c01 + c * c02
+    return (c00, c01, c02, c11, c12, c22), a * c00 + bb * c01 + c * c02
+
+
+def _solve_sym3(A: NDArray[np.float64], b: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """Return (x (K, 3), ok (K,)) solving the symmetric 3x3 systems A x = b by the adjugate (no exceptions)."""
+    (c00, c01, c02, c11, c12, c22), det = _sym3_adjugate(A)
     ok = det > 1e-300
     inv_det = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
     x = np.stack(
@@ -440,11 +445,9 @@ def _solve_sym3(A: NDArray[np.float64], b: NDArray[np.float64]) -> tuple[NDArray
 
 def _sym3_inverse_diagonal(A: NDArray[np.float64]) -> NDArray[np.float64]:
     """Return diag(A^-1) (K, 3) of symmetric 3x3 matrices A (K, 3, 3) by cofactors; inf where A is singular."""
-    a, bb, c = A[:, 0, 0], A[:, 0, 1], A[:, 0, 2]
-    d, e, f = A[:, 1, 1], A[:, 1, 2], A[:, 2, 2]
-    cof = np.column_stack([d * f - e * e, a * f - c * c, a * d - bb * bb])
-    det = a * cof[:, 0] + bb * (c * e - bb * f) + c * (bb * e - c * d)
-    scale = np.abs(A).max(axis=(1, 2)) if A.shape[0] else np.zeros(0)
+    (c00, _, _, c11, _, c22), det = _sym3_adjugate(A)
+    cof = np.column_stack([c00, c11, c22])
+    scale = np.abs(A).max(axis=(1, 2))
     ok = det > 1e-12 * np.maximum(scale, 1e-300) ** 3
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(ok[:, None], cof / np.where(ok, det, 1.0)[:, None], np.inf)
