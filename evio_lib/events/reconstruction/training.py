@@ -143,12 +143,11 @@ class ReconstructionTrainConfig:
         return settings_from_dict(cls, values, "reconstruction training settings")
 
 
-def _gaussian_window(size: int = 11, sigma: float = 1.5) -> torch.Tensor:
-    """Return the (1, 1, size, size) normalised Gaussian window of SSIM."""
+def _gaussian_kernel_1d(size: int = 11, sigma: float = 1.5) -> torch.Tensor:
+    """Return the normalised 1-D Gaussian g of SSIM's window (the 2-D window is the outer product g g^T)."""
     x = torch.arange(size, dtype=torch.float32) - (size - 1) / 2
     g = torch.exp(-x ** 2 / (2 * sigma ** 2))
-    g = g / g.sum()
-    return (g[:, None] * g[None, :])[None, None]
+    return g / g.sum()
 
 
 def ssim_torch(a: torch.Tensor, b: torch.Tensor, data_range: float = 1.0) -> torch.Tensor:
@@ -157,13 +156,18 @@ def ssim_torch(a: torch.Tensor, b: torch.Tensor, data_range: float = 1.0) -> tor
     SSIM = (2 mu_a mu_b + C1)(2 sigma_ab + C2) / ((mu_a^2 + mu_b^2 + C1)(sigma_a^2 + sigma_b^2 + C2)), Gaussian
     sigma = 1.5, C1 = (0.01 L)^2, C2 = (0.03 L)^2: scikit-image's ``structural_similarity(gaussian_weights=True,
     use_sample_covariance=False)`` on the same 'valid' region.
+
+    The five local means (of a, b, a^2, b^2, a b) are one grouped convolution with the separable 11 x 11 Gaussian,
+    as an 11 x 1 and a 1 x 11 pass: the same sums as the 2-D window, and with its backward pass about 5x faster on
+    the CPU than five 2-D 11 x 11 convolutions (which took a third of a training step).
     """
-    window = _gaussian_window().to(a.device, a.dtype)
+    g = _gaussian_kernel_1d().to(a.device, a.dtype)
     c1, c2 = (0.01 * data_range) ** 2, (0.03 * data_range) ** 2
-    mu_a, mu_b = F.conv2d(a, window), F.conv2d(b, window)
-    var_a = F.conv2d(a * a, window) - mu_a ** 2
-    var_b = F.conv2d(b * b, window) - mu_b ** 2
-    cov = F.conv2d(a * b, window) - mu_a * mu_b
+    maps = torch.cat([a, b, a * a, b * b, a * b], dim=1)                             # (N, 5, H, W)
+    means = F.conv2d(F.conv2d(maps, g.view(1, 1, -1, 1).expand(5, 1, -1, 1), groups=5),
+                     g.view(1, 1, 1, -1).expand(5, 1, 1, -1), groups=5)
+    mu_a, mu_b, aa, bb, ab = means.unbind(dim=1)
+    var_a, var_b, cov = aa - mu_a ** 2, bb - mu_b ** 2, ab - mu_a * mu_b
     ssim_map = (2 * mu_a * mu_b + c1) * (2 * cov + c2) / ((mu_a ** 2 + mu_b ** 2 + c1) * (var_a + var_b + c2))
     return ssim_map.mean()
 
@@ -437,6 +441,8 @@ def train_reconstructor(config: ReconstructionTrainConfig, out: str | Path, resu
     torch.set_num_threads(config.threads)
     torch.manual_seed(config.seed)
     net = build_network(config.architecture, config.data.num_bins, **config.network_options).to(config.device)
+    if config.device == "cpu":   # oneDNN's convolutions without reorders: a training step about 15 % faster here
+        net = net.to(memory_format=torch.channels_last)
     optimizer = torch.optim.Adam(net.parameters(), lr=config.lr)
     rng = np.random.default_rng(config.seed)
     step, history, best = 0, [], -math.inf
