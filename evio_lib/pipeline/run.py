@@ -59,8 +59,8 @@ from evio_lib.pipeline.frames import (FRAME_SOURCES, STREAM_ID_OFFSET, aps_frame
                                       mc_event_frames)
 from evio_lib.threads import set_threads, single_threaded_blas  # re-exported: `from evio_lib.pipeline.run import set_threads` keeps working
 
-__all__ = ["FAR_POINT_MODES", "FAR_POINT_SCENE_DEPTH", "FAR_POINT_STARVATION", "FUSED_EVENT_NOISE_FACTOR", "INIT_MODES", "MIN_PERCENT_DISTANCE_M",
-           "PipelineConfig", "PipelineResult", "run_pipeline", "run_pipelines",
+__all__ = ["FAR_POINT_MODES", "FAR_POINT_SCENE_DEPTH", "FAR_POINT_STARVATION", "FUSED_EVENT_NOISE_FACTOR",
+           "INIT_MODES", "MIN_PERCENT_DISTANCE_M", "PipelineConfig", "PipelineResult", "run_pipeline", "run_pipelines",
            "set_threads"]
 
 INIT_MODES = ("auto", "groundtruth", "static")
@@ -159,8 +159,9 @@ class PipelineConfig:
             such tracks still tell the rotation between the cameras): 'off' (never; the default), 'starved' (only
             while the filter starves, ``FAR_POINT_STARVATION``), 'far-scene' (only while it starves and the points
             it triangulates lie at least ``FAR_POINT_SCENE_DEPTH`` away) or 'always'; True and False mean 'always'
-            and 'off'. Neither is the default: 'always' costs SIFT and KLT accuracy in the room, 'starved' made the CNN
-            diverge there on a test seed (docs/pipeline.md, "Tracks without parallax").
+            and 'off'. None of the three is the default: 'always' costs SIFT and KLT accuracy in the room,
+            'starved' made the CNN diverge there on a test seed, and 'far-scene' left the CNN's mean over fresh
+            terrain seeds slightly worse (docs/pipeline.md, "Tracks without parallax").
         track_gap: frames a descriptor track may miss and still continue with its id
             (``FrontendConfig.max_gap_frames`` and ``MsckfConfig.max_track_gap``; 0: a missed detection ends the
             track, the thesis's tracker and the default). KLT never searches for a lost patch: with KLT on every
