@@ -225,3 +225,32 @@ def test_resume_keeps_a_cosine_schedule_and_accepts_runs_saved_before_the_new_se
     more = ReconstructionTrainConfig(steps=4, **base)
     assert train_reconstructor(more, tmp_path / "old", resume=True, data=data, val_data=val,
                                progress=False)["steps"] == 4
+
+
+def test_several_training_sets_train_together_and_validate_on_the_first(tmp_path):
+    """--data A B: the train splits of both sets are drawn from, A's val split validates, both manifests are recorded;
+    sets whose sequences differ in shape are refused before training."""
+    from evio_lib.events.reconstruction.training import open_split
+    from evio_lib.events.reconstruction.training_set import TrainingSetConfig, make_training_set
+
+    small = TrainingSetConfig(height=32, width=32, windows=4, duration_min=0.3, duration_max=0.4)
+    make_training_set(tmp_path / "a", sequences=2, val=1, test=1, seed=4, config=small, workers=1, progress=False)
+    make_training_set(tmp_path / "b", sequences=3, val=1, test=1, seed=5, config=small, workers=1, progress=False)
+    joined = open_split([tmp_path / "a", tmp_path / "b"], "train")
+    assert len(joined) == 5
+    assert [p.parent.parent.name for p in joined.paths] == ["a", "a", "b", "b", "b"]
+    np.testing.assert_array_equal(joined.take([2])[0], open_split(tmp_path / "b", "train").take([0])[0])
+    main_reconstruct_train(["--out", str(tmp_path / "run"), "--data", str(tmp_path / "a"), str(tmp_path / "b"),
+                            "--steps", "1", "--quiet", "--set", "crop=16", "--set", "validate_every=1"])
+    ckpt = torch.load(tmp_path / "run" / "last.pt", weights_only=True)
+    assert ckpt["config"]["training_set"] == str(tmp_path / "a")
+    assert ckpt["config"]["extra_training_sets"] == [str(tmp_path / "b")]
+    assert ckpt["training_set_manifest"]["seed"] == 4
+    assert [m["seed"] for m in ckpt["training_set_manifest"]["extra_training_sets"]] == [5]
+    wider = TrainingSetConfig(height=32, width=40, windows=4, duration_min=0.3, duration_max=0.4)
+    make_training_set(tmp_path / "c", sequences=1, val=1, test=1, seed=6, config=wider, workers=1, progress=False)
+    with pytest.raises(ValueError, match="must agree on all four"):
+        main_reconstruct_train(["--out", str(tmp_path / "run2"), "--data", str(tmp_path / "a"), str(tmp_path / "c")])
+    assert not (tmp_path / "run2").exists()
+    with pytest.raises(ValueError, match="extra_training_sets needs training_set"):
+        ReconstructionTrainConfig(extra_training_sets=[str(tmp_path / "b")])

@@ -20,7 +20,8 @@ back-propagation through time over L windows, from a zero state):
   flow_k(u) = pi(H u) - u.
 
 Data come from a training set folder (``training_set``: every sequence of its ``train`` split, validation on its ``val``
-split) or, without one, from :func:`~evio_lib.events.reconstruction.data.reconstruction_dataset`'s planar samples.
+split), joined by the ``train`` splits of ``extra_training_sets`` if given (each step draws uniformly over all their
+sequences), or, without one, from :func:`~evio_lib.events.reconstruction.data.reconstruction_dataset`'s planar samples.
 Augmentation per step: a random crop, horizontal and vertical flips (the flow's components negated to match), and with
 probability ``time_reversal`` the batch played backwards: window order and voxel bins reversed and the polarity negated
 (events at T - t with -p are the events of the reversed video), each window's label the image at its new end (the
@@ -94,6 +95,7 @@ class ReconstructionTrainConfig:
     device: str = "cpu"
     init_from: str | None = None       # a reconstruct-train checkpoint whose weights start the run (fine-tuning)
     training_set: str | None = None    # a reconstruct-data folder; None: planar samples drawn by `data`, n_train, n_val
+    extra_training_sets: list = field(default_factory=list)  # more folders whose train splits join training_set's
     time_reversal: float = 0.2         # probability of playing a batch backwards
     preload: bool = False              # read the whole training set into memory first (fast steps on a GPU)
     lambda_stretched: float = 0.0      # weight of L1 + (1 - SSIM) between the percentile-stretched images
@@ -127,11 +129,21 @@ class ReconstructionTrainConfig:
             raise ValueError(f"select_by must be one of {SELECTION_METRICS}; got {self.select_by!r}")
         if not (np.isfinite(self.time_reversal) and 0 <= self.time_reversal <= 1):
             raise ValueError(f"time_reversal must be a probability in [0, 1]; got {self.time_reversal!r}")
+        if self.extra_training_sets and self.training_set is None:
+            raise ValueError("extra_training_sets needs training_set (the folder whose val split validates the run)")
         if self.training_set is not None:
             _, data = read_training_set(self.training_set, "train")   # refuses a folder that is no complete set
             if data.num_bins != self.data.num_bins:
                 raise ValueError(f"the training set {self.training_set} has {data.num_bins} voxel bins; this run's "
                                  f"network takes data.num_bins = {self.data.num_bins}")
+            shape = (data.height, data.width, data.windows, data.num_bins)
+            for folder in self.extra_training_sets:
+                _, extra = read_training_set(folder, "train")
+                if (extra.height, extra.width, extra.windows, extra.num_bins) != shape:
+                    raise ValueError(f"the training set {folder} has sequences of {extra.height} x {extra.width} "
+                                     f"pixels, {extra.windows} windows and {extra.num_bins} bins; "
+                                     f"{self.training_set} has {shape[0]} x {shape[1]}, {shape[2]} and {shape[3]}: "
+                                     f"sets trained on together must agree on all four")
 
     def to_dict(self) -> dict:
         """Return the config as plain JSON-able values."""
@@ -347,9 +359,11 @@ class SequenceSource:
         return tuple(np.stack([x[k] for x in loaded]) for k in ("voxels", "frames", "flow"))
 
 
-def open_split(folder: str | Path, split: str, preload: bool = False) -> SequenceSource:
-    """Return the sequences of one split (``train``, ``val`` or ``test``) of a reconstruct-data training set."""
-    return SequenceSource(read_training_set(folder, split)[0], preload=preload)
+def open_split(folder: str | Path | Sequence[str | Path], split: str, preload: bool = False) -> SequenceSource:
+    """Return the sequences of one split (``train``, ``val`` or ``test``) of a reconstruct-data training set, or of
+    several sets together (a list of folders: their sequences one after the other)."""
+    folders = [folder] if isinstance(folder, (str, Path)) else list(folder)
+    return SequenceSource([path for f in folders for path in read_training_set(f, split)[0]], preload=preload)
 
 
 def _as_source(data) -> SequenceSource:
@@ -480,7 +494,7 @@ def train_reconstructor(config: ReconstructionTrainConfig, out: str | Path, resu
     out.mkdir(parents=True, exist_ok=True)
     (out / "config.json").write_text(json.dumps(config.to_dict(), indent=2) + "\n")
     if data is None and config.training_set is not None:
-        data = open_split(config.training_set, "train", preload=config.preload)
+        data = open_split([config.training_set, *config.extra_training_sets], "train", preload=config.preload)
     if val_data is None and config.training_set is not None:
         val_data = open_split(config.training_set, "val", preload=config.preload)
     if data is None:
@@ -493,6 +507,9 @@ def train_reconstructor(config: ReconstructionTrainConfig, out: str | Path, resu
     manifest = None                                          # read once: every checkpoint records it
     if config.training_set is not None:
         manifest = json.loads((Path(config.training_set) / MANIFEST_NAME).read_text())
+        if config.extra_training_sets:                       # the joined sets' manifests, in order
+            manifest["extra_training_sets"] = [json.loads((Path(f) / MANIFEST_NAME).read_text())
+                                               for f in config.extra_training_sets]
     n_train = len(data)
     start = time.perf_counter()
     bar = None
@@ -553,8 +570,10 @@ def main_reconstruct_train(args: argparse.Namespace | Sequence[str] | None = Non
         values["device"] = args.device
     if args.init_from is not None:
         values["init_from"] = str(args.init_from)
-    if args.data is not None:
-        values["training_set"] = str(args.data)
+    if args.data:
+        values["training_set"] = str(args.data[0])
+        if len(args.data) > 1:
+            values["extra_training_sets"] = [str(folder) for folder in args.data[1:]]
     values.update(parse_set_options(args.set))
     if values.get("seed", 0) < 0:
         raise ValueError(f"--seed must be >= 0; got {values['seed']}")
@@ -563,8 +582,9 @@ def main_reconstruct_train(args: argparse.Namespace | Sequence[str] | None = Non
     from evio_lib.io.output_dir import check_output_dir
 
     # not the working folder, no input nor inside one, a folder that can be created (OUT itself is --resume's input)
-    check_output_dir(out, force=True, name="--out", inputs=[("the --init-from checkpoint", args.init_from),
-                                                            ("the --data training set", args.data)])
+    inputs = [("the --init-from checkpoint", args.init_from)]
+    inputs += [("the --data training set", folder) for folder in args.data or []]
+    check_output_dir(out, force=True, name="--out", inputs=inputs)
     if not args.resume and out.exists() and any(out.iterdir()) and not args.force:
         raise ValueError(f"--out {out} is not empty; use --resume to continue the run there or --force to start afresh")
     print(f"training {config.architecture} ({count_parameters(build_network(config.architecture, config.data.num_bins))} "

@@ -33,9 +33,10 @@ def add_reconstruct_train_arguments(parser: argparse.ArgumentParser) -> argparse
 
     parser.add_argument("--out", type=output_folder(), required=True,
                         help="run folder: last.pt, best.pt, history.json, config.json")
-    parser.add_argument("--data", type=Path, default=None, metavar="SET",
-                        help="train on a reconstruct-data folder (its train split; validation on its val split); "
-                             "default: short planar samples simulated on the fly")
+    parser.add_argument("--data", type=Path, nargs="+", default=None, metavar="SET",
+                        help="train on reconstruct-data folders (their train splits together, drawn uniformly over "
+                             "all their sequences; validation on the first one's val split); default: short planar "
+                             "samples simulated on the fly")
     parser.add_argument("--architecture", choices=["firenet", "e2vid"], default="firenet",
                         help="firenet (38k parameters, the default) or e2vid (10.7 M parameters; needs a GPU to train)")
     parser.add_argument("--steps", type=int, default=None, help="total optimisation steps (default 3000: about an hour on a 2-core CPU)")
