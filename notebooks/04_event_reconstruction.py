@@ -381,13 +381,13 @@ assert all(0.05 <= meta["contrast_pos"] <= 1.5 and 0.01 < meta["fraction"] <= 2 
 #
 # Events say how the log intensity *changed*, not what it was: a reconstruction's overall brightness and contrast are
 # guesses, and the benchmark of section 4 forgives them by stretching both images before it compares. A loss on the
-# raw images punishes those guesses anyway, so the network spends effort on what it cannot know. The last training
-# stage therefore adds the same two terms between the stretched images, S(x) = clip((x − q₀.₀₁(x)) / (q₀.₉₉(x) −
+# raw images punishes those guesses anyway, so the network spends effort on what it cannot know. The later training
+# stages therefore add the same two terms between the stretched images, S(x) = clip((x − q₀.₀₁(x)) / (q₀.₉₉(x) −
 # q₀.₀₁(x)), 0, 1) (`stretch_torch`, differentiable through the percentiles; the spread is floored at 0.05 so that a
-# nearly flat crop is not blown up into noise), and keeps the weights with the highest
-# stretched SSIM on the validation sequences. The shipped weights were trained in three stages, each starting from
-# the one before (the commands are recorded in the checkpoint and in docs/reconstruction.md); stage 1 had its own
-# validation sequences, so its curve starts at another level:
+# nearly flat crop is not blown up into noise), and keep the weights with the highest
+# stretched SSIM on the validation sequences. The shipped weights were trained in five stages, each starting from
+# the one before (the commands are recorded in the checkpoint and in docs/reconstruction.md); the stages validated
+# on different sequences (the later sets' windows are larger and harder), so each curve starts at its own level:
 
 # %%
 import torch
@@ -411,7 +411,7 @@ for stage in checkpoint["stages"]:
     print("  made by:", stage["command"].split("   (")[0].split(";")[-1].strip())   # the training command
 stage1 = [h for h in history if h["stage"] == 1]
 last = [h for h in history if h["stage"] == stages[-1]]
-assert stages == list(range(1, len(checkpoint["stages"]) + 1)) and len(stages) >= 3
+assert stages == list(range(1, len(checkpoint["stages"]) + 1)) and len(stages) == 5
 assert max(h["val_ssim"] for h in stage1) > stage1[0]["val_ssim"]
 assert max(h["val_ssim_stretched"] for h in last) > last[0]["val_ssim_stretched"]
 assert checkpoint["step"] == max(last, key=lambda h: h["val_ssim_stretched"])["step"]   # the kept weights
@@ -445,19 +445,20 @@ for name in stretches:
     assert scores[name, "firenet"]["ssim"] > classical[name] + 0.05, name
 margin = {name: scores[name, "firenet"]["ssim"] - classical[name] for name in stretches}
 assert min(margin, key=margin.get) == "aerial_like" and margin["aerial_like"] < 0.1
-assert scores["aerial_like", "high_pass"]["mse"] < scores["aerial_like", "firenet"]["mse"] < 1.15 * scores[
+assert 0.9 * scores["aerial_like", "high_pass"]["mse"] < scores["aerial_like", "firenet"]["mse"] < scores[
     "aerial_like", "high_pass"]["mse"]
 integrator_mse = min(scores["boxes_like_fast", m]["mse"] for m in ("direct", "high_pass"))
 assert scores["boxes_like_fast", "firenet"]["mse"] < 0.6 * integrator_mse
 
 # %% [markdown]
 # On all three stretches the learned network scores a higher SSIM than both classical integrators, by more than 0.05;
-# over the sparse terrain the margin is smallest (under 0.1), and its MSE there is slightly higher than the high-pass
-# filter's (by less than 15 %).
+# over the sparse terrain the margin is smallest (under 0.1), and its MSE there is barely below the high-pass
+# filter's (by less than 10 %).
 # Direct integration and the high-pass filter only know where the log intensity changed, so flat regions stay at an
 # arbitrary gray and old noise lingers; the network has learned what images look like and fills them in, which pays
 # off in structure (SSIM) where many edges move and costs where it guesses a large flat field's brightness wrongly:
-# a wrong field is wrong everywhere, which MSE punishes more than SSIM (hence the terrain's MSE). Where the camera moves fast and events cover
+# a wrong field is wrong everywhere, which MSE punishes more than SSIM (hence the terrain's MSE, no better than the
+# filter's by much, against a clear lead in SSIM). Where the camera moves fast and events cover
 # the whole view (the violent boxes) its MSE is also below both integrators', less than 0.6 times the better
 # one's.
 
@@ -509,10 +510,10 @@ for precision in ("float32", "int8"):
     score = scores["boxes_like_fast", f"firenet {precision}"]
     print(f"{precision:8s} SSIM {score['ssim']:.3f}, MSE {score['mse']:.3f}, scored in {rates[precision]:.1f} s")
 ssim_change = (scores["boxes_like_fast", "firenet int8"]["ssim"] - scores["boxes_like_fast", "firenet float32"]["ssim"])
-assert abs(ssim_change) < 0.02
+assert abs(ssim_change) < 0.03
 
 # %% [markdown]
-# The integer network's SSIM on the violent stretch is within 0.02 of the float network's. Compare the two run times
+# The integer network's SSIM on the violent stretch is within 0.03 of the float network's. Compare the two run times
 # printed above (they include the scoring, the same for both); docs/reconstruction.md, Speed, has the frame rates
 # measured on an idle machine and what each part of the speed-up gave.
 
@@ -547,8 +548,13 @@ train_data = checkpoint["training_set_manifest"]["config"]  # the shipped networ
 print(f"the shipped network was trained on windows of n = {train_data['fraction_min']}-{train_data['fraction_max']} "
       f"and on time windows ({train_data['time_window_probability']:.0%} of the sequences)")
 assert (train_data["fraction_min"], train_data["fraction_max"]) == (0.05, 1.0)
+assert abs(np.sqrt(train_data["fraction_min"] * train_data["fraction_max"]) - 0.22) < 0.01   # log-uniform's median
 print("made by the training-set generator of version", checkpoint["training_set_manifest"]["generator"])
-assert checkpoint["training_set_manifest"]["generator"] == 2     # it cut n to the events a sequence had
+assert checkpoint["training_set_manifest"]["generator"] == 3     # its windows have the n drawn
+extra = [m["config"] for m in checkpoint["training_set_manifest"]["extra_training_sets"]]
+print("joined in the last stage by", [f"{m['sequences']['train']} sequences of n = {c['fraction_min']}-{c['fraction_max']}"
+                                      for m, c in zip(checkpoint["training_set_manifest"]["extra_training_sets"], extra)])
+assert [(c["fraction_min"], c["fraction_max"]) for c in extra] == [(0.05, 0.2)]
 
 # %% [markdown]
 # Both scenes score best with the smallest windows tried here (n = 0.05-0.1) and worst with the largest (n = 1). On
@@ -557,13 +563,11 @@ assert checkpoint["training_set_manifest"]["generator"] == 2     # it cut n to t
 # scene, a few scored windows, and part of the trend may be the start-up: every stretch starts from an empty memory,
 # and with smaller windows the network has seen more of them by the time scoring begins (0.1 s in). The thesis's n
 # were chosen by eye, on real recordings, for E2VID (its refs. 16 and 17); ours are measured against a truth, on
-# simulated ones, for a network trained on windows of 0.05-1 H W events and on time windows. Its training set, though,
-# was made by version 2 of the generator, which drew n and then cut it to the events a 1-2 s sequence had, so that
-# its windows were mostly smaller than drawn and large ones rare (measured in docs/reconstruction.md, "The training
-# set"). A network
-# trained mostly on small windows scoring best on small windows is no surprise; the generator now lengthens a
-# sequence until its windows have the n drawn. What carries over is the method: measure n on your own scene, or let
-# the adaptive rule of section 2 choose (exercise 3).
+# simulated ones, for a network trained on windows of 0.05-1 H W events and on time windows. Drawn log-uniform, half
+# of those count windows are below n ≈ 0.22, and its last stage added sequences of small windows only (n = 0.05-0.2),
+# so small windows are still what it has seen most; on the validation scenes of docs/reconstruction.md the violent
+# boxes score best at n = 0.7. What carries over is the method: measure n on your own scene, or let the adaptive rule
+# of section 2 choose (exercise 3).
 
 # %% [markdown]
 # ## 7. Fast motion: blurred frames, sharper events
@@ -685,15 +689,15 @@ assert summary["best_val_ssim"] > untrained["ssim"]
 #   stretching both images' 1st/99th percentiles to 0/1, because events carry no absolute brightness.
 # - A 38 k-parameter recurrent network (two ConvGRU cells, whose update gate decides how much memory to keep) trained
 #   on a simulated training set of many short sequences beats both integrators on SSIM by more than 0.05 on every
-#   simulated stretch and on real events (its last training stage also scored the stretched images, as the benchmark
-#   does); over sparse terrain its MSE is still slightly above the high-pass filter's; on this simulator the APS
-#   frames still score higher.
+#   simulated stretch and on real events (its later training stages also scored the stretched images, as the benchmark
+#   does); over sparse terrain its MSE is barely below the high-pass filter's; on this simulator the APS frames
+#   still score higher.
 # - `precision="int8"` runs the network's convolutions on 8-bit integers (x ≈ s (q − z), ranges calibrated once),
-#   at an SSIM within 0.02 of the float network on the violent stretch.
+#   at an SSIM within 0.03 of the float network on the violent stretch.
 # - Measure the window fraction n on your own scene (here both simulated scenes scored best with small windows, one
 #   stretch each), or let the adaptive rule close windows at r events per active pixel.
-# - To train a network like the shipped one: `python -m evio_lib reconstruct-data --out SET` (about 8 minutes on a
-#   2-core CPU), then `python -m evio_lib reconstruct-train --data SET --out runs/firenet` (over an hour;
+# - To train a network like the shipped one: `python -m evio_lib reconstruct-data --out SET` (about half an hour on
+#   a 2-core CPU), then `python -m evio_lib reconstruct-train --data SET --out runs/firenet` (over an hour;
 #   `--max-minutes` and `--resume` split it); the shipped weights' own commands are in the checkpoint
 #   (`checkpoint["stages"]`) and docs/reconstruction.md. To turn any ECD folder into frames:
 #   `python -m evio_lib reconstruct FOLDER --out FRAMES`.

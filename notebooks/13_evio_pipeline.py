@@ -793,9 +793,11 @@ for front_end in ("SIFT", "KLT + FAST"):  # at the gentle start, APS frames win 
     assert ev_rmse[f"{front_end}, event frames"] > ev_rmse[f"{front_end}, APS frames"]
     assert (event_results[f"{front_end}, event frames"].timings["realtime_factor"]
             < event_results[f"{front_end}, APS frames"].timings["realtime_factor"])
-assert ev_rmse["KLT + FAST, event frames"] < ev_rmse["SIFT, event frames"] / 2
+assert ev_rmse["KLT + FAST, event frames"] < ev_rmse["SIFT, event frames"]
 assert (ev_rmse["SIFT, event frames"] / ev_rmse["KLT + FAST, event frames"]
-        > ev_rmse["SIFT, APS frames"] / ev_rmse["KLT + FAST, APS frames"])
+        < ev_rmse["SIFT, APS frames"] / ev_rmse["KLT + FAST, APS frames"])
+assert (np.mean(event_results["KLT + FAST, event frames"].track_lengths)
+        > 3 * np.mean(event_results["SIFT, event frames"].track_lengths))
 assert ev.timings["reconstruction"] > 0.3 * ev.timings["total"]
 THESIS_BOXES_RMSE_M = {"SIFT": (1.11, 0.437), "DetDesc (Round 2)": (1.05, 0.457)}  # Table 6: (grayscale, event)
 assert all(gray / event > 2 for gray, event in THESIS_BOXES_RMSE_M.values())  # the thesis's "2x improvement"
@@ -803,10 +805,11 @@ assert all(gray / event > 2 for gray, event in THESIS_BOXES_RMSE_M.values())  # 
 # %% [markdown]
 # Over the gentle start of the room the **APS frames win** with both front-ends: they are sharp at this speed, while
 # the event frames are reconstructions that start from nothing (the network warms up its recurrent state over the
-# first windows) and change their appearance from window to window. On event frames the front-end matters even more
-# than on APS frames: KLT beat SIFT by more than 2x there, and by a larger factor than on APS frames. Optical flow only
-# needs the local patch to stay similar between two frames, while SIFT's descriptors of two reconstructions of the
-# same corner likely differ more than those of two APS frames. Event frames also cost more: the reconstruction took
+# first windows) and change their appearance from window to window. KLT beat SIFT on event frames too, though by a
+# smaller factor than on APS frames: its tracks there still last more than three times as long as SIFT's (optical
+# flow only needs the local patch to stay similar between two frames, while SIFT's descriptors of two reconstructions
+# of the same corner differ more), but a long track through a patch whose look drifts from window to window adds its
+# own error. Event frames also cost more: the reconstruction took
 # more than 30 % of the run time, and both event runs were slower than their APS twins.
 #
 # The thesis found the opposite on its real Boxes recording: event frames more than halved the RMSE over the **whole**
@@ -1075,8 +1078,8 @@ assert all(table[key]["rmse_second_half_m"] > table[key]["rmse_first_half_m"] fo
 #   more than 3x over the first seconds, a gap that grows with time; KLT's tracks were more than 3x longer than
 #   SIFT's.
 # - Over the gentle start, event frames were worse than APS frames with both front-ends, and slower to make: when the
-#   APS frames are sharp, a reconstruction has little to add and loses detail. On event frames, the front-end
-#   mattered more than on APS frames (KLT more than 2x better than SIFT).
+#   APS frames are sharp, a reconstruction has little to add and loses detail. On event frames KLT still beat SIFT,
+#   by less than on APS frames, with tracks more than 3x as long.
 # - With exactly known biases, dead reckoning beat SIFT over a few seconds (section 4); a visual front-end earns its
 #   keep when the biases are unknown, which outside a simulator they always are to some degree.
 # - Played twice as fast with a 20 ms exposure (section 3), KLT kept an APS corner for under two frames on average,
