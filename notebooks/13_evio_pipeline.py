@@ -808,9 +808,9 @@ assert all(gray / event > 2 for gray, event in THESIS_BOXES_RMSE_M.values())  # 
 # first windows) and change their appearance from window to window. KLT beat SIFT on event frames too, though by a
 # smaller factor than on APS frames: its tracks there still last more than three times as long as SIFT's (optical
 # flow only needs the local patch to stay similar between two frames, while SIFT's descriptors of two reconstructions
-# of the same corner differ more), but a long track through a patch whose look drifts from window to window adds its
-# own error. Event frames also cost more: the reconstruction took
-# more than 30 % of the run time, and both event runs were slower than their APS twins.
+# of the same corner differ more). Why its lead shrank was not measured here; one candidate is that a long track
+# through a patch whose look drifts from window to window carries that drift into the filter. Event frames also cost
+# more: the reconstruction took more than 30 % of the run time, and both event runs were slower than their APS twins.
 #
 # The thesis found the opposite on its real Boxes recording: event frames more than halved the RMSE over the **whole**
 # recording (Table 6: SIFT 1.11 m -> 0.437 m, DetDesc (Round 2) 1.05 m -> 0.457 m; §4.5.1 calls it a 2x improvement).
