@@ -292,7 +292,7 @@ def reconstruct_at_times(reconstructor: Reconstructor, events: np.ndarray, times
     """Return (K, H, W) float32 frames: frame k reconstructed from all events up to ``times[k]`` (the EVREAL protocol).
 
     Events between consecutive times are fed as one window, split into windows of at most ``max_window_events``
-    (the learned networks were trained on windows of 0.1-0.8 H W events).
+    (the shipped network was trained on windows of 0.05-1 H W events and on windows of equal duration).
     """
     times = np.asarray(times, dtype=np.float64).reshape(-1)
     if times.size and (np.any(~np.isfinite(times)) or np.any(np.diff(times) < 0)):

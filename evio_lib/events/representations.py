@@ -268,8 +268,9 @@ def adaptive_windows(events: np.ndarray, width: int, height: int, events_per_act
         width: sensor width W [px].
         height: sensor height H [px].
         events_per_active_pixel: the ratio that closes a window (> 1). The default 2.0 was chosen on the course's
-            simulated evaluation stretches (bench/adaptive_windows.py): there it matched the best fixed n of every
-            stretch within 0.001 SSIM, where 1.5 fell short by up to 0.045 (docs/reconstruction.md).
+            simulated evaluation stretches with an earlier network (bench/adaptive_windows.py): there it matched the
+            best fixed n of every stretch within 0.001 SSIM; with a later network it trailed the best fixed n by
+            0.013-0.029 (docs/reconstruction.md, "Adaptive windows against fixed n").
         min_fraction: smallest window, as a fraction n of H * W.
         max_fraction: largest window, as a fraction n of H * W.
     """
