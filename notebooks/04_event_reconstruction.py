@@ -394,10 +394,10 @@ assert all(0.05 <= meta["contrast_pos"] <= 1.5 and 0.01 < meta["fraction"] <= 2 
 # Events say how the log intensity *changed*, not what it was: a reconstruction's overall brightness and contrast are
 # guesses, and the benchmark of section 4 forgives them by stretching both images before it compares. A loss on the
 # raw images punishes those guesses anyway, so the network spends effort on what it cannot know. The shipped
-# network's later training therefore added the same two terms between the stretched images, S(x) = clip((x − q₀.₀₁(x)) / (q₀.₉₉(x) −
-# q₀.₀₁(x)), 0, 1) (`stretch_torch`, differentiable through the percentiles; the spread is floored at 0.05 so that a
-# nearly flat crop is not blown up into noise), and keep the weights with the highest
-# stretched SSIM on the validation sequences. The shipped weights were trained in several stages, each starting
+# network's later training therefore added the same two terms between the stretched images,
+# S(x) = clip((x − q₀.₀₁(x)) / (q₀.₉₉(x) − q₀.₀₁(x)), 0, 1) (`stretch_torch`, differentiable through the percentiles;
+# the spread is floored at 0.05 so that a nearly flat crop is not blown up into noise), and kept the weights with
+# the highest stretched SSIM on the validation sequences. The shipped weights were trained in several stages, each starting
 # from the one before (every command is recorded in the checkpoint and in docs/reconstruction.md). The stages
 # validated on different sequences, so each curve below starts at its own level; what to read from it is that the
 # validation score rose within the first stage and within the last:
