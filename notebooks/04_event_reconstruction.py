@@ -458,20 +458,20 @@ for name in stretches:
     assert scores[name, "firenet"]["ssim"] > classical[name] + 0.05, name
 margin = {name: scores[name, "firenet"]["ssim"] - classical[name] for name in stretches}
 assert min(margin, key=margin.get) == "aerial_like" and margin["aerial_like"] < 0.1
-assert 0.9 * scores["aerial_like", "high_pass"]["mse"] < scores["aerial_like", "firenet"]["mse"] < scores[
-    "aerial_like", "high_pass"]["mse"]
+terrain_mse_ratio = scores["aerial_like", "firenet"]["mse"] / scores["aerial_like", "high_pass"]["mse"]
+assert abs(terrain_mse_ratio - 1) < 0.1
 integrator_mse = min(scores["boxes_like_fast", m]["mse"] for m in ("direct", "high_pass"))
 assert scores["boxes_like_fast", "firenet"]["mse"] < 0.6 * integrator_mse
 
 # %% [markdown]
 # On all three stretches the learned network scores a higher SSIM than both classical integrators, by more than 0.05;
-# over the sparse terrain the margin is smallest (under 0.1), and its MSE there is barely below the high-pass
-# filter's (by less than 10 %).
+# over the sparse terrain the margin is smallest (under 0.1), and its MSE there is level with the high-pass
+# filter's (within 10 %).
 # Direct integration and the high-pass filter only know where the log intensity changed, so flat regions stay at an
 # arbitrary gray and old noise lingers; the network has learned what images look like and fills them in, which pays
 # off in structure (SSIM) where many edges move and costs where it guesses a large flat field's brightness wrongly:
-# a wrong field is wrong everywhere, which MSE punishes more than SSIM (hence the terrain's MSE, no better than the
-# filter's by much, against a clear lead in SSIM). Where the camera moves fast and events cover
+# a wrong field is wrong everywhere, which MSE punishes more than SSIM (hence the terrain's MSE, level with the
+# filter's, against a clear lead in SSIM). Where the camera moves fast and events cover
 # the whole view (the violent boxes) its MSE is also below both integrators', less than 0.6 times the better
 # one's.
 
