@@ -793,9 +793,11 @@ for front_end in ("SIFT", "KLT + FAST"):  # at the gentle start, APS frames win 
     assert ev_rmse[f"{front_end}, event frames"] > ev_rmse[f"{front_end}, APS frames"]
     assert (event_results[f"{front_end}, event frames"].timings["realtime_factor"]
             < event_results[f"{front_end}, APS frames"].timings["realtime_factor"])
-assert ev_rmse["KLT + FAST, event frames"] < ev_rmse["SIFT, event frames"]
-assert (ev_rmse["SIFT, event frames"] / ev_rmse["KLT + FAST, event frames"]
-        < ev_rmse["SIFT, APS frames"] / ev_rmse["KLT + FAST, APS frames"])
+sift_over_klt = {frames: ev_rmse[f"SIFT, {frames}"] / ev_rmse[f"KLT + FAST, {frames}"]
+                 for frames in ("APS frames", "event frames")}
+print("SIFT's RMSE over KLT's: " + ", ".join(f"{k} {v:.2f}" for k, v in sift_over_klt.items()))
+assert sift_over_klt["APS frames"] > 2.5 and 1 / 1.5 < sift_over_klt["event frames"] < 1.5
+assert sift_over_klt["event frames"] < sift_over_klt["APS frames"] / 2
 assert (np.mean(event_results["KLT + FAST, event frames"].track_lengths)
         > 3 * np.mean(event_results["SIFT, event frames"].track_lengths))
 assert ev.timings["reconstruction"] > 0.3 * ev.timings["total"]
@@ -805,11 +807,12 @@ assert all(gray / event > 2 for gray, event in THESIS_BOXES_RMSE_M.values())  # 
 # %% [markdown]
 # Over the gentle start of the room the **APS frames win** with both front-ends: they are sharp at this speed, while
 # the event frames are reconstructions that start from nothing (the network warms up its recurrent state over the
-# first windows) and change their appearance from window to window. KLT beat SIFT on event frames too, though by a
-# smaller factor than on APS frames: its tracks there still last more than three times as long as SIFT's (optical
-# flow only needs the local patch to stay similar between two frames, while SIFT's descriptors of two reconstructions
-# of the same corner differ more). Why its lead shrank was not measured here; one candidate is that a long track
-# through a patch whose look drifts from window to window carries that drift into the filter. Event frames also cost
+# first windows) and change their appearance from window to window. On APS frames SIFT's RMSE is more than 2.5 times
+# KLT's; on event frames the two front-ends are within a factor of 1.5 of each other (which one leads depends on the
+# stretch: fast and full mode differ), although KLT's tracks there still last more than three times as long as
+# SIFT's (optical flow only needs the local patch to stay similar between two frames, while SIFT's descriptors of two
+# reconstructions of the same corner differ more). Why KLT's lead vanished was not measured here; one candidate is
+# that a long track through a patch whose look drifts from window to window carries that drift into the filter. Event frames also cost
 # more: the reconstruction took more than 30 % of the run time, and both event runs were slower than their APS twins.
 #
 # The thesis found the opposite on its real Boxes recording: event frames more than halved the RMSE over the **whole**
@@ -903,13 +906,13 @@ per_frame = {"FireNet": firenet_klt.timings["reconstruction"] / len(firenet_klt.
              "motion-compensated": mc_klt.timings["reconstruction"] / len(mc_klt.t)}
 print("milliseconds to make one frame: " + ", ".join(f"{k} {1e3 * v:.1f}" for k, v in per_frame.items()))
 assert per_frame["motion-compensated"] < per_frame["FireNet"] / 3
-assert all_rmse["SIFT, motion-compensated event frames"] < all_rmse["SIFT, event frames"] / 3
+assert all_rmse["SIFT, motion-compensated event frames"] < all_rmse["SIFT, event frames"] / 2
 assert mc_klt.timings["realtime_factor"] > 2 * firenet_klt.timings["realtime_factor"]
 assert all_rmse["KLT + FAST, APS frames"] < all_rmse["KLT + FAST, motion-compensated event frames"]
 
 # %% [markdown]
 # Motion-compensated frames cost less than a third of a FireNet reconstruction, so the KLT run on them is more than
-# twice as fast as on FireNet frames, and SIFT's RMSE on them is under a third of its RMSE on FireNet frames: the
+# twice as fast as on FireNet frames, and SIFT's RMSE on them is under half its RMSE on FireNet frames: the
 # edges sit where the scene's edges are, window after window, where a reconstruction re-invents its texture at each
 # step. At this gentle speed the APS frames still win with KLT. Where motion-compensated frames should pay off is
 # the violent end of the room, where a 10 ms APS exposure smears while a window of events lasts 10 ms (measured
@@ -1078,8 +1081,8 @@ assert all(table[key]["rmse_second_half_m"] > table[key]["rmse_first_half_m"] fo
 #   more than 3x over the first seconds, a gap that grows with time; KLT's tracks were more than 3x longer than
 #   SIFT's.
 # - Over the gentle start, event frames were worse than APS frames with both front-ends, and slower to make: when the
-#   APS frames are sharp, a reconstruction has little to add and loses detail. On event frames KLT still beat SIFT,
-#   by less than on APS frames, with tracks more than 3x as long.
+#   APS frames are sharp, a reconstruction has little to add and loses detail. On event frames KLT lost its lead
+#   over SIFT (their RMSEs within a factor of 1.5), although its tracks stayed more than 3x as long.
 # - With exactly known biases, dead reckoning beat SIFT over a few seconds (section 4); a visual front-end earns its
 #   keep when the biases are unknown, which outside a simulator they always are to some degree.
 # - Played twice as fast with a 20 ms exposure (section 3), KLT kept an APS corner for under two frames on average,
