@@ -736,7 +736,8 @@ assert summary["steps"] == steps and summary["best_val_ssim"] > untrained["ssim"
 #    absolute difference between consecutive outputs on a still stretch) with the shipped model.
 #
 #    *Hint:* `python -m evio_lib reconstruct-train --data SET --out DIR --set lambda_tc=0` (over an hour), then load
-#    `DIR/best.pt` with `create_reconstructor('learned', checkpoint=...)`.
+#    `DIR/best.pt` with `create_reconstructor('learned', W, H, checkpoint=...)` (the name `'learned'` loads any
+#    `reconstruct-train` checkpoint; `'firenet'` is the shipped one).
 #
 # Solutions, with the code to run (checked by `tests/test_solutions.py`):
 # [docs/solutions/04_event_reconstruction.md](../docs/solutions/04_event_reconstruction.md).
