@@ -11,7 +11,7 @@ import torch
 
 from evio_lib.events.array import make_events
 from evio_lib.events.reconstruction.data import SmoothCameraMotion, fold_time
-from evio_lib.events.reconstruction.training import _augment_batch, warp_with_flow
+from evio_lib.events.reconstruction.training import SequenceSource, _augment_batch, warp_with_flow
 from evio_lib.events.reconstruction.training_set import (_LayeredScene, TrainingSetConfig, load_sequence,
                                                          make_sequence, make_training_set, read_training_set)
 from evio_lib.events.representations import voxel_grid
@@ -192,6 +192,30 @@ def test_time_reversal_equals_the_voxels_of_the_reversed_events():
     candidates = [backward, backward[..., ::-1], backward[..., ::-1, :], backward[..., ::-1, ::-1]]
     assert any(np.allclose(v[0, 0], c, atol=1e-5) for c in candidates)
     assert np.all(f[0, 0] == 0.25)                                       # the label is the earlier window's end
+
+
+def test_tensor_batches_augment_exactly_as_numpy_batches():
+    """A set held on a GPU is cropped, flipped and reversed in torch: the same random draws, the same values, and
+    the numpy arrays passed in are left unchanged."""
+    rng = np.random.default_rng(3)
+    voxels = rng.normal(size=(6, 5, 3, 12, 16)).astype(np.float16)
+    frames = rng.uniform(0, 1, (6, 5, 12, 16)).astype(np.float16)
+    flow = rng.normal(size=(6, 5, 2, 12, 16)).astype(np.float16)
+    copies = [a.copy() for a in (voxels, frames, flow)]
+    for seed in range(12):                                # some of these play the batch backwards
+        expected = _augment_batch(np.random.default_rng(seed), voxels, frames, flow, crop=10, time_reversal=0.5)
+        tensors = [torch.from_numpy(a.copy()) for a in (voxels, frames, flow)]
+        got = _augment_batch(np.random.default_rng(seed), *tensors, crop=10, time_reversal=0.5)
+        assert (expected[2] is None) == (got[2] is None)
+        for e, g in zip(expected, got):
+            if e is not None:
+                assert isinstance(g, torch.Tensor) and g.is_contiguous() and e.shape == tuple(g.shape)
+                np.testing.assert_array_equal(e, g.numpy())
+    for a, c in zip((voxels, frames, flow), copies):
+        np.testing.assert_array_equal(a, c)
+    source = SequenceSource(arrays={"voxels": voxels, "frames": frames, "flow": flow}, device="meta")
+    taken = source.take([4, 1, 4])                        # held as tensors on the device, indexed there
+    assert all(isinstance(t, torch.Tensor) and t.device.type == "meta" and t.shape[0] == 3 for t in taken)
 
 
 def test_flips_keep_flow_and_images_consistent():

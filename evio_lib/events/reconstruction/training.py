@@ -269,7 +269,8 @@ def sequence_loss(net: torch.nn.Module, voxels: torch.Tensor, frames: torch.Tens
 
     ``flow=None`` leaves out the temporal-consistency term (a batch played backwards).
     """
-    state, prev, parts = None, None, {"l1": 0.0, "ssim": 0.0, "tc": 0.0, "ssim_stretched": 0.0}
+    # the parts are summed on the device and read once at the end: a read per window would wait for a GPU each time
+    state, prev, sums = None, None, {key: voxels.new_zeros(()) for key in ("l1", "ssim", "tc", "ssim_stretched")}
     total = voxels.new_zeros(())
     n_windows = voxels.shape[1]
     for k in range(n_windows):
@@ -278,64 +279,79 @@ def sequence_loss(net: torch.nn.Module, voxels: torch.Tensor, frames: torch.Tens
         l1 = (pred - target).abs().mean()
         ssim = ssim_torch(pred, target)
         loss = l1 + config.lambda_ssim * (1 - ssim)
-        parts["l1"] += l1.item() / n_windows
-        parts["ssim"] += ssim.item() / n_windows
+        sums["l1"] = sums["l1"] + l1.detach()
+        sums["ssim"] = sums["ssim"] + ssim.detach()
         if config.lambda_stretched > 0 or not torch.is_grad_enabled():   # always measured in validation
             pred_s = stretch_torch(pred)
             with torch.no_grad():
                 target_s = stretch_torch(target)
             ssim_s = ssim_torch(pred_s, target_s)
-            parts["ssim_stretched"] += ssim_s.item() / n_windows
+            sums["ssim_stretched"] = sums["ssim_stretched"] + ssim_s.detach()
             if config.lambda_stretched > 0:
                 loss = loss + config.lambda_stretched * ((pred_s - target_s).abs().mean() + 1 - ssim_s)
         if prev is not None and config.lambda_tc > 0 and flow is not None:
             tc = temporal_consistency_loss(pred, prev, target, frames[:, k - 1:k], flow[:, k], config.tc_alpha)
             loss = loss + config.lambda_tc * tc
-            parts["tc"] += tc.item() / n_windows
+            sums["tc"] = sums["tc"] + tc.detach()
         total = total + loss / n_windows
         prev = pred
-    return total, parts
+    values = torch.stack(list(sums.values())).double().cpu().numpy() / n_windows
+    return total, {key: float(value) for key, value in zip(sums, values)}
 
 
-def _augment_batch(rng: np.random.Generator, voxels: np.ndarray, frames: np.ndarray, flow: np.ndarray, crop: int,
-                   time_reversal: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+def _augment_batch(rng: np.random.Generator, voxels, frames, flow, crop: int, time_reversal: float = 0.0):
     """Return random crop x crop windows of the batch, flipped at random, and played backwards with ``time_reversal``.
 
     A crop keeps the flow (a displacement); a flip u' = (size - 1) - u negates its component along that axis. Played
-    backwards (see the module docstring) the batch has one window fewer and no flow (None).
+    backwards (see the module docstring) the batch has one window fewer and no flow (None). The arrays are numpy
+    arrays or torch tensors (a set held on the GPU); both draw the same random numbers and give the same values.
     """
+    is_tensor = isinstance(voxels, torch.Tensor)
+    stack = torch.stack if is_tensor else np.stack
+    def flip(x, axes):
+        return torch.flip(x, dims=axes) if is_tensor else np.flip(x, axis=axes)
     height, width = frames.shape[-2:]
     crop_h, crop_w = min(crop, height), min(crop, width)
-    out_v = np.empty(voxels.shape[:3] + (crop_h, crop_w), voxels.dtype)
-    out_f = np.empty(frames.shape[:2] + (crop_h, crop_w), frames.dtype)
-    out_w = np.empty(flow.shape[:3] + (crop_h, crop_w), flow.dtype)
-    for i in range(voxels.shape[0]):
-        oy, ox = int(rng.integers(0, height - crop_h + 1)), int(rng.integers(0, width - crop_w + 1))
-        out_v[i] = voxels[i, ..., oy:oy + crop_h, ox:ox + crop_w]
-        out_f[i] = frames[i, ..., oy:oy + crop_h, ox:ox + crop_w]
-        out_w[i] = flow[i, ..., oy:oy + crop_h, ox:ox + crop_w]
-    voxels, frames, flow = out_v, out_f, out_w
+    corners = [(int(rng.integers(0, height - crop_h + 1)), int(rng.integers(0, width - crop_w + 1)))
+               for _ in range(voxels.shape[0])]
+    voxels = stack([voxels[i, ..., oy:oy + crop_h, ox:ox + crop_w] for i, (oy, ox) in enumerate(corners)])
+    frames = stack([frames[i, ..., oy:oy + crop_h, ox:ox + crop_w] for i, (oy, ox) in enumerate(corners)])
+    flow = stack([flow[i, ..., oy:oy + crop_h, ox:ox + crop_w] for i, (oy, ox) in enumerate(corners)])
     for i in range(voxels.shape[0]):
         for axis, component in ((-1, 0), (-2, 1)):
             if rng.random() < 0.5:
-                voxels[i] = np.flip(voxels[i], axis=axis)
-                frames[i] = np.flip(frames[i], axis=axis)
-                flow[i] = np.flip(flow[i], axis=axis)
+                voxels[i] = flip(voxels[i], (axis,))
+                frames[i] = flip(frames[i], (axis,))
+                flow[i] = flip(flow[i], (axis,))
                 flow[i, :, component] *= -1
     if time_reversal > 0 and voxels.shape[1] > 1 and rng.random() < time_reversal:
-        reversed_voxels = -voxels[:, :0:-1, ::-1]                 # windows L-1..1, bins reversed, polarity negated
-        return np.ascontiguousarray(reversed_voxels), np.ascontiguousarray(frames[:, -2::-1]), None
+        reversed_voxels = -flip(voxels[:, 1:], (1, 2))            # windows L-1..1, bins reversed, polarity negated
+        reversed_frames = flip(frames[:, :-1], (1,))               # labels: the images at windows L-2..0
+        if is_tensor:
+            return reversed_voxels.contiguous(), reversed_frames.contiguous(), None
+        return np.ascontiguousarray(reversed_voxels), np.ascontiguousarray(reversed_frames), None
     return voxels, frames, flow
+
+
+def _as_float_tensor(x, device: str) -> torch.Tensor | None:
+    """A batch array (numpy, or a tensor already on its device) as float32 on ``device``."""
+    if x is None:
+        return None
+    if isinstance(x, torch.Tensor):
+        return x.to(device=device, dtype=torch.float32)
+    return torch.from_numpy(x.astype(np.float32)).to(device)
 
 
 class SequenceSource:
     """Training or validation sequences, from a training-set folder or an in-memory stack of planar samples.
 
-    ``len(source)`` sequences; ``source.take(indices)`` returns stacked (voxels, frames, flow) numpy arrays.
+    ``len(source)`` sequences; ``source.take(indices)`` returns stacked (voxels, frames, flow) numpy arrays, or torch
+    tensors on ``device`` when a preloaded set is held there (``device`` other than ``"cpu"``: a GPU's steps then
+    crop and flip on the GPU instead of copying every batch from the host).
     """
 
     def __init__(self, paths: list[Path] | None = None, arrays: dict[str, np.ndarray] | None = None,
-                 preload: bool = False) -> None:
+                 preload: bool = False, device: str = "cpu") -> None:
         self.paths = paths
         self.arrays = arrays
         if arrays is not None and "flow" not in arrays:            # planar samples: homographies -> flows
@@ -348,22 +364,30 @@ class SequenceSource:
             with ThreadPoolExecutor(8) as pool:                   # zlib decompression releases the GIL
                 loaded = list(pool.map(load_sequence, paths))
             self.arrays = {k: np.stack([x[k] for x in loaded]) for k in ("voxels", "frames", "flow")}
+        self.device = device
+        if self.arrays is not None and device != "cpu":
+            self.arrays = {k: torch.from_numpy(np.ascontiguousarray(v)).to(device) for k, v in self.arrays.items()}
 
     def __len__(self) -> int:
         return len(self.paths) if self.arrays is None else self.arrays["voxels"].shape[0]
 
-    def take(self, indices) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def take(self, indices) -> tuple:
         if self.arrays is not None:
+            if self.device != "cpu":
+                indices = torch.as_tensor(np.asarray(indices), device=self.device)
             return tuple(self.arrays[k][indices] for k in ("voxels", "frames", "flow"))
         loaded = [load_sequence(self.paths[int(i)]) for i in indices]
         return tuple(np.stack([x[k] for x in loaded]) for k in ("voxels", "frames", "flow"))
 
 
-def open_split(folder: str | Path | Sequence[str | Path], split: str, preload: bool = False) -> SequenceSource:
+def open_split(folder: str | Path | Sequence[str | Path], split: str, preload: bool = False,
+               device: str = "cpu") -> SequenceSource:
     """Return the sequences of one split (``train``, ``val`` or ``test``) of a reconstruct-data training set, or of
-    several sets together (a list of folders: their sequences one after the other)."""
+    several sets together (a list of folders: their sequences one after the other); preloaded ones held on
+    ``device``."""
     folders = [folder] if isinstance(folder, (str, Path)) else list(folder)
-    return SequenceSource([path for f in folders for path in read_training_set(f, split)[0]], preload=preload)
+    return SequenceSource([path for f in folders for path in read_training_set(f, split)[0]], preload=preload,
+                          device=device)
 
 
 def _as_source(data) -> SequenceSource:
@@ -383,9 +407,7 @@ def evaluate_on_samples(net: torch.nn.Module, data, config: ReconstructionTrainC
     with torch.no_grad():
         for i in range(0, len(data), batch_size):
             voxels, frames, flow = data.take(np.arange(i, min(i + batch_size, len(data))))
-            v = torch.from_numpy(voxels.astype(np.float32)).to(config.device)
-            f = torch.from_numpy(frames.astype(np.float32)).to(config.device)
-            w = torch.from_numpy(flow.astype(np.float32)).to(config.device)
+            v, f, w = (_as_float_tensor(x, config.device) for x in (voxels, frames, flow))
             loss, parts = sequence_loss(net, v, f, w, config)
             n = v.shape[0]
             for k in parts:
@@ -494,9 +516,10 @@ def train_reconstructor(config: ReconstructionTrainConfig, out: str | Path, resu
     out.mkdir(parents=True, exist_ok=True)
     (out / "config.json").write_text(json.dumps(config.to_dict(), indent=2) + "\n")
     if data is None and config.training_set is not None:
-        data = open_split([config.training_set, *config.extra_training_sets], "train", preload=config.preload)
+        data = open_split([config.training_set, *config.extra_training_sets], "train", preload=config.preload,
+                          device=config.device)
     if val_data is None and config.training_set is not None:
-        val_data = open_split(config.training_set, "val", preload=config.preload)
+        val_data = open_split(config.training_set, "val", preload=config.preload, device=config.device)
     if data is None:
         data = reconstruction_dataset("train", config.n_train, config.seed, config.data, progress=progress,
                                       workers=max(2, config.threads))
@@ -522,10 +545,7 @@ def train_reconstructor(config: ReconstructionTrainConfig, out: str | Path, resu
         while step < config.steps:
             idx = rng.integers(0, n_train, config.batch_size)
             v, f, w = _augment_batch(rng, *data.take(idx), config.crop, config.time_reversal)
-            loss, parts = sequence_loss(net, torch.from_numpy(v.astype(np.float32)).to(config.device),
-                                        torch.from_numpy(f.astype(np.float32)).to(config.device),
-                                        None if w is None else torch.from_numpy(w.astype(np.float32)).to(config.device),
-                                        config)
+            loss, parts = sequence_loss(net, *(_as_float_tensor(x, config.device) for x in (v, f, w)), config)
             for group in optimizer.param_groups:
                 group["lr"] = learning_rate(config, step)
             optimizer.zero_grad()
