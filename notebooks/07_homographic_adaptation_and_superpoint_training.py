@@ -132,7 +132,7 @@ def harris_heatmaps(batch: np.ndarray) -> np.ndarray:
 
 # %%
 image = image_pool("val", seed=0, size=(96, 128), n_images=2)[1]
-n_warps = 12 if FAST else 60
+n_warps = 30 if FAST else 60
 single_mp = magicpoint_heatmaps(image[None])[0]
 # an untrained network answers about 1/65 everywhere (no real detection); demand a clear peak, else use Harris
 use_magicpoint = float(single_mp.max()) > 1.75 / 65
@@ -199,7 +199,7 @@ else:  # Harris on one view: nearly equivariant already
 # a correlation below 0.7), and the aggregate comes much closer to commuting with it. Harris, a rotation-invariant
 # formula on image gradients, is already nearly equivariant on one view (a correlation above 0.9), so averaging gains
 # little for it. Which one ran here is printed above: the short MagicPoint run does not always reach a clear peak on
-# this image. More warps (12 in fast mode, 60 in the full lesson) shrink the remaining difference further; the two
+# this image. More warps (30 in fast mode, 60 in the full lesson) shrink the remaining difference further; the two
 # aggregates use different random warps, so it never reaches zero.
 #
 # ## 2. The descriptor loss on a warped pair (Eqs. 10-12)

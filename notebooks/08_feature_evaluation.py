@@ -569,7 +569,8 @@ if cnn:
 # %% [markdown]
 # ## 10. Why does the CNN lose the viewpoint split? Matching or localisation
 #
-# On the viewpoint split SIFT estimates more homographies correctly than the project's networks (Table 4 above). Two different failures give the same wrong $\hat H$:
+# On the viewpoint split SIFT estimates homographies correctly more often than the project's networks do on average
+# (Table 4 above), and never less often than any one of them. Two different failures give the same wrong $\hat H$:
 #
 # * **matching**: too few correct matches among the mutual nearest neighbours, so RANSAC has nothing to fit;
 # * **localisation**: enough correct matches, but each keypoint sits a little off the true point. A homography
@@ -638,7 +639,9 @@ for w, _ in cnn:
           f"{np.mean(~(d[:, 4] <= 3)):.0%}")
     assert 1.15 < ratio < 2.05  # SIFT's correct matches are better localised: 1.2 to 2 times
     assert np.mean(d[:, 1] >= 4) > 0.5 and np.mean(~(d[:, 4] <= 3)) >= 0.25  # matches on most pairs; many oracle misses
-assert all(by_name["sift"]["homography"]["viewpoint"][3.0] > by_name[w]["homography"]["viewpoint"][3.0] for w, _ in cnn)
+sift_view3 = by_name["sift"]["homography"]["viewpoint"][3.0]
+cnn_view3 = [by_name[w]["homography"]["viewpoint"][3.0] for w, _ in cnn]
+assert sift_view3 >= max(cnn_view3) and sift_view3 > np.mean(cnn_view3)  # section 10's opening sentence
 zoom = [np.sqrt(abs(np.linalg.det(p.H[:2, :2]))) for p in diag_pairs]  # linear scale of each viewpoint homography
 print(f"zoom of the viewpoint pairs: median {np.median(zoom):.2f}x (patch ratio {VIEWPOINT_HOMOGRAPHY['patch_ratio']})")
 assert 1.3 < np.median(zoom) < 1.8 and VIEWPOINT_HOMOGRAPHY["patch_ratio"] == 0.65

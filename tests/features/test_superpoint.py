@@ -330,14 +330,17 @@ def test_fast_paths_stay_close_to_fp32(mode: str) -> None:
     x = torch.from_numpy(image)[None, None]
     with torch.inference_mode():
         ref, out = net(x), fast(x)
+    # int8 on a CPU without 8-bit dot products (AVX2 only) runs FBGEMM with 7-bit activations (reduce_range):
+    # twice the quantisation step, measured 0.13-0.15 relative error on an AVX2 EPYC against under 0.12 with oneDNN
+    seven_bit = mode == "int8" and getattr(fast, "engine", None) == "x86"
     for key in ("logits", "descriptors"):
         rel = float((out[key] - ref[key]).norm() / ref[key].norm())
-        assert rel < {"fused": 1e-5, "bf16": 0.06, "int8": 0.12}[mode], (key, rel)
+        assert rel < {"fused": 1e-5, "bf16": 0.06, "int8": 0.2 if seven_bit else 0.12}[mode], (key, rel)
     kw = dict(threshold=0.0, nms_radius=2, border=4, max_keypoints=30)
     a = sp.postprocess(ref["logits"], ref["descriptors"], **kw)[0]
     b = sp.postprocess(out["logits"], out["descriptors"], **kw)[0]
     frac, cos = _keypoint_agreement(a, b)
-    assert frac >= {"fused": 1.0, "bf16": 0.85, "int8": 0.8}[mode], frac
+    assert frac >= {"fused": 1.0, "bf16": 0.85, "int8": 0.7 if seven_bit else 0.8}[mode], frac
     assert cos > 0.99, cos
 
 
