@@ -796,8 +796,8 @@ for front_end in ("SIFT", "KLT + FAST"):  # at the gentle start, APS frames win 
 sift_over_klt = {frames: ev_rmse[f"SIFT, {frames}"] / ev_rmse[f"KLT + FAST, {frames}"]
                  for frames in ("APS frames", "event frames")}
 print("SIFT's RMSE over KLT's: " + ", ".join(f"{k} {v:.2f}" for k, v in sift_over_klt.items()))
-assert sift_over_klt["APS frames"] > 2.5 and 1 / 1.5 < sift_over_klt["event frames"] < 1.5
-assert sift_over_klt["event frames"] < sift_over_klt["APS frames"] / 2
+assert sift_over_klt["APS frames"] > 2.5 and 1 / 2 < sift_over_klt["event frames"] < 2
+assert sift_over_klt["event frames"] < sift_over_klt["APS frames"] / 1.5
 assert (np.mean(event_results["KLT + FAST, event frames"].track_lengths)
         > 3 * np.mean(event_results["SIFT, event frames"].track_lengths))
 assert ev.timings["reconstruction"] > 0.3 * ev.timings["total"]
@@ -808,10 +808,10 @@ assert all(gray / event > 2 for gray, event in THESIS_BOXES_RMSE_M.values())  # 
 # Over the gentle start of the room the **APS frames win** with both front-ends: they are sharp at this speed, while
 # the event frames are reconstructions that start from nothing (the network warms up its recurrent state over the
 # first windows) and change their appearance from window to window. On APS frames SIFT's RMSE is more than 2.5 times
-# KLT's; on event frames the two front-ends are within a factor of 1.5 of each other (which one leads depends on the
+# KLT's; on event frames the two front-ends are within a factor of 2 of each other (which one leads depends on the
 # stretch: fast and full mode differ), although KLT's tracks there still last more than three times as long as
 # SIFT's (optical flow only needs the local patch to stay similar between two frames, while SIFT's descriptors of two
-# reconstructions of the same corner differ more). Why KLT's lead vanished was not measured here; one candidate is
+# reconstructions of the same corner differ more). Why KLT's lead shrinks was not measured here; one candidate is
 # that a long track through a patch whose look drifts from window to window carries that drift into the filter. Event frames also cost
 # more: the reconstruction took more than 30 % of the run time, and both event runs were slower than their APS twins.
 #
@@ -906,15 +906,22 @@ per_frame = {"FireNet": firenet_klt.timings["reconstruction"] / len(firenet_klt.
              "motion-compensated": mc_klt.timings["reconstruction"] / len(mc_klt.t)}
 print("milliseconds to make one frame: " + ", ".join(f"{k} {1e3 * v:.1f}" for k, v in per_frame.items()))
 assert per_frame["motion-compensated"] < per_frame["FireNet"] / 3
-assert all_rmse["SIFT, motion-compensated event frames"] < all_rmse["SIFT, event frames"] / 2
+assert all_rmse["KLT + FAST, motion-compensated event frames"] < 0.7 * all_rmse["KLT + FAST, event frames"]
+sift_runs = {"FireNet": event_results["SIFT, event frames"],
+             "motion-compensated": mc_results["SIFT, motion-compensated event frames"]}
+sift_tracks = {name: np.mean(r.track_lengths) for name, r in sift_runs.items()}
+print("SIFT's mean track length [frames]: " + ", ".join(f"{k} {v:.1f}" for k, v in sift_tracks.items()))
+assert max(sift_tracks.values()) < 3
 assert mc_klt.timings["realtime_factor"] > 2 * firenet_klt.timings["realtime_factor"]
 assert all_rmse["KLT + FAST, APS frames"] < all_rmse["KLT + FAST, motion-compensated event frames"]
 
 # %% [markdown]
 # Motion-compensated frames cost less than a third of a FireNet reconstruction, so the KLT run on them is more than
-# twice as fast as on FireNet frames, and SIFT's RMSE on them is under half its RMSE on FireNet frames: the
+# twice as fast as on FireNet frames, and KLT's RMSE on them is below 0.7 times its RMSE on FireNet frames: the
 # edges sit where the scene's edges are, window after window, where a reconstruction re-invents its texture at each
-# step. At this gentle speed the APS frames still win with KLT. Where motion-compensated frames should pay off is
+# step. SIFT gains nothing reliable from them: its tracks last under three frames on either kind (printed above),
+# and with tracks that short one run can land well or badly (compare its RMSE on the two kinds; fast and full mode
+# differ). At this gentle speed the APS frames still win with KLT. Where motion-compensated frames should pay off is
 # the violent end of the room, where a 10 ms APS exposure smears while a window of events lasts 10 ms (measured
 # above) and is de-rotated. On this simulator they did not, over the whole recording: `docs/pipeline.md` holds the
 # whole recordings with three seeds, where KLT on APS frames still wins on the mean;
@@ -1010,7 +1017,8 @@ both_f = fast_stats["KLT, APS + motion-compensated event frames"]
 assert aps_f["track_length"] < 2.0 and aps_f["features_used"] < 3.0
 assert mc_f["track_length"] > 3.5 and mc_f["features_used"] > 2 * aps_f["features_used"] and mc_f["per_second"] > 80
 assert mc_f["track_ms"] < aps_f["track_ms"]
-assert mc_f["rmse_m"] < 0.6 * aps_f["rmse_m"] and mc_f["rmse_m"] < both_f["rmse_m"] < aps_f["rmse_m"]
+assert mc_f["rmse_m"] < 0.6 * aps_f["rmse_m"] and both_f["rmse_m"] < 0.8 * aps_f["rmse_m"]
+assert 1 / 1.5 < both_f["rmse_m"] / mc_f["rmse_m"] < 1.5
 assert between_px > 20
 
 # %% [markdown]
@@ -1020,7 +1028,9 @@ assert between_px > 20
 # features per frame, over more than three frames; in time, though, their tracks are shorter than the APS frames'
 # (the table's last but one column; left out for the two-stream run, whose frames come at two rates). Here the event
 # frames win, as the thesis found for fast motion: their RMSE is below 0.6 times the APS frames'. Both streams
-# together land in between: the few, smeared APS tracks still weigh nine times an event track each. Whether weighting
+# together also beat the APS frames alone (below 0.8 times their RMSE), but not clearly the event frames alone
+# (within a factor of 1.5 of their RMSE, above or below it depending on the stretch): the few, smeared APS tracks
+# still weigh nine times an event track each. Whether weighting
 # them by their blur helps is exercise 7.
 #
 # How typical is this seed? `docs/pipeline.md` ("Faster motion") measured this stretch on six seeds, this one among
@@ -1081,8 +1091,8 @@ assert all(table[key]["rmse_second_half_m"] > table[key]["rmse_first_half_m"] fo
 #   more than 3x over the first seconds, a gap that grows with time; KLT's tracks were more than 3x longer than
 #   SIFT's.
 # - Over the gentle start, event frames were worse than APS frames with both front-ends, and slower to make: when the
-#   APS frames are sharp, a reconstruction has little to add and loses detail. On event frames KLT lost its lead
-#   over SIFT (their RMSEs within a factor of 1.5), although its tracks stayed more than 3x as long.
+#   APS frames are sharp, a reconstruction has little to add and loses detail. On event frames KLT's lead over
+#   SIFT shrank (their RMSEs within a factor of 2), although its tracks stayed more than 3x as long.
 # - With exactly known biases, dead reckoning beat SIFT over a few seconds (section 4); a visual front-end earns its
 #   keep when the biases are unknown, which outside a simulator they always are to some degree.
 # - Played twice as fast with a 20 ms exposure (section 3), KLT kept an APS corner for under two frames on average,
