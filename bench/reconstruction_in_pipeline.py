@@ -1,14 +1,16 @@
 """Run reconstructors' frames through the whole pipeline on validation seeds: RMSE and mean track length per run.
 
 Usage:  python bench/reconstruction_in_pipeline.py --methods firenet RUN/best.pt [--jobs 2] [--quick]
+        python bench/reconstruction_in_pipeline.py --methods firenet --precisions float32 int8 --jobs 2
 
 SSIM scores frames one at a time; a tracker needs a corner to look the same from one window to the next. A
 candidate network that scores higher SSIM can still give shorter tracks: stage 9 did (docs/reconstruction.md,
 "Stage 9"), so a reconstructor is shipped only if it also keeps the pipeline's track lengths here. For each
 validation stretch (simulation seeds 3 and 4, never the test seeds 0-2 of Table 6) and each method, SIFT and KLT +
-FAST run on the method's event frames (`PipelineConfig(frames="events", reconstructor=METHOD)`, float32, the
-preset's window fraction n). It prints one row per run, then each method against the first: the geometric mean of
-its RMSE ratios per front-end, and in how many runs its tracks were shorter.
+FAST run on the method's event frames (`PipelineConfig(frames="events", reconstructor=METHOD,
+reconstructor_precision=P)` for each P of ``--precisions``, float32 by default; the preset's window fraction n). It
+prints one row per run, then each (method, precision) against the first: the geometric mean of its RMSE ratios per
+front-end, and in how many runs its tracks were shorter.
 
 Single runs are chaotic (a diverging run moves the RMSE by 10x); the track lengths move far less, which is why both
 are printed. The first call simulates the stretches with events and caches them; with them cached, two methods
@@ -35,6 +37,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--methods", nargs="+", default=["firenet"],
                         help="reconstructor names or reconstruct-train checkpoint files (.pt); the first is the "
                              "reference of the comparison")
+    parser.add_argument("--precisions", nargs="+", default=["float32"], metavar="P",
+                        help="the networks' arithmetic, each run for every method: float32, bfloat16, int8")
     parser.add_argument("--jobs", type=int, default=1, help="runs in parallel (one process each)")
     parser.add_argument("--quick", action="store_true", help="the first stretch only, its first 3 s")
     args = parser.parse_args(argv)
@@ -43,12 +47,14 @@ def main(argv: list[str] | None = None) -> int:
     from evio_lib.pipeline import PipelineConfig, load_dataset, run_pipelines
 
     configs = {}
-    for method in args.methods:
+    variants = [(m, p) for m in args.methods for p in args.precisions]
+    for method, precision in variants:
         for front_end, options in FRONT_ENDS.items():
             try:
-                configs[method, front_end] = PipelineConfig(frames="events", reconstructor=method, **options)
+                configs[_label(method, precision), front_end] = PipelineConfig(
+                    frames="events", reconstructor=method, reconstructor_precision=precision, **options)
             except ValueError as error:
-                parser.error(f"--methods {method}: {error}")
+                parser.error(f"--methods {method} --precisions {precision}: {error}")
     stretches = [(*STRETCHES[0][:3], 3.0)] if args.quick else list(STRETCHES)
     rows = []
     print("| stretch | front-end | method | RMSE [m] | mean track length [frames] |")
@@ -62,10 +68,10 @@ def main(argv: list[str] | None = None) -> int:
             r = results[f"{front_end} | {method}"]
             rmse, tracks = float(r.metrics["rmse_m"]), float(np.mean(r.track_lengths))
             rows.append((stretch, front_end, method, rmse, tracks))
-            print(f"| {stretch} | {front_end} | {Path(method).name if Path(method).is_file() else method} | "
-                  f"{rmse:.3f} | {tracks:.1f} |", flush=True)
-    reference = args.methods[0]
-    for method in args.methods[1:]:
+            print(f"| {stretch} | {front_end} | {method} | {rmse:.3f} | {tracks:.1f} |", flush=True)
+    labels = [_label(m, p) for m, p in variants]
+    reference = labels[0]
+    for method in labels[1:]:
         for front_end in FRONT_ENDS:
             pairs = [(ref[3], row[3], ref[4], row[4]) for ref in rows for row in rows
                      if ref[2] == reference and row[2] == method and ref[1] == row[1] == front_end
@@ -75,6 +81,12 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{method} against {reference}, {front_end}: RMSE x{ratio:.2f} (geometric mean over {len(pairs)} "
                   f"runs); tracks shorter in {shorter} of {len(pairs)}")
     return 0
+
+
+def _label(method: str, precision: str) -> str:
+    """A method's name in the table: a checkpoint by its file name, with its precision unless float32."""
+    name = Path(method).name if Path(method).is_file() else method
+    return name if precision == "float32" else f"{name} ({precision})"
 
 
 if __name__ == "__main__":
