@@ -46,38 +46,36 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--jobs must be >= 1; got {args.jobs}")
     from evio_lib.pipeline import PipelineConfig, load_dataset, run_pipelines
 
-    configs = {}
-    variants = [(m, p) for m in args.methods for p in args.precisions]
-    for method, precision in variants:
-        for front_end, options in FRONT_ENDS.items():
-            try:
-                configs[_label(method, precision), front_end] = PipelineConfig(
-                    frames="events", reconstructor=method, reconstructor_precision=precision, **options)
-            except ValueError as error:
-                parser.error(f"--methods {method} --precisions {precision}: {error}")
+    variants = [_label(m, p) for m in args.methods for p in args.precisions]
+    configs = {}  # "front-end | method" -> its configuration
+    for method in args.methods:
+        for precision in args.precisions:
+            for front_end, options in FRONT_ENDS.items():
+                try:
+                    configs[f"{front_end} | {_label(method, precision)}"] = PipelineConfig(
+                        frames="events", reconstructor=method, reconstructor_precision=precision, **options)
+                except ValueError as error:
+                    parser.error(f"--methods {method} --precisions {precision}: {error}")
     stretches = [(*STRETCHES[0][:3], 3.0)] if args.quick else list(STRETCHES)
-    rows = []
+    measured = {}  # (stretch, front-end, method) -> (RMSE, mean track length)
     print("| stretch | front-end | method | RMSE [m] | mean track length [frames] |")
     print("|---|---|---|---|---|")
     for preset, seed, start, duration in stretches:
         data = load_dataset(preset, seed=seed, start=start, duration=duration, need_events=True)
-        named = {f"{front_end} | {method}": config for (method, front_end), config in configs.items()}
-        results = run_pipelines(data, named, jobs=args.jobs)
+        results = run_pipelines(data, configs, jobs=args.jobs)
         stretch = f"{preset} seed {seed}, {start:g}-{start + duration:g} s"
-        for (method, front_end) in configs:
-            r = results[f"{front_end} | {method}"]
+        for name, r in results.items():
+            front_end, method = name.split(" | ")
             rmse, tracks = float(r.metrics["rmse_m"]), float(np.mean(r.track_lengths))
-            rows.append((stretch, front_end, method, rmse, tracks))
+            measured[stretch, front_end, method] = rmse, tracks
             print(f"| {stretch} | {front_end} | {method} | {rmse:.3f} | {tracks:.1f} |", flush=True)
-    labels = [_label(m, p) for m, p in variants]
-    reference = labels[0]
-    for method in labels[1:]:
+    reference = variants[0]
+    for method in variants[1:]:
         for front_end in FRONT_ENDS:
-            pairs = [(ref[3], row[3], ref[4], row[4]) for ref in rows for row in rows
-                     if ref[2] == reference and row[2] == method and ref[1] == row[1] == front_end
-                     and ref[0] == row[0]]
-            ratio = math.exp(np.mean([math.log(b / a) for a, b, _, _ in pairs]))
-            shorter = sum(tb < ta for _, _, ta, tb in pairs)
+            pairs = [(measured[key], measured[key[0], front_end, method]) for key in measured
+                     if key[1:] == (front_end, reference)]
+            ratio = math.exp(np.mean([math.log(other[0] / ref[0]) for ref, other in pairs]))
+            shorter = sum(other[1] < ref[1] for ref, other in pairs)
             print(f"{method} against {reference}, {front_end}: RMSE x{ratio:.2f} (geometric mean over {len(pairs)} "
                   f"runs); tracks shorter in {shorter} of {len(pairs)}")
     return 0

@@ -416,10 +416,11 @@ assert 0.25 < correct_share < 0.6  # a third to a half of its matches are correc
 # labels). The share of its keypoints that sit on a corner is more than three times that of the untrained network's
 # grid points (more than five times in full mode), and it finds more of the corners: more than 2.5 times as many
 # (the printed ratios). Its matches have not caught up: it finds no fewer correct matches than the untrained network
-# (the counts printed above), but only a third to a half of its matches are correct (the printed share): its descriptors
-# have barely started to learn (random filters are a surprisingly strong baseline on a mild warp), because a short
-# run on a few dozen small images (the printed config) is nowhere near the thesis's 15 epochs over 82 783 images. How far the full training goes, and what
-# it costs, is in [docs/features_training.md](../docs/features_training.md).
+# (the counts printed above), but only a third to a half of its matches are correct (the printed share): its
+# descriptors have barely started to learn (random filters are a surprisingly strong baseline on a mild warp),
+# because a short run on a few dozen small images (the printed config) is nowhere near the thesis's 15 epochs over
+# 82 783 images. How far the full training goes, and what it costs, is in
+# [docs/features_training.md](../docs/features_training.md).
 #
 # ## 4. The full chain
 #
@@ -547,8 +548,8 @@ for name in names:  # loop over shipped networks
 # * `evio_lib.features.training.train` runs any stage from a config (labels, pairs, Eq. 8, validation, checkpoints);
 #   the thesis's best chain is `python -m evio_lib features-train pretrained_detdesc_round2 --chain`.
 # * A short pre-trained run at a small learning rate already moves the detector onto corners (more than three times
-#   the untrained network's share of keypoints on corners, and more than 2.5 times as many corners found, on test drawings
-#   with known corners); its descriptors need far longer training.
+#   the untrained network's share of keypoints on corners, and more than 2.5 times as many corners found, on test
+#   drawings with known corners); its descriptors need far longer training.
 #   The project's own long runs and what they reach: [docs/features_training.md](../docs/features_training.md).
 #
 # ## Exercises

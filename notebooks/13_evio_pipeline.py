@@ -1030,8 +1030,7 @@ assert between_px > 20
 # frames win, as the thesis found for fast motion: their RMSE is below 0.6 times the APS frames'. Both streams
 # together also beat the APS frames alone (below 0.8 times their RMSE), but not clearly the event frames alone
 # (within a factor of 1.5 of their RMSE, above or below it depending on the stretch): the few, smeared APS tracks
-# still weigh nine times an event track each. Whether weighting
-# them by their blur helps is exercise 7.
+# still weigh nine times an event track each. Whether weighting them by their blur helps is exercise 7.
 #
 # How typical is this seed? `docs/pipeline.md` ("Faster motion") measured this stretch on six seeds, this one among
 # them (three to choose the settings, three to test them): the motion-compensated frames had the lower % of

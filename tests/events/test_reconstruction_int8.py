@@ -129,7 +129,7 @@ def _agreement(forward, held_out) -> tuple[float, float, float]:
 
 def test_int8_stays_close_to_float32_over_whole_sequences(firenet, held_out):
     ranges = calibrate_firenet(firenet, calibration_voxels(2, seed=0))
-    int8_images, (h1, h2) = _run(FireNetInt8(firenet, ranges), held_out[0][0])
+    int8_images, (h1, h2) = _run(FireNetInt8(firenet, ranges), held_out[0][0][:2])  # output types; closeness below
     assert int8_images.dtype == np.float32 and 0.0 <= int8_images.min() and int8_images.max() <= 1.0
     assert h1.dtype == h2.dtype == torch.float32 and h1.shape == (1, 16, 64, 64)
     mean, worst, correlation = _agreement(FireNetInt8(firenet, ranges), held_out)

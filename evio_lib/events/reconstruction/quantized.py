@@ -54,6 +54,7 @@ GATE_INPUT_CAP = 6.0
 #: The calibrated tensors of :class:`FireNetInt8` (each a range [lo, hi] of float values).
 RANGE_NAMES = ("voxels", "head", "gru1_x", "gru1_h", "gru1_rh", "res1_a", "res1_b", "res1_out",
                "gru2_x", "gru2_h", "gru2_rh", "res2_a", "res2_b")
+_GATE_INPUTS = frozenset(name for name in RANGE_NAMES if name.startswith("gru"))  # the ranges GATE_INPUT_CAP clips
 _LEVELS = 255          # activations: q in [0, 255]
 _STATE_RANGE = (-1.0, 1.0)
 _WEIGHT_LEVELS = 63    # weights in [-63, 63]
@@ -326,8 +327,7 @@ def calibrate_firenet(net: FireNet, voxel_sequences: list[np.ndarray]) -> Int8Ra
             state = None
             for window in torch.from_numpy(sequence):
                 _, state = _float_forward_recording(net, window[None], state, record)
-    gate_inputs = {f"gru{i}_{part}" for i in (1, 2) for part in ("x", "h", "rh")}
-    return Int8Ranges({name: (max(lo, -GATE_INPUT_CAP), min(hi, GATE_INPUT_CAP)) if name in gate_inputs else (lo, hi)
+    return Int8Ranges({name: (max(lo, -GATE_INPUT_CAP), min(hi, GATE_INPUT_CAP)) if name in _GATE_INPUTS else (lo, hi)
                        for name, (lo, hi) in record.ranges.items()})
 
 
