@@ -229,7 +229,7 @@ def test_resume_keeps_a_cosine_schedule_and_accepts_runs_saved_before_the_new_se
 
 def test_several_training_sets_train_together_and_validate_on_the_first(tmp_path):
     """--data A B: the train splits of both sets are drawn from, A's val split validates, both manifests are recorded;
-    sets whose sequences differ in shape are refused before training."""
+    sets whose sequences differ in windows or bins are refused before training."""
     from evio_lib.events.reconstruction.training import open_split
     from evio_lib.events.reconstruction.training_set import TrainingSetConfig, make_training_set
 
@@ -247,10 +247,45 @@ def test_several_training_sets_train_together_and_validate_on_the_first(tmp_path
     assert ckpt["config"]["extra_training_sets"] == [str(tmp_path / "b")]
     assert ckpt["training_set_manifest"]["seed"] == 4
     assert [m["seed"] for m in ckpt["training_set_manifest"]["extra_training_sets"]] == [5]
-    wider = TrainingSetConfig(height=32, width=40, windows=4, duration_min=0.3, duration_max=0.4)
-    make_training_set(tmp_path / "c", sequences=1, val=1, test=1, seed=6, config=wider, workers=1, progress=False)
-    with pytest.raises(ValueError, match="must agree on all four"):
-        main_reconstruct_train(["--out", str(tmp_path / "run2"), "--data", str(tmp_path / "a"), str(tmp_path / "c")])
+    longer = TrainingSetConfig(height=32, width=32, windows=5, duration_min=0.3, duration_max=0.4)
+    make_training_set(tmp_path / "d", sequences=1, val=1, test=1, seed=7, config=longer, workers=1, progress=False)
+    with pytest.raises(ValueError, match="must agree on both"):
+        main_reconstruct_train(["--out", str(tmp_path / "run2"), "--data", str(tmp_path / "a"), str(tmp_path / "d")])
     assert not (tmp_path / "run2").exists()
+
+
+def test_sets_of_different_image_sizes_train_together_on_crops_that_fit_the_smallest(tmp_path):
+    """--data A C with C's images larger: allowed when the crop fits A's (every sample cropped inside its own image,
+    preloaded or read per step); a crop larger than the smallest set is refused before anything is written."""
+    from evio_lib.events.reconstruction.training import _augment_batch, open_split
+    from evio_lib.events.reconstruction.training_set import TrainingSetConfig, make_training_set
+
+    small = TrainingSetConfig(height=32, width=32, windows=4, duration_min=0.3, duration_max=0.4)
+    wider = TrainingSetConfig(height=40, width=48, windows=4, duration_min=0.3, duration_max=0.4)
+    make_training_set(tmp_path / "a", sequences=2, val=1, test=1, seed=4, config=small, workers=1, progress=False)
+    make_training_set(tmp_path / "c", sequences=2, val=1, test=1, seed=6, config=wider, workers=1, progress=False)
+    with pytest.raises(ValueError, match="crop = 48 is larger than the smallest sequences"):
+        main_reconstruct_train(["--out", str(tmp_path / "run"), "--data", str(tmp_path / "a"), str(tmp_path / "c")])
+    assert not (tmp_path / "run").exists()
+    for preload in (False, True):
+        joined = open_split([tmp_path / "a", tmp_path / "c"], "train", preload=preload)
+        assert len(joined) == 4
+        same = joined.take([2, 3])                          # one size: stacked as before
+        assert same[1].shape == (2, 4, 40, 48)
+        voxels, frames, flow = joined.take([0, 3, 1])       # sizes mixed: per-sample lists
+        assert [f.shape for f in frames] == [(4, 32, 32), (4, 40, 48), (4, 32, 32)]
+        v, f, w = _augment_batch(np.random.default_rng(0), voxels, frames, flow, crop=24)
+        assert v.shape == (3, 4, 5, 24, 24) and f.shape == (3, 4, 24, 24) and w.shape == (3, 4, 2, 24, 24)
+        # each crop is a window of its own sample's image, up to the flips
+        for crop, full in zip(f, frames):
+            hits = [(oy, ox) for oy in range(full.shape[1] - 23) for ox in range(full.shape[2] - 23)
+                    if any(np.array_equal(crop[0], c) for c in
+                           (full[0, oy:oy + 24, ox:ox + 24], full[0, oy:oy + 24, ox:ox + 24][:, ::-1],
+                            full[0, oy:oy + 24, ox:ox + 24][::-1], full[0, oy:oy + 24, ox:ox + 24][::-1, ::-1]))]
+            assert hits
+    summary = main_reconstruct_train(["--out", str(tmp_path / "run"), "--data", str(tmp_path / "a"),
+                                      str(tmp_path / "c"), "--steps", "2", "--quiet", "--set", "crop=24",
+                                      "--set", "batch_size=4", "--set", "validate_every=2", "--set", "preload=true"])
+    assert summary == 0 and (tmp_path / "run" / "best.pt").is_file()
     with pytest.raises(ValueError, match="extra_training_sets needs training_set"):
         ReconstructionTrainConfig(extra_training_sets=[str(tmp_path / "b")])

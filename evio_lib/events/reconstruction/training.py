@@ -21,7 +21,8 @@ back-propagation through time over L windows, from a zero state):
 
 Data come from a training set folder (``training_set``: every sequence of its ``train`` split, validation on its ``val``
 split), joined by the ``train`` splits of ``extra_training_sets`` if given (each step draws uniformly over all their
-sequences), or, without one, from :func:`~evio_lib.events.reconstruction.data.reconstruction_dataset`'s planar samples.
+sequences; the sets may differ in image size, each sample then cropped inside its own image), or, without one, from
+:func:`~evio_lib.events.reconstruction.data.reconstruction_dataset`'s planar samples.
 Augmentation per step: a random crop, horizontal and vertical flips (the flow's components negated to match), and with
 probability ``time_reversal`` the batch played backwards: window order and voxel bins reversed and the polarity negated
 (events at T - t with -p are the events of the reversed video), each window's label the image at its new end (the
@@ -136,14 +137,19 @@ class ReconstructionTrainConfig:
             if data.num_bins != self.data.num_bins:
                 raise ValueError(f"the training set {self.training_set} has {data.num_bins} voxel bins; this run's "
                                  f"network takes data.num_bins = {self.data.num_bins}")
-            shape = (data.height, data.width, data.windows, data.num_bins)
+            sizes = {(data.height, data.width)}
             for folder in self.extra_training_sets:
                 _, extra = read_training_set(folder, "train")
-                if (extra.height, extra.width, extra.windows, extra.num_bins) != shape:
-                    raise ValueError(f"the training set {folder} has sequences of {extra.height} x {extra.width} "
-                                     f"pixels, {extra.windows} windows and {extra.num_bins} bins; "
-                                     f"{self.training_set} has {shape[0]} x {shape[1]}, {shape[2]} and {shape[3]}: "
-                                     f"sets trained on together must agree on all four")
+                if (extra.windows, extra.num_bins) != (data.windows, data.num_bins):
+                    raise ValueError(f"the training set {folder} has {extra.windows} windows of {extra.num_bins} "
+                                     f"bins per sequence; {self.training_set} has {data.windows} of {data.num_bins}: "
+                                     f"sets trained on together must agree on both")
+                sizes.add((extra.height, extra.width))
+            smallest = min(min(size) for size in sizes)
+            if len(sizes) > 1 and self.crop > smallest:
+                raise ValueError(f"crop = {self.crop} is larger than the smallest sequences ({smallest} pixels on a "
+                                 f"side) of sets of different sizes ({sorted(sizes)}); their crops must be equal to "
+                                 f"be batched: --set crop=N with N <= {smallest}")
 
     def to_dict(self) -> dict:
         """Return the config as plain JSON-able values."""
@@ -305,18 +311,23 @@ def _augment_batch(rng: np.random.Generator, voxels, frames, flow, crop: int, ti
     A crop keeps the flow (a displacement); a flip u' = (size - 1) - u negates its component along that axis. Played
     backwards (see the module docstring) the batch has one window fewer and no flow (None). The arrays are numpy
     arrays or torch tensors (a set held on the GPU); both draw the same random numbers and give the same values.
+    Samples of different image sizes (sets trained on together) come as lists of per-sample arrays, each cropped
+    inside its own image before the batch is stacked (``crop`` no larger than the smallest).
     """
-    is_tensor = isinstance(voxels, torch.Tensor)
+    is_tensor = isinstance(voxels[0], torch.Tensor)
     stack = torch.stack if is_tensor else np.stack
     def flip(x, axes):
         return torch.flip(x, dims=axes) if is_tensor else np.flip(x, axis=axes)
-    height, width = frames.shape[-2:]
-    crop_h, crop_w = min(crop, height), min(crop, width)
-    corners = [(int(rng.integers(0, height - crop_h + 1)), int(rng.integers(0, width - crop_w + 1)))
-               for _ in range(voxels.shape[0])]
-    voxels = stack([voxels[i, ..., oy:oy + crop_h, ox:ox + crop_w] for i, (oy, ox) in enumerate(corners)])
-    frames = stack([frames[i, ..., oy:oy + crop_h, ox:ox + crop_w] for i, (oy, ox) in enumerate(corners)])
-    flow = stack([flow[i, ..., oy:oy + crop_h, ox:ox + crop_w] for i, (oy, ox) in enumerate(corners)])
+    # one corner per sample, inside that sample's own image (a batch of sets of several sizes comes as lists)
+    windows = []
+    for i in range(len(voxels)):
+        height, width = frames[i].shape[-2:]
+        crop_h, crop_w = min(crop, height), min(crop, width)
+        oy, ox = int(rng.integers(0, height - crop_h + 1)), int(rng.integers(0, width - crop_w + 1))
+        windows.append((slice(oy, oy + crop_h), slice(ox, ox + crop_w)))
+    voxels = stack([voxels[i][..., rows, cols] for i, (rows, cols) in enumerate(windows)])
+    frames = stack([frames[i][..., rows, cols] for i, (rows, cols) in enumerate(windows)])
+    flow = stack([flow[i][..., rows, cols] for i, (rows, cols) in enumerate(windows)])
     for i in range(voxels.shape[0]):
         for axis, component in ((-1, 0), (-2, 1)):
             if rng.random() < 0.5:
@@ -342,18 +353,24 @@ def _as_float_tensor(x, device: str) -> torch.Tensor | None:
     return torch.from_numpy(x.astype(np.float32)).to(device)
 
 
+_KEYS = ("voxels", "frames", "flow")
+
+
 class SequenceSource:
     """Training or validation sequences, from a training-set folder or an in-memory stack of planar samples.
 
     ``len(source)`` sequences; ``source.take(indices)`` returns stacked (voxels, frames, flow) numpy arrays, or torch
     tensors on ``device`` when a preloaded set is held there (``device`` other than ``"cpu"``: a GPU's steps then
-    crop and flip on the GPU instead of copying every batch from the host).
+    crop and flip on the GPU instead of copying every batch from the host). Sequences of several image sizes (sets
+    joined for training) cannot be stacked: they are held one by one, and a draw that mixes sizes is returned as
+    three lists of per-sample arrays (:func:`_augment_batch` crops them to one size).
     """
 
     def __init__(self, paths: list[Path] | None = None, arrays: dict[str, np.ndarray] | None = None,
                  preload: bool = False, device: str = "cpu") -> None:
         self.paths = paths
         self.arrays = arrays
+        self.sequences: list[dict] | None = None                # a preloaded set of several image sizes
         if arrays is not None and "flow" not in arrays:            # planar samples: homographies -> flows
             h, w = arrays["frames"].shape[-2:]
             self.arrays = {"voxels": arrays["voxels"], "frames": arrays["frames"],
@@ -363,21 +380,35 @@ class SequenceSource:
 
             with ThreadPoolExecutor(8) as pool:                   # zlib decompression releases the GIL
                 loaded = list(pool.map(load_sequence, paths))
-            self.arrays = {k: np.stack([x[k] for x in loaded]) for k in ("voxels", "frames", "flow")}
+            if len({x["frames"].shape for x in loaded}) == 1:
+                self.arrays = {k: np.stack([x[k] for x in loaded]) for k in _KEYS}
+            else:                                                  # several sizes: held one sequence at a time
+                self.sequences = loaded
         self.device = device
         if self.arrays is not None and device != "cpu":
             self.arrays = {k: torch.from_numpy(np.ascontiguousarray(v)).to(device) for k, v in self.arrays.items()}
+        if self.sequences is not None and device != "cpu":
+            self.sequences = [{k: torch.from_numpy(np.ascontiguousarray(x[k])).to(device) for k in _KEYS}
+                              for x in self.sequences]
 
     def __len__(self) -> int:
-        return len(self.paths) if self.arrays is None else self.arrays["voxels"].shape[0]
+        if self.arrays is not None:
+            return self.arrays["voxels"].shape[0]
+        return len(self.sequences) if self.sequences is not None else len(self.paths)
 
     def take(self, indices) -> tuple:
         if self.arrays is not None:
             if self.device != "cpu":
                 indices = torch.as_tensor(np.asarray(indices), device=self.device)
-            return tuple(self.arrays[k][indices] for k in ("voxels", "frames", "flow"))
-        loaded = [load_sequence(self.paths[int(i)]) for i in indices]
-        return tuple(np.stack([x[k] for x in loaded]) for k in ("voxels", "frames", "flow"))
+            return tuple(self.arrays[k][indices] for k in _KEYS)
+        if self.sequences is not None:
+            picked = [self.sequences[int(i)] for i in indices]
+        else:
+            picked = [load_sequence(self.paths[int(i)]) for i in indices]
+        if len({tuple(x["frames"].shape) for x in picked}) > 1:      # sizes mixed: cropped before stacking
+            return tuple([x[k] for x in picked] for k in _KEYS)
+        stack = torch.stack if isinstance(picked[0]["frames"], torch.Tensor) else np.stack
+        return tuple(stack([x[k] for x in picked]) for k in _KEYS)
 
 
 def open_split(folder: str | Path | Sequence[str | Path], split: str, preload: bool = False,
