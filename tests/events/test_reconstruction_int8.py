@@ -201,6 +201,11 @@ def test_the_shipped_checkpoint_stores_the_int8_calibration_of_its_own_weights(f
     assert int8_forward(firenet, stored).ranges.ranges == {k: tuple(v) for k, v in stored["ranges"].items()}
     foreign = {"weights_sha1": "0" * 40, "ranges": {name: [-1.0, 1.0] for name in RANGE_NAMES}}
     assert int8_forward(firenet, foreign).ranges.ranges != {k: tuple(v) for k, v in foreign["ranges"].items()}
+    # ranges stored before the gate-input cap existed are capped when loaded, as a calibration's are
+    from evio_lib.events.reconstruction.quantized import GATE_INPUT_CAP
+    uncapped = {**stored, "ranges": {**stored["ranges"], "gru2_rh": [-40.0, 35.0], "res1_a": [-40.0, 35.0]}}
+    loaded = int8_forward(firenet, uncapped).ranges.ranges
+    assert loaded["gru2_rh"] == (-GATE_INPUT_CAP, GATE_INPUT_CAP) and loaded["res1_a"] == (-40.0, 35.0)
     # The stored bounds are not compared with a fresh calibration: the calibration voxels come from the simulator,
     # whose events depend on the OpenCV release and on the CPU's SIMD paths (docs/reliability.md, section 3: fresh
     # bounds of the same weights differed by up to 70 % between OpenCV 4.14 and 5.1 on one machine). What matters is

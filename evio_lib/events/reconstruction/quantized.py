@@ -327,8 +327,14 @@ def calibrate_firenet(net: FireNet, voxel_sequences: list[np.ndarray]) -> Int8Ra
             state = None
             for window in torch.from_numpy(sequence):
                 _, state = _float_forward_recording(net, window[None], state, record)
+    return _with_gate_inputs_capped(record.ranges)
+
+
+def _with_gate_inputs_capped(ranges: dict) -> Int8Ranges:
+    """Return ``ranges`` (name -> (lo, hi)) as :class:`Int8Ranges`, the gate inputs clipped to +-GATE_INPUT_CAP: for a
+    calibration, and for ranges stored in a checkpoint before the cap existed."""
     return Int8Ranges({name: (max(lo, -GATE_INPUT_CAP), min(hi, GATE_INPUT_CAP)) if name in _GATE_INPUTS else (lo, hi)
-                       for name, (lo, hi) in record.ranges.items()})
+                       for name, (lo, hi) in ranges.items()})
 
 
 _CALIBRATED: dict[str, Int8Ranges] = {}  # weights' digest -> ranges: one calibration per network and process
@@ -369,7 +375,7 @@ def int8_forward(net: FireNet, stored: dict | None = None) -> FireNetInt8:
                          f"writable folder, or use float32") from None
     digest = weights_digest(net)
     if stored is not None and stored.get("weights_sha1") == digest:
-        ranges = Int8Ranges({k: tuple(v) for k, v in stored["ranges"].items()})
+        ranges = _with_gate_inputs_capped({k: tuple(v) for k, v in stored["ranges"].items()})
     else:
         if digest not in _CALIBRATED:
             _CALIBRATED[digest] = calibrate_firenet(net, calibration_voxels())
