@@ -46,6 +46,12 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--jobs must be >= 1; got {args.jobs}")
     from evio_lib.pipeline import PipelineConfig, load_dataset, run_pipelines
 
+    repeated = sorted({m for m in args.methods if args.methods.count(m) > 1})
+    if repeated:
+        parser.error(f"--methods lists {', '.join(repeated)} more than once; give each method once")
+    names = _names(args.methods)
+    def _label(method: str, precision: str) -> str:   # a method's name in the table, its precision unless float32
+        return names[method] if precision == "float32" else f"{names[method]} ({precision})"
     variants = [_label(m, p) for m in args.methods for p in args.precisions]
     configs = {}  # "front-end | method" -> its configuration
     for method in args.methods:
@@ -81,10 +87,11 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _label(method: str, precision: str) -> str:
-    """A method's name in the table: a checkpoint by its file name, with its precision unless float32."""
-    name = Path(method).name if Path(method).is_file() else method
-    return name if precision == "float32" else f"{name} ({precision})"
+def _names(methods: list[str]) -> dict[str, str]:
+    """Each method's name in the table: a checkpoint by its file name, or by its path as given where two checkpoints
+    share a file name (runs/a/best.pt and runs/b/best.pt); a reconstructor by its name."""
+    short = {m: Path(m).name if Path(m).is_file() else m for m in methods}
+    return {m: m if list(short.values()).count(short[m]) > 1 else short[m] for m in methods}
 
 
 if __name__ == "__main__":
