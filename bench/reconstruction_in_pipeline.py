@@ -1,6 +1,7 @@
 """Run reconstructors' frames through the whole pipeline on validation seeds: RMSE and mean track length per run.
 
 Usage:  python bench/reconstruction_in_pipeline.py --methods firenet RUN/best.pt [--jobs 2] [--quick]
+        python bench/reconstruction_in_pipeline.py --methods firenet RUN/best.pt --extra-seeds 5 6 --jobs 2
         python bench/reconstruction_in_pipeline.py --methods firenet --precisions float32 int8 --jobs 2
 
 SSIM scores frames one at a time; a tracker needs a corner to look the same from one window to the next. A
@@ -10,7 +11,9 @@ validation stretch (simulation seeds 3 and 4, never the test seeds 0-2 of Table 
 FAST run on the method's event frames (`PipelineConfig(frames="events", reconstructor=METHOD,
 reconstructor_precision=P)` for each P of ``--precisions``, float32 by default; the preset's window fraction n). It
 prints one row per run, then each (method, precision) against the first: the geometric mean of its RMSE ratios per
-front-end, and in how many runs its tracks were shorter.
+front-end with the spread of those ratios, and in how many runs its tracks were shorter. ``--extra-seeds S ...``
+adds the boxes_like and aerial_like stretches 0-8 s of more validation seeds (four runs per seed and network), for
+when four stretches cannot tell two networks apart.
 
 Single runs are chaotic (a diverging run moves the RMSE by 10x); the track lengths move far less, which is why both
 are printed. The first call simulates the stretches with events and caches them; with them cached, two methods
@@ -29,6 +32,8 @@ import numpy as np
 #: (preset, seed, start [s], duration [s]): validation stretches, the gentle start and a later, faster part
 STRETCHES = (("boxes_like", 3, 0.0, 8.0), ("boxes_like", 4, 0.0, 8.0), ("aerial_like", 3, 0.0, 8.0),
              ("boxes_like", 3, 20.0, 6.0))
+#: the seeds of Table 6's test runs (`evio_lib.pipeline.table`): never used to choose a reconstructor
+TEST_SEEDS = (0, 1, 2)
 FRONT_ENDS = {"SIFT": dict(features="sift"), "KLT + FAST": dict(tracker="klt", features="fast")}
 
 
@@ -40,10 +45,21 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--precisions", nargs="+", default=["float32"], metavar="P",
                         help="the networks' arithmetic, each run for every method: float32, bfloat16, int8")
     parser.add_argument("--jobs", type=int, default=1, help="runs in parallel (one process each)")
+    parser.add_argument("--extra-seeds", nargs="+", type=int, default=[], metavar="S",
+                        help="more validation seeds (3 or above, not 3 or 4 again): each adds boxes_like and "
+                             "aerial_like 0-8 s")
     parser.add_argument("--quick", action="store_true", help="the first stretch only, its first 3 s")
     args = parser.parse_args(argv)
     if args.jobs < 1:
         parser.error(f"--jobs must be >= 1; got {args.jobs}")
+    base_seeds = sorted({seed for _, seed, _, _ in STRETCHES})
+    bad = [s for s in args.extra_seeds if s in TEST_SEEDS or s in base_seeds or s < 0]
+    if bad or len(set(args.extra_seeds)) < len(args.extra_seeds):
+        parser.error(f"--extra-seeds takes distinct validation seeds other than the test seeds "
+                     f"{', '.join(map(str, TEST_SEEDS))} and the seeds {', '.join(map(str, base_seeds))} already "
+                     f"run; got {' '.join(map(str, args.extra_seeds))}")
+    if args.quick and args.extra_seeds:
+        parser.error("--quick runs one short stretch; give it without --extra-seeds")
     from evio_lib.pipeline import PipelineConfig, load_dataset, run_pipelines
 
     repeated = sorted({m for m in args.methods if args.methods.count(m) > 1})
@@ -62,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
                         frames="events", reconstructor=method, reconstructor_precision=precision, **options)
                 except ValueError as error:
                     parser.error(f"--methods {method} --precisions {precision}: {error}")
-    stretches = [(*STRETCHES[0][:3], 3.0)] if args.quick else list(STRETCHES)
+    stretches = [(*STRETCHES[0][:3], 3.0)] if args.quick else stretches_for(args.extra_seeds)
     measured = {}  # (stretch, front-end, method) -> (RMSE, mean track length)
     print("| stretch | front-end | method | RMSE [m] | mean track length [frames] |")
     print("|---|---|---|---|---|")
@@ -80,11 +96,28 @@ def main(argv: list[str] | None = None) -> int:
         for front_end in FRONT_ENDS:
             pairs = [(measured[key], measured[key[0], front_end, method]) for key in measured
                      if key[1:] == (front_end, reference)]
-            ratio = math.exp(np.mean([math.log(other[0] / ref[0]) for ref, other in pairs]))
+            mean, error, low, high = rmse_ratio_summary([other[0] / ref[0] for ref, other in pairs])
             shorter = sum(other[1] < ref[1] for ref, other in pairs)
-            print(f"{method} against {reference}, {front_end}: RMSE x{ratio:.2f} (geometric mean over {len(pairs)} "
-                  f"runs); tracks shorter in {shorter} of {len(pairs)}")
+            print(f"{method} against {reference}, {front_end}: RMSE x{mean:.2f} (geometric mean over {len(pairs)} "
+                  f"runs, standard error x{error:.2f}; runs x{low:.2f} to x{high:.2f}); tracks shorter in "
+                  f"{shorter} of {len(pairs)}")
     return 0
+
+
+def stretches_for(extra_seeds: list[int]) -> list[tuple[str, int, float, float]]:
+    """The four stretches of ``STRETCHES``, then boxes_like and aerial_like 0-8 s of each extra seed in turn."""
+    return list(STRETCHES) + [(preset, seed, 0.0, 8.0) for seed in extra_seeds
+                              for preset in ("boxes_like", "aerial_like")]
+
+
+def rmse_ratio_summary(ratios: list[float]) -> tuple[float, float, float, float]:
+    """Geometric mean of per-run RMSE ratios, its standard error as a factor, and the smallest and largest ratio.
+
+    With r_i the ratios and l_i = ln r_i over n runs: mean = exp(mean(l)), error = exp(std(l, ddof=1) / sqrt(n))
+    (1.0 for a single run). A mean of x1.3 with an error of x1.3 is one standard error from "no change"."""
+    logs = np.log(np.asarray(ratios, dtype=float))
+    error = math.exp(float(np.std(logs, ddof=1)) / math.sqrt(len(logs))) if len(logs) > 1 else 1.0
+    return math.exp(float(np.mean(logs))), error, float(np.exp(logs.min())), float(np.exp(logs.max()))
 
 
 def _names(methods: list[str]) -> dict[str, str]:

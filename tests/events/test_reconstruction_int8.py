@@ -219,6 +219,23 @@ def test_the_shipped_checkpoint_stores_the_int8_calibration_of_its_own_weights(f
     assert unfit[0] > 0.015 and unfit[2] < 0.75, unfit  # measured 0.022 and 0.56
 
 
+def test_the_gate_input_cap_clips_both_ends_of_a_range():
+    """A gate range straddling the cap is cut to it, one lying wholly beyond it collapses onto the cap (not inverted
+    to lo > hi), and the other ranges are left as they are."""
+    from evio_lib.events.reconstruction.quantized import GATE_INPUT_CAP, _GATE_INPUTS, _with_gate_inputs_capped
+
+    gate = sorted(_GATE_INPUTS)[0]
+    other = next(name for name in RANGE_NAMES if name not in _GATE_INPUTS)
+    base = {name: (-1.0, 1.0) for name in RANGE_NAMES}
+    cap = GATE_INPUT_CAP
+    for given, expected in [((-40.0, 35.0), (-cap, cap)), ((7.0, 9.0), (cap, cap)), ((-9.0, -7.0), (-cap, -cap)),
+                            ((-2.0, 3.0), (-2.0, 3.0))]:
+        ranges = _with_gate_inputs_capped({**base, gate: given, other: (-40.0, 35.0)})
+        assert ranges.ranges[gate] == expected and ranges.ranges[other] == (-40.0, 35.0)
+    scale, zero_point = _with_gate_inputs_capped({**base, gate: (7.0, 9.0)}).scale_zero_point(gate)
+    assert zero_point == 0 and abs(scale * 255 - cap) < 1e-9  # quantised over [0, cap]
+
+
 def test_the_thread_count_is_kept_and_a_state_with_gradients_is_accepted(firenet, voxels, ranges):
     int8 = FireNetInt8(firenet, ranges)
     before = torch.get_num_threads()

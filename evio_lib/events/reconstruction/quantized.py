@@ -332,9 +332,13 @@ def calibrate_firenet(net: FireNet, voxel_sequences: list[np.ndarray]) -> Int8Ra
 
 def _with_gate_inputs_capped(ranges: dict) -> Int8Ranges:
     """Return ``ranges`` (name -> (lo, hi)) as :class:`Int8Ranges`, the gate inputs clipped to +-GATE_INPUT_CAP: for a
-    calibration, and for ranges stored in a checkpoint before the cap existed."""
-    return Int8Ranges({name: (max(lo, -GATE_INPUT_CAP), min(hi, GATE_INPUT_CAP)) if name in _GATE_INPUTS else (lo, hi)
-                       for name, (lo, hi) in ranges.items()})
+    calibration, and for ranges stored in a checkpoint before the cap existed. Both ends are clipped into
+    [-cap, cap], so a range lying wholly beyond the cap, e.g. (7, 9), becomes (6, 6), which the quantiser widens to
+    [0, 6] (every range holds 0), instead of an inverted (7, 6)."""
+    def capped(lo: float, hi: float) -> tuple[float, float]:
+        return min(max(lo, -GATE_INPUT_CAP), GATE_INPUT_CAP), max(min(hi, GATE_INPUT_CAP), -GATE_INPUT_CAP)
+
+    return Int8Ranges({name: capped(lo, hi) if name in _GATE_INPUTS else (lo, hi) for name, (lo, hi) in ranges.items()})
 
 
 _CALIBRATED: dict[str, Int8Ranges] = {}  # weights' digest -> ranges: one calibration per network and process
