@@ -7,18 +7,20 @@ Usage:  python bench/reconstruction_in_pipeline.py --methods firenet RUN/best.pt
 SSIM scores frames one at a time; a tracker needs a corner to look the same from one window to the next. A
 candidate network that scores higher SSIM can still give shorter tracks: stage 9 did (docs/reconstruction.md,
 "Stage 9"), so a reconstructor is shipped only if it also keeps the pipeline's track lengths here. For each
-validation stretch (simulation seeds 3 and 4, never the test seeds 0-2 of Table 6) and each method, SIFT and KLT +
+validation stretch (simulation seeds 3 and 4 and any ``--extra-seeds``, never the test seeds 0-2 of Table 6) and
+each method, SIFT and KLT +
 FAST run on the method's event frames (`PipelineConfig(frames="events", reconstructor=METHOD,
 reconstructor_precision=P)` for each P of ``--precisions``, float32 by default; the preset's window fraction n). It
-prints one row per run, then each (method, precision) against the first: the geometric mean of its RMSE ratios per
-front-end with the spread of those ratios, and in how many runs its tracks were shorter. ``--extra-seeds S ...``
+prints one row per run, then each (method, precision) against the first, per front-end: the geometric mean of its
+RMSE ratios with their standard error (as a factor) and their smallest and largest, in how many runs its tracks were
+shorter, and the geometric mean of its track-length ratios. ``--extra-seeds S ...``
 adds the boxes_like and aerial_like stretches 0-8 s of more validation seeds (four runs per seed and network), for
 when four stretches cannot tell two networks apart.
 
 Single runs are chaotic (a diverging run moves the RMSE by 10x); the track lengths move far less, which is why both
 are printed. The first call simulates the stretches with events and caches them; with them cached, two methods
 took 2.8 min wall and 5.2 min CPU at ``--jobs 2`` on the 2-core machine (2026-12-04); with ``--extra-seeds 5 6``
-(32 runs) 9.8 min wall, 17.4 min CPU, the four new stretches simulated in the same call. ``--quick`` runs the first
+(32 runs) 9.8 min wall, 17.6 min CPU, the four new stretches simulated in the same call. ``--quick`` runs the first
 stretch only, for 3 s (28 s wall).
 """
 from __future__ import annotations
@@ -47,18 +49,14 @@ def main(argv: list[str] | None = None) -> int:
                         help="the networks' arithmetic, each run for every method: float32, bfloat16, int8")
     parser.add_argument("--jobs", type=int, default=1, help="runs in parallel (one process each)")
     parser.add_argument("--extra-seeds", nargs="+", type=int, default=[], metavar="S",
-                        help="more validation seeds (3 or above, not 3 or 4 again): each adds boxes_like and "
-                             "aerial_like 0-8 s")
+                        help="more validation seeds, 5 or above: each adds boxes_like and aerial_like 0-8 s")
     parser.add_argument("--quick", action="store_true", help="the first stretch only, its first 3 s")
     args = parser.parse_args(argv)
     if args.jobs < 1:
         parser.error(f"--jobs must be >= 1; got {args.jobs}")
-    base_seeds = sorted({seed for _, seed, _, _ in STRETCHES})
-    bad = [s for s in args.extra_seeds if s in TEST_SEEDS or s in base_seeds or s < 0]
-    if bad or len(set(args.extra_seeds)) < len(args.extra_seeds):
-        parser.error(f"--extra-seeds takes distinct validation seeds other than the test seeds "
-                     f"{', '.join(map(str, TEST_SEEDS))} and the seeds {', '.join(map(str, base_seeds))} already "
-                     f"run; got {' '.join(map(str, args.extra_seeds))}")
+    problem = extra_seeds_problem(args.extra_seeds)
+    if problem:
+        parser.error(f"--extra-seeds {' '.join(map(str, args.extra_seeds))}: {problem}")
     if args.quick and args.extra_seeds:
         parser.error("--quick runs one short stretch; give it without --extra-seeds")
     from evio_lib.pipeline import PipelineConfig, load_dataset, run_pipelines
@@ -104,6 +102,22 @@ def main(argv: list[str] | None = None) -> int:
                   f"runs, standard error x{error:.2f}; runs x{low:.2f} to x{high:.2f}); tracks shorter in "
                   f"{shorter} of {len(pairs)}, their lengths x{tracks:.3f} (geometric mean)")
     return 0
+
+
+def extra_seeds_problem(extra_seeds: list[int]) -> str | None:
+    """What is wrong with ``--extra-seeds`` (None if nothing): each must be a distinct non-negative seed that is
+    neither one of Table 6's test seeds nor one of the seeds ``STRETCHES`` already runs."""
+    base_seeds = sorted({seed for _, seed, _, _ in STRETCHES})
+    repeated = sorted({s for s in extra_seeds if extra_seeds.count(s) > 1})
+    for bad, why in (([s for s in extra_seeds if s < 0], "seeds must be >= 0"),
+                     ([s for s in extra_seeds if s in TEST_SEEDS],
+                      f"the test seeds {', '.join(map(str, TEST_SEEDS))} never choose a reconstructor"),
+                     ([s for s in extra_seeds if s in base_seeds],
+                      f"the seeds {', '.join(map(str, base_seeds))} are run already"),
+                     (repeated, "each seed may be given once")):
+        if bad:
+            return f"{', '.join(map(str, sorted(set(bad))))}: {why}; give validation seeds of 5 or above"
+    return None
 
 
 def stretches_for(extra_seeds: list[int]) -> list[tuple[str, int, float, float]]:

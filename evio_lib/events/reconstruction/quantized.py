@@ -333,8 +333,8 @@ def calibrate_firenet(net: FireNet, voxel_sequences: list[np.ndarray]) -> Int8Ra
 def _with_gate_inputs_capped(ranges: dict) -> Int8Ranges:
     """Return ``ranges`` (name -> (lo, hi)) as :class:`Int8Ranges`, the gate inputs clipped to +-GATE_INPUT_CAP: for a
     calibration, and for ranges stored in a checkpoint before the cap existed. Both ends are clipped into
-    [-cap, cap], so a range lying wholly beyond the cap, e.g. (7, 9), becomes (6, 6), which the quantiser widens to
-    [0, 6] (every range holds 0), instead of an inverted (7, 6)."""
+    [-cap, cap], so a range lying wholly beyond the cap, e.g. (7, 9), becomes (cap, cap), which the quantiser widens
+    to [0, cap] (every range holds 0), instead of an inverted (7, cap)."""
     def capped(lo: float, hi: float) -> tuple[float, float]:
         return min(max(lo, -GATE_INPUT_CAP), GATE_INPUT_CAP), max(min(hi, GATE_INPUT_CAP), -GATE_INPUT_CAP)
 
