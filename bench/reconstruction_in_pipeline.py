@@ -8,13 +8,12 @@ SSIM scores frames one at a time; a tracker needs a corner to look the same from
 candidate network that scores higher SSIM can still give shorter tracks: stage 9 did (docs/reconstruction.md,
 "Stage 9"), so a reconstructor is shipped only if it also keeps the pipeline's track lengths here. For each
 validation stretch (simulation seeds 3 and 4 and any ``--extra-seeds``, never the test seeds 0-2 of Table 6) and
-each method, SIFT and KLT +
-FAST run on the method's event frames (`PipelineConfig(frames="events", reconstructor=METHOD,
-reconstructor_precision=P)` for each P of ``--precisions``, float32 by default; the preset's window fraction n). It
-prints one row per run, then each (method, precision) against the first, per front-end: the geometric mean of its
-RMSE ratios with their standard error (as a factor) and their smallest and largest, in how many runs its tracks were
-shorter, and the geometric mean of its track-length ratios. ``--extra-seeds S ...``
-adds the boxes_like and aerial_like stretches 0-8 s of more validation seeds (four runs per seed and network), for
+each method, SIFT and KLT + FAST run on the method's event frames (`PipelineConfig(frames="events",
+reconstructor=METHOD, reconstructor_precision=P)` for each P of ``--precisions``, float32 by default; the preset's
+window fraction n). It prints one row per run, then each (method, precision) against the first, per front-end: the
+geometric mean of its RMSE ratios with their standard error (as a factor) and their smallest and largest, in how
+many runs its tracks were shorter, and the geometric mean of its track-length ratios. ``--extra-seeds S ...`` adds
+the boxes_like and aerial_like stretches 0-8 s of more validation seeds (four runs per seed and network), for
 when four stretches cannot tell two networks apart.
 
 Single runs are chaotic (a diverging run moves the RMSE by 10x); the track lengths move far less, which is why both
@@ -95,9 +94,9 @@ def main(argv: list[str] | None = None) -> int:
         for front_end in FRONT_ENDS:
             pairs = [(measured[key], measured[key[0], front_end, method]) for key in measured
                      if key[1:] == (front_end, reference)]
-            mean, error, low, high = rmse_ratio_summary([other[0] / ref[0] for ref, other in pairs])
+            mean, error, low, high = ratio_summary([other[0] / ref[0] for ref, other in pairs])
             shorter = sum(other[1] < ref[1] for ref, other in pairs)
-            tracks = math.exp(np.mean([math.log(other[1] / ref[1]) for ref, other in pairs]))
+            tracks = ratio_summary([other[1] / ref[1] for ref, other in pairs])[0]
             print(f"{method} against {reference}, {front_end}: RMSE x{mean:.2f} (geometric mean over {len(pairs)} "
                   f"runs, standard error x{error:.2f}; runs x{low:.2f} to x{high:.2f}); tracks shorter in "
                   f"{shorter} of {len(pairs)}, their lengths x{tracks:.3f} (geometric mean)")
@@ -126,8 +125,9 @@ def stretches_for(extra_seeds: list[int]) -> list[tuple[str, int, float, float]]
                               for preset in ("boxes_like", "aerial_like")]
 
 
-def rmse_ratio_summary(ratios: list[float]) -> tuple[float, float, float, float]:
-    """Geometric mean of per-run RMSE ratios, its standard error as a factor, and the smallest and largest ratio.
+def ratio_summary(ratios: list[float]) -> tuple[float, float, float, float]:
+    """Geometric mean of per-run ratios (RMSE, track length), its standard error as a factor, and the smallest and
+    largest ratio.
 
     With r_i the ratios and l_i = ln r_i over n runs: mean = exp(mean(l)), error = exp(std(l, ddof=1) / sqrt(n))
     (1.0 for a single run). A mean of x1.3 with an error of x1.3 is one standard error from "no change"."""

@@ -1,4 +1,4 @@
-"""The pure parts of bench/reconstruction_in_pipeline.py: its stretches, its seed checks and its RMSE summary."""
+"""The pure parts of bench/reconstruction_in_pipeline.py: its stretches, its seed checks and its ratio summary."""
 import importlib.util
 import math
 from pathlib import Path
@@ -32,11 +32,11 @@ def test_extra_seeds_refused_on_the_command_line_with_one_line(capsys):
     assert "error: --extra-seeds 0: 0: the test seeds" in capsys.readouterr().err
 
 
-def test_rmse_summary_is_the_geometric_mean_and_its_standard_error():
-    mean, error, low, high = bench.rmse_ratio_summary([2.0, 0.5])
+def test_ratio_summary_is_the_geometric_mean_and_its_standard_error():
+    mean, error, low, high = bench.ratio_summary([2.0, 0.5])
     # ln ratios +-ln 2: mean 0, sample standard deviation sqrt(2) ln 2, standard error ln 2
     assert mean == pytest.approx(1.0) and error == pytest.approx(2.0) and (low, high) == (0.5, 2.0)
-    assert bench.rmse_ratio_summary([1.5]) == pytest.approx((1.5, 1.0, 1.5, 1.5))
+    assert bench.ratio_summary([1.5]) == pytest.approx((1.5, 1.0, 1.5, 1.5))
     ratios = [0.8, 1.1, 1.3, 2.0]
     logs = [math.log(r) for r in ratios]
-    assert bench.rmse_ratio_summary(ratios)[0] == pytest.approx(math.exp(sum(logs) / 4))
+    assert bench.ratio_summary(ratios)[0] == pytest.approx(math.exp(sum(logs) / 4))
