@@ -55,6 +55,7 @@ def main() -> None:
         torch.save({"format": "evio-reconstructor-v1", "architecture": "e2vid", "network_options": {}, "num_bins": 5,
                     "state_dict": E2VIDRecurrent().state_dict()}, path)
         methods["e2vid"] = create_reconstructor("learned", w, h, checkpoint=path, device="cpu")
+    voxel_grid(windows[0], w, h, 5)  # warm-up: the normalisation's kernels compile (or load) on first use
     start = time.perf_counter()
     for window in windows:
         voxel_grid(window, w, h, 5)

@@ -53,6 +53,44 @@ def test_voxel_grid_normalisation_is_e2vids():
     np.testing.assert_array_equal(normalize_voxel_grid(np.zeros((2, 2))), np.zeros((2, 2)))
 
 
+@pytest.mark.parametrize("case", ["sparse", "dense", "one_event", "constant", "empty", "fortran"])
+def test_the_normalisation_kernels_give_numpys_grids_bit_for_bit(monkeypatch, case):
+    """The Numba normalisation (events.voxel_kernels) against the NumPy boolean-mask path: the same bytes, on windows
+    from a few events to more events than voxels, a grid of one repeated value (no spread: only centred), an empty
+    one, and a grid not in C order (the NumPy path then)."""
+    pytest.importorskip("numba")
+    from evio_lib.events.representations import voxel_backend
+
+    rng = np.random.default_rng(11)
+    grids = {"sparse": voxel_grid(random_events(3000, 240, 180, seed=1), 240, 180, 5, normalize=False),
+             "dense": voxel_grid(random_events(20000, 17, 13, seed=2), 17, 13, 5, normalize=False),
+             "one_event": voxel_grid(random_events(1, seed=3), 7, 5, 5, normalize=False),
+             "constant": np.where(rng.uniform(size=(5, 9, 11)) < 0.3, 0.5, 0.0).astype(np.float32),
+             "empty": np.zeros((5, 4, 3), np.float32),
+             "fortran": np.asfortranarray(voxel_grid(random_events(400, seed=4), 7, 5, 5, normalize=False))}
+    grid = grids[case]
+    out = {}
+    for backend in ("numpy", "numba"):
+        monkeypatch.setenv("EVIO_VOXEL_BACKEND", backend)
+        assert voxel_backend() == backend
+        out[backend] = normalize_voxel_grid(grid)
+    assert out["numba"].tobytes() == out["numpy"].tobytes()
+    np.testing.assert_array_equal(out["numba"][grid == 0], 0.0)        # the zeros stay zero
+    nonzero = out["numba"][grid != 0]
+    if case in ("sparse", "dense"):
+        assert abs(nonzero.mean()) < 1e-5 and abs(nonzero.std() - 1.0) < 1e-4
+    if case in ("constant", "one_event"):
+        np.testing.assert_array_equal(nonzero, 0.0)                    # centred only: no spread to divide by
+    monkeypatch.setenv("EVIO_VOXEL_BACKEND", "numba")
+    events = random_events(5000, 240, 180, seed=5)
+    with_kernels = voxel_grid(events, 240, 180, 5)
+    monkeypatch.setenv("EVIO_VOXEL_BACKEND", "numpy")
+    assert voxel_grid(events, 240, 180, 5).tobytes() == with_kernels.tobytes()
+    monkeypatch.setenv("EVIO_VOXEL_BACKEND", "gpu")
+    with pytest.raises(ValueError, match="EVIO_VOXEL_BACKEND must be one of auto, numba, numpy"):
+        voxel_backend()
+
+
 def test_voxel_grid_does_not_modify_its_input_and_checks_bounds():
     ev = random_events(50)
     copy = ev.copy()
