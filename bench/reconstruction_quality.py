@@ -2,7 +2,7 @@
 slider_depth frames (see evio_lib.events.reconstruction.evaluation for the protocol and the normalisation).
 
 Usage:  python bench/reconstruction_quality.py [--methods direct high_pass firenet] [--max-frames 12]
-                                              [--split test|val] [--precision float32|bfloat16|int8]
+                                              [--split test|val] [--precision auto|float32|bfloat16|int8]
         python bench/reconstruction_quality.py --fractions 0.05 0.1 0.2 0.35 0.7 1.0 --max-frames 8 --split val \
                                               --methods firenet RUN/best.pt     # SSIM against the window fraction n
 
@@ -45,8 +45,9 @@ def main() -> None:
                          precision=args.precision)
     print(f"| {'sequence':32s} | {'method':22s} | {'MSE':>6s} | {'SSIM':>6s} | frames |")
     print(f"|{'-' * 34}|{'-' * 24}|{'-' * 8}|{'-' * 8}|--------|")
-    for r in rows:
-        print(f"| {r['sequence']:32s} | {r['method']:22s} | {r['mse']:6.3f} | {r['ssim']:6.3f} | {r['frames']:6d} |")
+    for r in rows:  # a network's row names the precision it computed in (the default "auto" picks int8 on x86 CPUs)
+        method = r["method"] if r.get("precision") is None else f"{r['method']} ({r['precision']})"
+        print(f"| {r['sequence']:32s} | {method:22s} | {r['mse']:6.3f} | {r['ssim']:6.3f} | {r['frames']:6d} |")
 
 
 def sweep(methods: list[str], fractions: list[float], max_frames: int, seed: int, precision: str | None) -> None:
@@ -56,12 +57,14 @@ def sweep(methods: list[str], fractions: list[float], max_frames: int, seed: int
     for stretch in EVAL_STRETCHES:
         sequence = simulated_eval_sequence(stretch, seed=seed)
         for method in methods:
-            ssim = [score_windows(reconstructor_by_name_or_file(method, sequence.width, sequence.height,
-                                                                precision=precision),
-                                  sequence, n, max_frames=max_frames)["ssim"] for n in fractions]
+            recs = [reconstructor_by_name_or_file(method, sequence.width, sequence.height, precision=precision)
+                    for _ in fractions]                               # a fresh state for each n
+            ssim = [score_windows(rec, sequence, n, max_frames=max_frames)["ssim"] for rec, n in zip(recs, fractions)]
             inside = [v for n, v in zip(fractions, ssim) if 0.1 <= n <= 0.7]
             spread = f"{max(inside) - min(inside):.3f}" if inside else "-"
-            print(f"| {stretch} | {method} | " + " | ".join(f"{v:.3f}" for v in ssim) + f" | {spread} |", flush=True)
+            chosen = getattr(recs[0], "precision", None)
+            label = method if chosen is None else f"{method} ({chosen})"
+            print(f"| {stretch} | {label} | " + " | ".join(f"{v:.3f}" for v in ssim) + f" | {spread} |", flush=True)
 
 
 if __name__ == "__main__":

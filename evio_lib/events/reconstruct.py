@@ -34,7 +34,10 @@ __all__ = ["PRECISIONS", "Reconstructor", "LogIntegrator", "LearnedReconstructor
            "reconstruct_at_times"]
 
 #: A network's arithmetic (``precision=`` of the learned reconstructors; the classical ones have none to choose).
-PRECISIONS = ("float32", "bfloat16", "int8")
+#: ``auto`` (the default): int8 for a FireNet on a CPU that runs PyTorch's x86 int8 convolutions and Numba's kernels
+#: (2.5-3x float32's frames per second, SSIM within 0.005 on the held-out stretches), else float32; see
+#: :func:`evio_lib.events.reconstruction.nets.resolve_precision`. A reconstructor's ``precision`` says which it chose.
+PRECISIONS = ("auto", "float32", "bfloat16", "int8")
 
 WEIGHTS_DIR = Path(__file__).resolve().parents[1] / "weights"
 #: Shipped learned reconstructors: name -> checkpoint file in evio_lib/weights/.
@@ -142,11 +145,11 @@ class LearnedReconstructor(Reconstructor):
     """A recurrent network from a checkpoint of :func:`evio_lib.events.reconstruction.training.train_reconstructor`."""
 
     def __init__(self, width: int, height: int, checkpoint: str | Path, device: str | None = None,
-                 name: str = "learned", threads: int | None = None, precision: str = "float32") -> None:
+                 name: str = "learned", threads: int | None = None, precision: str = "auto") -> None:
         super().__init__(width, height)
         import torch
 
-        from evio_lib.events.reconstruction.nets import build_network, inference_network
+        from evio_lib.events.reconstruction.nets import build_network, inference_network, resolve_precision
 
         _check_precision(precision)  # before the checkpoint loads and the thread count changes
 
@@ -173,9 +176,10 @@ class LearnedReconstructor(Reconstructor):
         # precision="bfloat16": the net under autocast (1.35x the frames/s on 2 threads, 1.56x on one, on this AVX-512
         # machine with native bfloat16; images a few 1e-3 off, the same SSIM within 0.001: docs/reconstruction.md);
         # "int8": FireNet with int8 convolutions (quantized.FireNetInt8; the checkpoint's stored calibration, else one
-        # calibration per process, ~4 s)
+        # calibration per process, ~4 s); "auto": int8 where it runs (resolve_precision), else float32
+        precision = resolve_precision(self.net, precision)
         self.forward = inference_network(self.net, precision, ckpt.get("int8_ranges"))
-        self.precision = precision
+        self.precision = precision  # what "auto" chose
         self.checkpoint = path
         self.name = name
         self.training_steps = int(ckpt.get("step", 0))

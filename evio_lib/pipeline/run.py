@@ -121,10 +121,11 @@ class PipelineConfig:
             tracks continue (the second-best match anywhere in the repetitive room is often close) and the error is
             17.9 % of the distance; with the test off (guided window + mutual check + two-point RANSAC), 3.6 %.
         reconstructor: event frames only: a reconstructor name ('firenet', 'high_pass', 'direct').
-        reconstructor_precision: event frames only: a network's arithmetic, 'float32' (default), 'bfloat16' (1.35x
-            FireNet's frames per second on two threads of a CPU with native bfloat16, the same SSIM within 0.001) or
-            'int8' (FireNet only: int8 convolutions, 2.5x on two threads and 2.7x on one, SSIM within 0.01;
-            docs/reconstruction.md); direct and high_pass ignore it.
+        reconstructor_precision: event frames only: a network's arithmetic, 'auto' (default: int8 for FireNet on
+            an x86 CPU where Numba's kernels load, else float32), 'float32', 'bfloat16' (1.35x FireNet's frames per
+            second on two threads of a CPU with native bfloat16, the same SSIM within 0.001) or 'int8' (FireNet
+            only: int8 convolutions, 2.5-3x float32's frames per second, SSIM within 0.005; docs/reconstruction.md);
+            direct and high_pass ignore it.
         window_fraction: event frames only: n of N_e = n H W; None: the thesis's n for the preset (0.7 / 0.2) for
             reconstructed frames, 1.0 for every recording for motion-compensated ones (``MC_WINDOW_FRACTION``).
         adaptive_windows: event frames only: adaptive windows instead of fixed N_e.
@@ -180,7 +181,7 @@ class PipelineConfig:
     max_features: int = 60
     match_ratio: float | None = None
     reconstructor: str = "firenet"
-    reconstructor_precision: str = "float32"
+    reconstructor_precision: str = "auto"
     window_fraction: float | None = None
     adaptive_windows: bool = False
     min_window_s: float | None = None

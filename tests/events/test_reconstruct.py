@@ -124,7 +124,7 @@ def test_bfloat16_network_is_close_to_float32_and_other_precisions_are_refused()
         assert images[precision].dtype == np.float32
     difference = np.abs(images["float32"] - images["bfloat16"])
     assert 0 < difference.max() < 0.03 and difference.mean() < 3e-3
-    with pytest.raises(ValueError, match="precision must be one of float32, bfloat16, int8; got 'float16'"):
+    with pytest.raises(ValueError, match="precision must be one of auto, float32, bfloat16, int8; got 'float16'"):
         create_reconstructor("firenet", 64, 48, precision="float16")
 
 
@@ -134,5 +134,5 @@ def test_classical_reconstructors_check_a_precision_and_compute_as_always():
         plain = create_reconstructor(name, 8, 6).reconstruct(window, t_end=0.1)
         given = create_reconstructor(name, 8, 6, precision="bfloat16").reconstruct(window, t_end=0.1)
         np.testing.assert_array_equal(given, plain)
-        with pytest.raises(ValueError, match="precision must be one of float32, bfloat16, int8; got 'half'"):
+        with pytest.raises(ValueError, match="precision must be one of auto, float32, bfloat16, int8; got 'half'"):
             create_reconstructor(name, 8, 6, precision="half")

@@ -248,3 +248,34 @@ def test_the_thread_count_is_kept_and_a_state_with_gradients_is_accepted(firenet
     _, state = firenet(torch.from_numpy(voxels[:1]), None)    # outside no_grad: the state requires gradients
     image, _ = int8(torch.from_numpy(voxels[1:2]), state)
     assert torch.isfinite(image).all()
+
+
+def test_auto_chooses_int8_where_it_runs_and_float32_elsewhere(firenet, monkeypatch):
+    """precision="auto" (the default): int8 for a FireNet on an x86 CPU where the kernels load, float32 for another
+    network, on another quantised engine, or without the kernels; the reconstructor says which it chose."""
+    from evio_lib.events.reconstruct import PRECISIONS
+    from evio_lib.events.reconstruction import quantized
+    from evio_lib.events.reconstruction.nets import resolve_precision
+
+    assert PRECISIONS[0] == "auto"
+    assert quantized.int8_unavailable() == ""                          # this CPU (x86, numba installed)
+    assert resolve_precision(firenet) == "int8" and resolve_precision(firenet, "bfloat16") == "bfloat16"
+    assert resolve_precision(E2VIDRecurrent(num_encoders=1, base_channels=4)) == "float32"
+    default = create_reconstructor("firenet", 37, 23)
+    assert default.precision == "int8" and isinstance(default.forward, FireNetInt8)
+    assert create_reconstructor("firenet", 37, 23, precision="float32").precision == "float32"
+    with pytest.raises(ValueError, match="precision must be one of auto, float32, bfloat16, int8; got 'fp8'"):
+        resolve_precision(firenet, "fp8")
+    images = {}
+    for engine in ("onednn", "x86"):         # the engine selected elsewhere (SuperPoint's int8 selects onednn)
+        monkeypatch.setattr(torch.backends.quantized, "engine", engine)
+        assert resolve_precision(firenet) == "int8"
+        rec = create_reconstructor("firenet", 37, 23)
+        assert torch.backends.quantized.engine == engine                # left as it was
+        images[engine] = rec.reconstruct(make_events([0.0, 0.01, 0.02], [3, 4, 5], [6, 6, 6], [1, -1, 1]))
+    np.testing.assert_array_equal(images["onednn"], images["x86"])
+    monkeypatch.setattr(quantized, "_supported_engines", lambda: ("qnnpack", "none"))  # e.g. an ARM build
+    assert "no 'x86' quantised engine" in quantized.int8_unavailable()
+    assert resolve_precision(firenet) == "float32" and create_reconstructor("firenet", 37, 23).precision == "float32"
+    with pytest.raises(ValueError, match="precision int8 cannot run here: this PyTorch build has no 'x86'"):
+        int8_forward(firenet)

@@ -517,5 +517,5 @@ def test_reconstructor_precision_reaches_the_network(boxes_events):
     high_pass = PipelineConfig(frames="events", reconstructor="high_pass", reconstructor_precision="bfloat16",
                                max_duration=0.3)  # the classical methods ignore it
     assert len(run_pipeline(boxes_events, high_pass).t) > 0
-    with pytest.raises(ValueError, match="reconstructor_precision must be one of float32, bfloat16, int8; got 'int4'"):
+    with pytest.raises(ValueError, match="reconstructor_precision must be one of auto, float32, bfloat16, int8; got 'int4'"):
         PipelineConfig(frames="events", reconstructor_precision="int4")

@@ -111,10 +111,10 @@ def add_reconstruct_arguments(parser: argparse.ArgumentParser) -> argparse.Argum
                         help=f"reconstructor: {', '.join(available_reconstructors())} (default firenet, the shipped "
                              f"network), or a checkpoint file written by reconstruct-train")
     parser.add_argument("--precision", choices=PRECISIONS, default=PRECISIONS[0],
-                        help="a network's arithmetic (default float32; bfloat16 gave 1.35x the frames per second on two "
-                             "threads of a CPU with native bfloat16 (AVX512-BF16), the same SSIM within 0.001 on the "
-                             "held-out stretches; int8 (FireNet only) 2.5x on two threads and 2.7x on one, SSIM within "
-                             "0.01; ignored by direct and high_pass)")
+                        help="a network's arithmetic (default auto: int8 for FireNet on an x86 CPU, 2.5-3x float32's "
+                             "frames per second with SSIM within 0.005 on the held-out stretches, else float32; "
+                             "bfloat16 gave 1.35x on two threads of a CPU with native bfloat16 (AVX512-BF16); ignored "
+                             "by direct and high_pass)")
     window = parser.add_mutually_exclusive_group()
     window.add_argument("--window-fraction", type=float, default=None, metavar="N",
                         help=f"N_e = N * H * W events per frame (default {DEFAULT_FRACTION}; the thesis used 0.7 on "
@@ -258,5 +258,7 @@ def main_reconstruct(args: argparse.Namespace | Sequence[str] | None = None) -> 
                 raise OSError(f"could not write {tmp / name}")
             lines.append(f"{t:.9f} {name}\n")
         (tmp / "images.txt").write_text("".join(lines))
-    print(f"wrote {len(frame_times)} frames ({reconstructor.name}, {width}x{height}) to {args.out}")
+    chosen = getattr(reconstructor, "precision", None)  # a network's arithmetic (what --precision auto chose)
+    what = reconstructor.name if chosen is None else f"{reconstructor.name}, {chosen}"
+    print(f"wrote {len(frame_times)} frames ({what}, {width}x{height}) to {args.out}")
     return 0

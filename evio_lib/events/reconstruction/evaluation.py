@@ -225,16 +225,17 @@ def load_slider_slice(folder: str | Path | None = None) -> dict[str, np.ndarray]
 def quality_table(methods: Sequence[str], stretches: Sequence[str] = tuple(EVAL_STRETCHES), duration: float | None = None,
                   max_frames: int | None = 12, with_aps: bool = True, with_slider: bool = True,
                   seed: int = EVAL_SEED, precision: str | None = None) -> list[dict]:
-    """Return rows {method, sequence, mse, ssim, frames}: every method (a reconstructor's name or a reconstruct-train
+    """Return rows {method, sequence, mse, ssim, frames, precision}: every method (a reconstructor's name or a reconstruct-train
     checkpoint file) on every held-out stretch (at the thesis's n),
     the blurred APS frames for reference, and the real slider frames (EVREAL protocol) when the real data is present.
-    ``precision``: the networks' arithmetic (one of ``PRECISIONS``; None: each reconstructor's default)."""
+    ``precision``: the networks' arithmetic (one of ``PRECISIONS``; None: each reconstructor's default); each row's
+    ``precision`` is the one its network computed in (what ``auto`` chose; None for the classical methods)."""
     rows = []
     for stretch in stretches:
         sequence = simulated_eval_sequence(stretch, duration=duration, seed=seed)
         for method in methods:
             rec = reconstructor_by_name_or_file(method, sequence.width, sequence.height, precision=precision)
-            rows.append({"method": method, "sequence": stretch,
+            rows.append({"method": method, "sequence": stretch, "precision": getattr(rec, "precision", None),
                          **score_windows(rec, sequence, THESIS_FRACTION[stretch], max_frames=max_frames)})
         if with_aps and len(sequence.frame_times):
             rows.append({"method": "APS frames (blurred)", "sequence": stretch, **score_aps_frames(sequence)})
@@ -245,5 +246,6 @@ def quality_table(methods: Sequence[str], stretches: Sequence[str] = tuple(EVAL_
             score = score_at_frame_times(rec, slider["events"], slider["frame_times"], slider["frames"],
                                          max_window_events=window_size_from_fraction(0.35, 240, 180))
             rows.append({"method": method, "sequence": "real slider_depth (APS frames)", "mse": score["mse"],
-                         "ssim": score["ssim"], "frames": len(score["per_frame"])})
+                         "ssim": score["ssim"], "frames": len(score["per_frame"]),
+                         "precision": getattr(rec, "precision", None)})
     return rows

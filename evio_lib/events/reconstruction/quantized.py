@@ -46,8 +46,8 @@ from torch.nn import functional as F
 
 from evio_lib.events.reconstruction.nets import FireNet
 
-__all__ = ["Int8Ranges", "FireNetInt8", "calibrate_firenet", "calibration_voxels", "int8_forward", "stored_ranges",
-           "weights_digest"]
+__all__ = ["INT8_ENGINE", "Int8Ranges", "FireNetInt8", "calibrate_firenet", "calibration_voxels", "int8_forward", "int8_unavailable",
+           "stored_ranges", "weights_digest"]
 
 #: Gate inputs (summed inside sigmoid/tanh) are clipped to [-GATE_INPUT_CAP, GATE_INPUT_CAP]: see the module docstring.
 GATE_INPUT_CAP = 6.0
@@ -66,6 +66,22 @@ def _quiet() -> Iterator[None]:
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message=r".*quantize_per_tensor.*deprecated", category=UserWarning)
         yield
+
+
+def _supported_engines() -> tuple[str, ...]:
+    """The quantised engines of this PyTorch build (a function, so that tests can stand in another build's)."""
+    return tuple(torch.backends.quantized.supported_engines)
+
+
+@contextlib.contextmanager
+def _engine(name: str) -> Iterator[None]:
+    """A context in which PyTorch's quantised engine (a process-wide setting) is ``name``; the previous one after."""
+    before = torch.backends.quantized.engine
+    torch.backends.quantized.engine = name
+    try:
+        yield
+    finally:
+        torch.backends.quantized.engine = before
 
 
 def _scale_zero_point(lo: float, hi: float) -> tuple[float, int]:
@@ -141,7 +157,7 @@ class FireNetInt8(torch.nn.Module):
         self.voxel_q = sz("voxels")
         self.state_q = _scale_zero_point(*_STATE_RANGE)
         self.res1_out_q = sz("res1_out")
-        with _quiet():
+        with _quiet(), _engine(INT8_ENGINE):  # the packed weights keep the engine they were packed for
             self.head = _quantised_conv(net.head, sz("head"), relu=True)
             self.grus = []
             for i, cell in enumerate((net.gru1, net.gru2), start=1):
@@ -359,6 +375,27 @@ def stored_ranges(net: FireNet) -> dict:
                                                               ranges.ranges.items()}}
 
 
+#: PyTorch's quantised engine :class:`FireNetInt8` packs its convolutions for (x86 CPUs: FBGEMM, VNNI where present).
+INT8_ENGINE = "x86"
+
+
+def int8_unavailable() -> str:
+    """Return why this machine cannot run :class:`FireNetInt8`, or "" when it can: this PyTorch build must offer the
+    x86 quantised engine (not e.g. an ARM build with qnnpack only, which the int8 path was never measured on) and the
+    compiled kernels must load (numba installed, a writable cache for their machine code). The engine selected at the
+    moment does not matter (the SuperPoint int8 path selects onednn): FireNetInt8 packs its weights for x86."""
+    engines = _supported_engines()
+    if INT8_ENGINE not in engines:
+        return f"this PyTorch build has no {INT8_ENGINE!r} quantised engine (it has {engines})"
+    try:
+        from evio_lib.events.reconstruction import quantized_kernels  # noqa: F401
+    except ImportError as error:
+        return f"the numba package does not import ({error})"
+    except RuntimeError as error:  # numba's "cannot cache function ...: no locator available", raised at import
+        return f"the compiled kernels cannot load ({error}); set NUMBA_CACHE_DIR to a writable folder"
+    return ""
+
+
 def int8_forward(net: FireNet, stored: dict | None = None) -> FireNetInt8:
     """Return the int8 forward pass of ``net``.
 
@@ -370,13 +407,9 @@ def int8_forward(net: FireNet, stored: dict | None = None) -> FireNetInt8:
     if type(net) is not FireNet or any(p.device.type != "cpu" for p in net.parameters()):
         where = next(net.parameters()).device.type
         raise ValueError(f"precision int8 runs a FireNet on the CPU only; got a {type(net).__name__} on {where}")
-    try:
-        from evio_lib.events.reconstruction import quantized_kernels  # noqa: F401
-    except ImportError as error:
-        raise ValueError(f"precision int8 needs the numba package ({error}); pip install numba, or use float32")
-    except RuntimeError as error:  # numba's "cannot cache function ...: no locator available", raised at import
-        raise ValueError(f"precision int8: the compiled kernels cannot load ({error}); set NUMBA_CACHE_DIR to a "
-                         f"writable folder, or use float32") from None
+    problem = int8_unavailable()
+    if problem:
+        raise ValueError(f"precision int8 cannot run here: {problem}; use float32")
     digest = weights_digest(net)
     if stored is not None and stored.get("weights_sha1") == digest:
         ranges = _with_gate_inputs_capped({k: tuple(v) for k, v in stored["ranges"].items()})
