@@ -4,9 +4,10 @@ Usage:  python bench/bench_reconstruction.py [--frames N] [--threads T] [--varia
 
 Each frame is one window of N_e = 0.35 * 240 * 180 events (uniform random events, seed 0); the rate includes building
 the voxel grid. The large E2VID-style network runs with random weights (none are shipped): its speed does not depend on
-them. FireNet runs in each precision (float32, the default; bfloat16; int8). Goal (issue 23): at least 100 frames/s on
-a 2-core CPU; measured on the idle machine (2026-11-27 evening), frames/s with one / two threads: float32 22-23 /
-38-43, bfloat16 33-35 / 56-59, int8 57-61 / 92-107 (median 102 over six runs; docs/reconstruction.md, Speed).
+them. FireNet runs in each precision (float32; bfloat16; int8, what the default precision "auto" picks on an x86
+CPU). Goal (issue 23): at least 100 frames/s on a 2-core CPU; measured on the idle machine (2026-11-27 evening),
+frames/s with one / two threads: float32 22-23 / 38-43, bfloat16 33-35 / 56-59, int8 57-61 / 92-107 (median 102 over
+six runs); since 2026-12-04 the voxel grid's normalisation takes 0.3 ms instead of 1.0 (docs/reconstruction.md, Speed).
 
 ``--variants`` also times FireNet's forward pass alone (state carried, on the same voxel grids) in the variants tried
 for issue 23, with each one's largest difference from the eager float32 network's images:
@@ -47,9 +48,9 @@ def main() -> None:
     rng = np.random.default_rng(0)
     windows = [make_events(np.sort(rng.uniform(k, k + 1, n)), rng.integers(0, w, n), rng.integers(0, h, n),
                            rng.choice([-1, 1], n)) for k in range(args.frames)]
-    methods = {name: create_reconstructor(name, w, h) for name in ("direct", "high_pass", "firenet")}
-    methods["firenet (bfloat16)"] = create_reconstructor("firenet", w, h, precision="bfloat16")
-    methods["firenet (int8)"] = create_reconstructor("firenet", w, h, precision="int8")
+    methods = {name: create_reconstructor(name, w, h) for name in ("direct", "high_pass")}
+    for precision in ("float32", "bfloat16", "int8"):   # the default "auto" is int8 on x86 CPUs, else float32
+        methods[f"firenet ({precision})"] = create_reconstructor("firenet", w, h, precision=precision)
     with tempfile.TemporaryDirectory() as folder:  # a random-weight E2VID-style UNet, loaded the way users load one
         path = Path(folder) / "e2vid_random.pt"
         torch.save({"format": "evio-reconstructor-v1", "architecture": "e2vid", "network_options": {}, "num_bins": 5,
@@ -72,7 +73,7 @@ def main() -> None:
         print(f"{name:24s} {rate:8.1f} frames/s  ({1e3 / rate:.1f} ms per frame, {args.threads} threads)")
     if args.variants:
         grids = [torch.from_numpy(voxel_grid(window, w, h, 5))[None] for window in windows]
-        net = methods["firenet"].net
+        net = methods["firenet (float32)"].net
         reference = _forward_all(net, grids)
         for name, forward in _variants(net, grids[0]).items():
             images = _forward_all(forward, grids)

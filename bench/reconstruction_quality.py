@@ -29,7 +29,8 @@ def main() -> None:
                         help="test: the held-out stretches (seed 101) that are reported; val: the same stretches of "
                              "other scenes (seed 202) where networks and settings are chosen")
     parser.add_argument("--precision", choices=PRECISIONS, default=None,
-                        help="the networks' arithmetic (default: each reconstructor's own, float32)")
+                        help="the networks' arithmetic (default: each reconstructor's own, auto: int8 for FireNet on "
+                             "an x86 CPU)")
     parser.add_argument("--fractions", type=float, nargs="+", metavar="N",
                         help="score windows of each n H W events instead of the thesis's n (an n sweep)")
     args = parser.parse_args()

@@ -39,7 +39,7 @@ def main() -> int:
     print("|---|---|---|---|---|")
     for path in args.checkpoints:
         try:  # a missing, damaged or foreign file: one line naming it (the checks of LearnedReconstructor)
-            net = LearnedReconstructor(64, 64, path, device="cpu", threads=args.threads).net
+            net = LearnedReconstructor(64, 64, path, device="cpu", threads=args.threads, precision="float32").net
         except ValueError as error:
             print(f"error: {error}", file=sys.stderr)
             return 2

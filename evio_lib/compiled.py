@@ -1,8 +1,9 @@
 """Choose between a Numba-compiled kernel and its NumPy reference, by an environment variable.
 
-The simulator's renderer (:func:`evio_lib.sim.scene.renderer_backend`) and the motion-compensated event frames
-(:func:`evio_lib.events.motion_compensation.mc_backend`) each have compiled kernels that give the NumPy path's
-numbers faster. Both choose the same way: ``<ENV>`` = ``numba`` | ``numpy`` | ``auto`` (default: the kernels when
+The simulator's renderer (:func:`evio_lib.sim.scene.renderer_backend`), the motion-compensated event frames
+(:func:`evio_lib.events.motion_compensation.mc_backend`) and the voxel grid's normalisation
+(:func:`evio_lib.events.representations.voxel_backend`) each have compiled kernels that give the NumPy path's
+numbers faster. All choose the same way: ``<ENV>`` = ``numba`` | ``numpy`` | ``auto`` (default: the kernels when
 their module loads, else NumPy with one warning saying why; ``numba`` where they cannot load is an error).
 """
 from __future__ import annotations

@@ -500,9 +500,20 @@ plt.show()
 # sum to its output's own s and z. The ranges of the activations, which fix s and z, were measured once on simulated
 # sequences of the training-set generator's validation split (calibration). The gates and the state update between
 # the convolutions stay in floating point.
+#
+# `create_reconstructor("firenet")` has used this all along: its default `precision="auto"` picks int8 when the
+# network runs on the CPU, PyTorch has its x86 integer kernels and Numba's compiled kernels load (an x86-64 CPU with
+# AVX2 and this course's packages), and float32 elsewhere (a GPU, an ARM CPU). The reconstructor says which one it
+# picked.
 
 # %%
 import time
+
+from evio_lib.events.reconstruction.quantized import int8_unavailable
+
+default_rec = create_reconstructor("firenet", W, H)
+print(f"precision='auto' picked {default_rec.precision} here (the network on {default_rec.device})")
+assert default_rec.precision == ("int8" if default_rec.device == "cpu" and not int8_unavailable() else "float32")
 
 network = create_reconstructor("firenet", W, H).net
 multiply_adds = sum(m.weight.numel() for m in network.modules() if isinstance(m, torch.nn.Conv2d)) * 240 * 180
@@ -528,7 +539,8 @@ assert abs(ssim_change) < 0.03
 # %% [markdown]
 # The integer network's SSIM on the violent stretch is within 0.03 of the float network's. Compare the two run times
 # printed above (they include the scoring, the same for both); docs/reconstruction.md, Speed, has the frame rates
-# measured on an idle machine and what each part of the speed-up gave.
+# measured on an idle machine (int8 about 2.5-3 times float32's) and what each part of the speed-up gave. That
+# trade, a small change in the images for a large gain in speed, is why int8 is the default where it runs.
 
 # %% [markdown]
 # ## 6. How many events per frame? The window fraction n
@@ -701,7 +713,8 @@ assert summary["steps"] == steps and summary["best_val_ssim"] > untrained["ssim"
 #   does); over sparse terrain its MSE is barely below the high-pass filter's; on this simulator the APS frames
 #   still score higher.
 # - `precision="int8"` runs the network's convolutions on 8-bit integers (x ≈ s (q − z), ranges calibrated once),
-#   at an SSIM within 0.03 of the float network on the violent stretch.
+#   at an SSIM within 0.03 of the float network on the violent stretch; the default `precision="auto"` picks it on
+#   x86 CPUs.
 # - Measure the window fraction n on your own scene (here both simulated scenes scored best with small windows, one
 #   stretch each). The adaptive rule, which closes windows at r events per active pixel, needs no tuning but chose
 #   large windows here (n above 0.7).

@@ -430,7 +430,7 @@ def normalize_voxel_grid(grid: np.ndarray) -> np.ndarray:
     >>> normalize_voxel_grid(np.array([[0.0, 1.0, 3.0]], np.float32)).tolist()
     [[0.0, -1.0, 1.0]]
     """
-    return _normalize_in_place(np.array(grid, dtype=np.float32))
+    return _normalize_in_place(np.array(grid, dtype=np.float32, order="C"))  # C order: the kernels' layout
 
 
 def _normalize_in_place(grid: np.ndarray) -> np.ndarray:
@@ -447,7 +447,7 @@ def _normalize_in_place(grid: np.ndarray) -> np.ndarray:
         if values.size == 0:
             return grid
         mean, std = float(values.mean()), float(values.std())
-        voxel_kernels.write_normalised(flat, np.float32(mean), np.float32(std), values.size > 1 and std > 0)
+        voxel_kernels.write_normalized(flat, np.float32(mean), np.float32(std), values.size > 1 and std > 0)
         return grid
     nonzero = grid != 0
     values = grid[nonzero]

@@ -18,23 +18,24 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["nonzero_values", "write_normalised"]
+__all__ = ["nonzero_values", "write_normalized"]
 
 
 @njit(cache=True)
 def nonzero_values(flat, count):  # type: ignore[no-untyped-def]
-    """Return the ``count`` non-zero entries of the 1-D float32 array ``flat``, in order (``flat[flat != 0]``)."""
+    """Return the first ``count`` non-zero entries of the 1-D float32 array ``flat``, in order (``flat[flat != 0]``
+    when ``count = np.count_nonzero(flat)``, which uses the same test: NaN counts, -0.0 does not)."""
     out = np.empty(count + 1, np.float32)   # one spare slot: every entry is written, only non-zero ones advance k
     k = 0
     for i in range(flat.size):
         v = flat[i]
         out[k] = v
-        k += v != 0                          # no branch: the mask is sparse and random
+        k = min(k + (v != 0), count)         # no branch (the mask is sparse and random); never past the spare slot
     return out[:count]
 
 
 @njit(cache=True)
-def write_normalised(flat, mean, std, scale):  # type: ignore[no-untyped-def]
+def write_normalized(flat, mean, std, scale):  # type: ignore[no-untyped-def]
     """In place: every non-zero v of the 1-D float32 ``flat`` becomes (v - mean) / std if ``scale``, else v - mean
     (``mean``, ``std``: float32)."""
     if scale:

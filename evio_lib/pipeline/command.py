@@ -282,6 +282,8 @@ def add_speed_argument(p: argparse.ArgumentParser) -> None:
 
 def add_table_arguments(p: argparse.ArgumentParser) -> None:
     """Add the options of ``table``."""
+    from evio_lib.events.reconstruct import PRECISIONS  # no torch: --help stays light
+
     p.add_argument("--presets", nargs="+", choices=["boxes_like", "aerial_like"], default=["boxes_like", "aerial_like"],
                    help="which presets (default both)")
     p.add_argument("--seeds", type=integer(minimum=1), default=3, help="seeds 0 .. S-1 per configuration (default 3)")
@@ -295,6 +297,9 @@ def add_table_arguments(p: argparse.ArgumentParser) -> None:
                         "--far-points always, and cnn_narrow_aps, the distilled CNN, run only when named)")
     p.add_argument("--events-cnn", type=Path, default=None,
                    help="checkpoint of a CNN trained with event frames (the 'CNN trained with event frames' row)")
+    p.add_argument("--reconstructor-precision", choices=PRECISIONS, default=None,
+                   help="rows on event frames: FireNet's arithmetic (default auto: int8 on an x86 CPU, else float32; "
+                        "the table names the one each row used)")
     add_aps_exposure_argument(p)
     add_speed_argument(p)
     p.add_argument("--jobs", type=integer(minimum=1), default=1, help="parallel joblib workers (default 1)")
@@ -322,9 +327,13 @@ def main_table(args: argparse.Namespace) -> int:
         except (ValueError, OSError) as error:  # evio_lib.io.checkpoint's one line "FILE: problem; expected ..."
             raise ValueError(f"--events-cnn {error}") from None
     try:  # a bad row name fails before any run
-        rows = table_rows(args.rows, None if args.events_cnn is None else str(args.events_cnn))
+        rows = table_rows(args.rows, None if args.events_cnn is None else str(args.events_cnn),
+                          args.reconstructor_precision)
     except ValueError as error:
         raise ValueError(f"--rows: {error}") from None
+    if args.reconstructor_precision is not None and not any(row.uses_reconstructed_frames for row in rows):
+        raise ValueError("--reconstructor-precision applies to table rows on event frames (sift_events, cnn_events, "
+                         "klt_events, cnn_events_trained); none of the rows chosen is one")
     _check_aps_exposure(args.aps_exposure, uses_aps=any(row.uses_aps_frames for row in rows),
                         users="table rows that use APS frames; none of the rows chosen does")
     seeds = 1 if args.fast else args.seeds

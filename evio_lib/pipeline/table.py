@@ -35,7 +35,7 @@ from evio_lib.pipeline.dataset import PRESETS, check_preset_duration, check_spee
 from evio_lib.pipeline.frames import frame_streams
 
 __all__ = ["TABLE_ROWS", "OPTIONAL_ROWS", "TableRow", "table_rows", "table_job", "run_table", "aggregate",
-           "format_table6"]
+           "format_table6", "reconstructor_precision_of"]
 
 
 @dataclass(frozen=True)
@@ -49,6 +49,11 @@ class TableRow:
     @property
     def needs_events(self) -> bool:
         return dict(self.options).get("frames", "aps") != "aps"
+
+    @property
+    def uses_reconstructed_frames(self) -> bool:
+        """Return True when the row's runs reconstruct event frames with a reconstructor (frames "events")."""
+        return "events" in frame_streams(dict(self.options).get("frames", "aps"))
 
     @property
     def uses_aps_frames(self) -> bool:
@@ -94,9 +99,11 @@ TABLE_ROWS = (
 OPTIONAL_ROWS = ("cnn_narrow_aps", "sift_aps_gap2", "sift_mc_events_gap2", "cnn_aps_far", "cnn_mc_events_far")
 
 
-def table_rows(keys: Sequence[str] | None = None, events_cnn: str | None = None) -> list[TableRow]:
+def table_rows(keys: Sequence[str] | None = None, events_cnn: str | None = None,
+               reconstructor_precision: str | None = None) -> list[TableRow]:
     """Return the rows to run: ``keys`` (default all but :data:`OPTIONAL_ROWS`) in table order; the events-trained
-    CNN row only with a checkpoint."""
+    CNN row only with a checkpoint; ``reconstructor_precision`` (one of ``PRECISIONS``; None: the runs' default,
+    "auto") set on every row that reconstructs event frames."""
     known = [r.key for r in TABLE_ROWS]
     if keys is not None:
         unknown = [k for k in keys if k not in known]
@@ -112,8 +119,21 @@ def table_rows(keys: Sequence[str] | None = None, events_cnn: str | None = None)
             if events_cnn is None:
                 continue
             row = TableRow(row.key, row.label, row.options + (("detector_options", (("weights", str(events_cnn)),)),))
+        if reconstructor_precision is not None and row.uses_reconstructed_frames:
+            row = TableRow(row.key, row.label, row.options + (("reconstructor_precision", reconstructor_precision),))
         rows.append(row)
     return rows
+
+
+def reconstructor_precision_of(config: Any) -> str | None:
+    """Return the precision a run's event-frame reconstructor computes in (what "auto" chooses on this machine), or
+    None when the run reconstructs no frames or uses a classical method (``config``: a PipelineConfig)."""
+    if "events" not in frame_streams(config.frames) or config.reconstructor in ("direct", "high_pass"):
+        return None
+    from evio_lib.events.reconstruct import reconstructor_by_name_or_file
+
+    return reconstructor_by_name_or_file(config.reconstructor, 8, 8, what="reconstructor",
+                                         precision=config.reconstructor_precision).precision
 
 
 def _simulate(preset: str, duration: float, seed: int, with_events: bool, aps_exposure_s: float | None = None,
@@ -156,6 +176,9 @@ def table_job(preset: str, duration: float, seed: int, row: TableRow, threads: i
     except Exception as error:  # anything else fails this row only, named by its type so that a bug stays visible
         record["error"] = f"{type(error).__name__}: {(str(error).splitlines() or [''])[0]}"
         return record
+    precision = reconstructor_precision_of(config)
+    if precision is not None:
+        record["reconstructor_precision"] = precision  # e.g. int8, where the default "auto" chose it
     record.update({k: v for k, v in result.metrics.items() if isinstance(v, (int, float))})
     record["realtime_factor"] = result.timings["realtime_factor"]
     record["wall_s"] = time.perf_counter() - start
@@ -238,6 +261,9 @@ def aggregate(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
         agg: dict[str, Any] = {"preset": preset, "row": row, "label": runs[0]["label"], "seeds": len(runs),
                                "failed": len(runs) - len(ok),
                                "errors": sorted({r["error"] for r in runs if "error" in r})}
+        precisions = sorted({r["reconstructor_precision"] for r in ok if "reconstructor_precision" in r})
+        if precisions:
+            agg["reconstructor_precision"] = "/".join(precisions)
         for k in keys:
             values = np.array([r[k] for r in ok if k in r and r[k] is not None], dtype=float)
             values = values[np.isfinite(values)]
@@ -263,7 +289,8 @@ def format_table6(rows: Sequence[dict[str, Any]]) -> str:
         for r in (r for r in rows if r["preset"] == preset):
             halves = f"{_cell(r['rmse_first_half_m'], float('nan'), 3)} / {_cell(r['rmse_second_half_m'], float('nan'), 3)}"
             seeds = f"{r['seeds'] - r['failed']}" + (f" ({r['failed']} failed)" if r["failed"] else "")
-            lines.append(f"| {r['label']} | {_cell(r['rmse_m'], r['rmse_m_std'], 3)} | "
+            label = r["label"] + (f" ({r['reconstructor_precision']})" if r.get("reconstructor_precision") else "")
+            lines.append(f"| {label} | {_cell(r['rmse_m'], r['rmse_m_std'], 3)} | "
                          f"{_cell(r['final_error_m'], r['final_error_m_std'], 3)} | "
                          f"{_cell(r['percent_of_distance'], r['percent_of_distance_std'], 2)} | {halves} | "
                          f"{_cell(r['realtime_factor'], float('nan'), 2)}x | {seeds} |")

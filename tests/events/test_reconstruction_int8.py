@@ -261,21 +261,31 @@ def test_auto_chooses_int8_where_it_runs_and_float32_elsewhere(firenet, monkeypa
     assert quantized.int8_unavailable() == ""                          # this CPU (x86, numba installed)
     assert resolve_precision(firenet) == "int8" and resolve_precision(firenet, "bfloat16") == "bfloat16"
     assert resolve_precision(E2VIDRecurrent(num_encoders=1, base_channels=4)) == "float32"
-    default = create_reconstructor("firenet", 37, 23)
+    assert resolve_precision(FireNet().to("meta")) == "float32"        # a FireNet off the CPU (e.g. on a GPU)
+    default = create_reconstructor("firenet", 37, 23, device="cpu")
     assert default.precision == "int8" and isinstance(default.forward, FireNetInt8)
     assert create_reconstructor("firenet", 37, 23, precision="float32").precision == "float32"
+    engines = []                             # FireNetInt8 packs every convolution under the x86 engine
+    pack = quantized._quantised_conv
+    monkeypatch.setattr(quantized, "_quantised_conv",
+                        lambda *a, **k: engines.append(torch.backends.quantized.engine) or pack(*a, **k))
+    monkeypatch.setattr(torch.backends.quantized, "engine", "onednn")
+    FireNetInt8(firenet, default.forward.ranges)
+    assert engines == ["x86"] * 11 and torch.backends.quantized.engine == "onednn"
+    monkeypatch.setattr(quantized, "_quantised_conv", pack)
     with pytest.raises(ValueError, match="precision must be one of auto, float32, bfloat16, int8; got 'fp8'"):
         resolve_precision(firenet, "fp8")
     images = {}
     for engine in ("onednn", "x86"):         # the engine selected elsewhere (SuperPoint's int8 selects onednn)
         monkeypatch.setattr(torch.backends.quantized, "engine", engine)
         assert resolve_precision(firenet) == "int8"
-        rec = create_reconstructor("firenet", 37, 23)
+        rec = create_reconstructor("firenet", 37, 23, device="cpu")
         assert torch.backends.quantized.engine == engine                # left as it was
         images[engine] = rec.reconstruct(make_events([0.0, 0.01, 0.02], [3, 4, 5], [6, 6, 6], [1, -1, 1]))
     np.testing.assert_array_equal(images["onednn"], images["x86"])
     monkeypatch.setattr(quantized, "_supported_engines", lambda: ("qnnpack", "none"))  # e.g. an ARM build
     assert "no 'x86' quantised engine" in quantized.int8_unavailable()
-    assert resolve_precision(firenet) == "float32" and create_reconstructor("firenet", 37, 23).precision == "float32"
+    assert resolve_precision(firenet) == "float32"
+    assert create_reconstructor("firenet", 37, 23, device="cpu").precision == "float32"
     with pytest.raises(ValueError, match="precision int8 cannot run here: this PyTorch build has no 'x86'"):
         int8_forward(firenet)

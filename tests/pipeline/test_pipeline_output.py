@@ -233,3 +233,30 @@ def test_table_rows():
     assert isinstance(trained[0], TableRow)
     with pytest.raises(ValueError, match="unknown table row"):
         table_rows(["nope"])
+
+
+def test_table_rows_take_a_reconstructor_precision_and_the_table_names_it():
+    """--reconstructor-precision lands on the rows that reconstruct event frames only; a run records the precision
+    its reconstructor computed in (what "auto" chose), and the table names it beside the row."""
+    from evio_lib.pipeline.run import PipelineConfig
+    from evio_lib.pipeline.table import reconstructor_precision_of
+
+    rows = {r.key: r for r in table_rows(["sift_aps", "sift_events", "klt_mc_events", "klt_events"],
+                                         reconstructor_precision="float32")}
+    assert dict(rows["sift_events"].options)["reconstructor_precision"] == "float32"
+    assert dict(rows["klt_events"].options)["reconstructor_precision"] == "float32"
+    assert "reconstructor_precision" not in dict(rows["sift_aps"].options)
+    assert "reconstructor_precision" not in dict(rows["klt_mc_events"].options)  # no reconstructor there
+    assert {k: r.uses_reconstructed_frames for k, r in rows.items()} == {
+        "sift_aps": False, "sift_events": True, "klt_mc_events": False, "klt_events": True}
+    assert reconstructor_precision_of(PipelineConfig(frames="events", reconstructor_precision="float32")) == "float32"
+    assert reconstructor_precision_of(PipelineConfig(frames="events", reconstructor="high_pass")) is None
+    assert reconstructor_precision_of(PipelineConfig(frames="mc-events")) is None
+    assert reconstructor_precision_of(PipelineConfig()) is None
+    records = [{"preset": "boxes_like", "row": "sift_events", "label": "SIFT, event frames", "seed": s,
+                "rmse_m": 1.0 + s, "reconstructor_precision": "int8"} for s in (0, 1)]
+    row = aggregate(records)[0]
+    assert row["reconstructor_precision"] == "int8"
+    assert "| SIFT, event frames (int8) | 1.500 ± 0.707 |" in format_table6([row])
+    plain = aggregate([{k: v for k, v in r.items() if k != "reconstructor_precision"} for r in records])[0]
+    assert "reconstructor_precision" not in plain and "| SIFT, event frames | 1.500" in format_table6([plain])

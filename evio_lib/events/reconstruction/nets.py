@@ -211,7 +211,7 @@ def resolve_precision(net: nn.Module, precision: str = "auto") -> str:
     return "float32" if int8_unavailable() else "int8"
 
 
-def inference_network(net: nn.Module, precision: str = "auto", int8_ranges: dict | None = None) -> nn.Module:
+def inference_network(net: nn.Module, precision: str = "float32", int8_ranges: dict | None = None) -> nn.Module:
     """Return the fastest forward pass for ``net`` in ``precision`` (one of :data:`PRECISIONS`; ``auto``:
     :func:`resolve_precision`).
 

@@ -75,7 +75,8 @@ def _supported_engines() -> tuple[str, ...]:
 
 @contextlib.contextmanager
 def _engine(name: str) -> Iterator[None]:
-    """A context in which PyTorch's quantised engine (a process-wide setting) is ``name``; the previous one after."""
+    """A context in which PyTorch's quantised engine (a process-wide setting) is ``name``; the previous one after.
+    Not thread-safe (no setting of the process is): build int8 networks from one thread at a time."""
     before = torch.backends.quantized.engine
     torch.backends.quantized.engine = name
     try:
@@ -149,6 +150,9 @@ class FireNetInt8(torch.nn.Module):
             raise TypeError(f"FireNetInt8 needs a FireNet; got {type(net).__name__}")
         if any(p.device.type != "cpu" for p in net.parameters()):
             raise ValueError("FireNetInt8 runs on the CPU only: move the FireNet to the CPU first")
+        problem = int8_unavailable()
+        if problem:
+            raise ValueError(f"FireNetInt8 cannot run here: {problem}")
         from evio_lib.events.reconstruction import quantized_kernels  # numba: compiled on first use, then cached
 
         self.kernels = quantized_kernels
@@ -391,8 +395,9 @@ def int8_unavailable() -> str:
         from evio_lib.events.reconstruction import quantized_kernels  # noqa: F401
     except ImportError as error:
         return f"the numba package does not import ({error})"
-    except RuntimeError as error:  # numba's "cannot cache function ...: no locator available", raised at import
-        return f"the compiled kernels cannot load ({error}); set NUMBA_CACHE_DIR to a writable folder"
+    except Exception as error:  # e.g. numba's RuntimeError "cannot cache function ...: no locator available"
+        return (f"the compiled kernels cannot load ({type(error).__name__}: {error}); set NUMBA_CACHE_DIR to a "
+                f"writable folder")
     return ""
 
 

@@ -545,7 +545,10 @@ def load_event_frames(spec: str | Path | Mapping[str, Any], name: str = "events"
             from evio_lib.events.reconstruct import create_reconstructor, reconstruct_windows
             from evio_lib.events.representations import count_windows
 
-            reconstructor = create_reconstructor(str(spec["reconstructor"]), width, height)
+            # float32 frames unless the spec says otherwise: the same training images on every machine ("auto"
+            # would give int8 frames on an x86 CPU and float32 ones on a GPU)
+            reconstructor = create_reconstructor(str(spec["reconstructor"]), width, height,
+                                                 precision=str(spec.get("reconstructor_precision", "float32")))
             frames = list(reconstruct_windows(reconstructor, sequence.events,
                                               count_windows(sequence.events, per_frame))[0])
         else:
