@@ -501,10 +501,9 @@ plt.show()
 # sequences of the training-set generator's validation split (calibration). The gates and the state update between
 # the convolutions stay in floating point.
 #
-# `create_reconstructor("firenet")` has used this all along: its default `precision="auto"` picks int8 when the
-# network runs on the CPU, PyTorch has its x86 integer kernels and Numba's compiled kernels load (an x86-64 CPU with
-# AVX2 and this course's packages), and float32 elsewhere (a GPU, an ARM CPU). The reconstructor says which one it
-# picked.
+# The `firenet` reconstructions above already ran in int8 where they could: the default `precision="auto"` picks
+# int8 when the network runs on the CPU, PyTorch has its x86 integer kernels (an x86-64 build of PyTorch) and Numba's
+# compiled kernels load, and float32 elsewhere (a GPU, an ARM CPU). The reconstructor says which one it picked.
 
 # %%
 import time
@@ -539,7 +538,7 @@ assert abs(ssim_change) < 0.03
 # %% [markdown]
 # The integer network's SSIM on the violent stretch is within 0.03 of the float network's. Compare the two run times
 # printed above (they include the scoring, the same for both); docs/reconstruction.md, Speed, has the frame rates
-# measured on an idle machine (int8 about 2.5-3 times float32's) and what each part of the speed-up gave. That
+# measured on an idle machine (int8 about 2.4-3 times float32's) and what each part of the speed-up gave. That
 # trade, a small change in the images for a large gain in speed, is why int8 is the default where it runs.
 
 # %% [markdown]

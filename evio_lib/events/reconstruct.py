@@ -35,7 +35,7 @@ __all__ = ["PRECISIONS", "Reconstructor", "LogIntegrator", "LearnedReconstructor
 
 #: A network's arithmetic (``precision=`` of the learned reconstructors; the classical ones have none to choose).
 #: ``auto`` (the default): int8 for a FireNet on a CPU that runs PyTorch's x86 int8 convolutions and Numba's kernels
-#: (2.5-3x float32's frames per second, SSIM within 0.005 on the held-out stretches), else float32; see
+#: (2.4-3x float32's frames per second, SSIM within 0.005 on the held-out stretches), else float32; see
 #: :func:`evio_lib.events.reconstruction.nets.resolve_precision`. A reconstructor's ``precision`` says which it chose.
 PRECISIONS = ("auto", "float32", "bfloat16", "int8")
 

@@ -43,7 +43,7 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                         "checkpoint file")
     p.add_argument("--reconstructor-precision", choices=PRECISIONS, default=PRECISIONS[0],
                    help="event frames: a network's arithmetic (default auto: int8 for FireNet on an x86 CPU, "
-                        "2.5-3x float32's frames per second with SSIM within 0.005, else float32; bfloat16 gave "
+                        "2.4-3x float32's frames per second with SSIM within 0.005, else float32; bfloat16 gave "
                         "1.35x on two threads of a CPU with native bfloat16; docs/reconstruction.md)")
     p.add_argument("--window-fraction", type=real(above=0.0), default=None,
                    help="event frames: n of N_e = n H W events per window (default: 0.7 boxes_like, 0.2 aerial_like, "

@@ -124,7 +124,7 @@ class PipelineConfig:
         reconstructor_precision: event frames only: a network's arithmetic, 'auto' (default: int8 for FireNet on
             an x86 CPU where Numba's kernels load, else float32), 'float32', 'bfloat16' (1.35x FireNet's frames per
             second on two threads of a CPU with native bfloat16, the same SSIM within 0.001) or 'int8' (FireNet
-            only: int8 convolutions, 2.5-3x float32's frames per second, SSIM within 0.005; docs/reconstruction.md);
+            only: int8 convolutions, 2.4-3x float32's frames per second, SSIM within 0.005; docs/reconstruction.md);
             direct and high_pass ignore it.
         window_fraction: event frames only: n of N_e = n H W; None: the thesis's n for the preset (0.7 / 0.2) for
             reconstructed frames, 1.0 for every recording for motion-compensated ones (``MC_WINDOW_FRACTION``).

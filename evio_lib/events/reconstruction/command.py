@@ -111,7 +111,7 @@ def add_reconstruct_arguments(parser: argparse.ArgumentParser) -> argparse.Argum
                         help=f"reconstructor: {', '.join(available_reconstructors())} (default firenet, the shipped "
                              f"network), or a checkpoint file written by reconstruct-train")
     parser.add_argument("--precision", choices=PRECISIONS, default=PRECISIONS[0],
-                        help="a network's arithmetic (default auto: int8 for FireNet on an x86 CPU, 2.5-3x float32's "
+                        help="a network's arithmetic (default auto: int8 for FireNet on an x86 CPU, 2.4-3x float32's "
                              "frames per second with SSIM within 0.005 on the held-out stretches, else float32; "
                              "bfloat16 gave 1.35x on two threads of a CPU with native bfloat16 (AVX512-BF16); ignored "
                              "by direct and high_pass)")
