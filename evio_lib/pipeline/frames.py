@@ -27,7 +27,7 @@ from evio_lib.sequence import Sequence
 
 __all__ = ["FRAME_SOURCES", "MAX_EVENT_FRAME_RATE_HZ", "MC_MAX_WINDOW_S", "MC_MIN_EVENTS", "MC_MIN_WINDOW_S",
            "MC_WINDOW_FRACTION", "STREAM_ID_OFFSET", "THESIS_WINDOW_FRACTION", "aps_frames", "default_window_fraction",
-           "event_frames", "frame_streams", "mc_event_frames"]
+           "event_frames", "frame_streams", "mc_event_frames", "reconstructor_precision_of"]
 
 FRAME_SOURCES = ("aps", "events", "mc-events", "aps+events", "aps+mc-events")
 #: A source "a+b" feeds two frame streams into one run (:func:`frame_streams` splits it): each has its own tracker,
@@ -122,6 +122,18 @@ def _event_windows(sequence: Sequence, window_fraction: float | None, adaptive: 
                          f"{events.size / (most * width * height):.3g})")
     bounds = count_windows(events, per_window)
     return events, bounds, events["t"][bounds[:, 0]], events["t"][bounds[:, 1] - 1]
+
+
+def reconstructor_precision_of(frames: str, reconstructor: str, precision: str) -> str | None:
+    """Return the precision in which the event-frame reconstructor of a run computes (what ``"auto"`` chooses on this
+    machine: :func:`evio_lib.events.reconstruction.nets.resolve_precision`), or None when the run's ``frames``
+    reconstruct nothing or ``reconstructor`` is a classical method. Loads the network (a shipped one in well under
+    a second; another FireNet checkpoint in int8 also calibrates it, about 4 s)."""
+    if "events" not in frame_streams(frames) or reconstructor in ("direct", "high_pass"):
+        return None
+    from evio_lib.events.reconstruct import reconstructor_by_name_or_file
+
+    return reconstructor_by_name_or_file(reconstructor, 8, 8, what="reconstructor", precision=precision).precision
 
 
 def event_frames(sequence: Sequence, reconstructor: str = "firenet", window_fraction: float | None = None,

@@ -56,7 +56,7 @@ from evio_lib.msckf.initialization import initial_state_from_static, initial_sta
 from evio_lib.msckf.zero_velocity import StandstillDetector, ZeroVelocityConfig
 from evio_lib.pipeline.dataset import LoadedDataset
 from evio_lib.pipeline.frames import (FRAME_SOURCES, STREAM_ID_OFFSET, aps_frames, event_frames, frame_streams,
-                                      mc_event_frames)
+                                      mc_event_frames, reconstructor_precision_of)
 from evio_lib.threads import set_threads, single_threaded_blas  # re-exported: `from evio_lib.pipeline.run import set_threads` keeps working
 
 __all__ = ["FAR_POINT_MODES", "FAR_POINT_SCENE_DEPTH", "FAR_POINT_STARVATION", "FUSED_EVENT_NOISE_FACTOR",
@@ -715,6 +715,10 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
     sigmas_px = [config.stream_pixel_noise(name) for name in streams]  # each stream's feature noise
     exposure_s = _aps_exposure(data) if config.aps_blur_noise is not None else None  # None: σ fixed
     aps_sigmas: list[float] = []  # the APS frames' σ where it grows with the blur
+    precision = reconstructor_precision_of(config.frames, config.reconstructor, config.reconstructor_precision)
+    if precision is not None:  # what "auto" chose: int8 on an x86 CPU, else float32
+        notes.append(f"event frames: {config.reconstructor} computed in {precision} (reconstructor precision "
+                     f"{config.reconstructor_precision})")
     if len(streams) > 1:
         notes.append(f"{len(streams)} frame streams: feature noise "
                      + ", ".join(f"{name} {sigma:g} px" for name, sigma in zip(streams, sigmas_px))

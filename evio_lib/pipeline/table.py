@@ -32,10 +32,10 @@ from typing import Any, Sequence
 import numpy as np
 
 from evio_lib.pipeline.dataset import PRESETS, check_preset_duration, check_speed, preset_length
-from evio_lib.pipeline.frames import frame_streams
+from evio_lib.pipeline.frames import frame_streams, reconstructor_precision_of
 
 __all__ = ["TABLE_ROWS", "OPTIONAL_ROWS", "TableRow", "table_rows", "table_job", "run_table", "aggregate",
-           "format_table6", "reconstructor_precision_of"]
+           "format_table6"]
 
 
 @dataclass(frozen=True)
@@ -125,16 +125,6 @@ def table_rows(keys: Sequence[str] | None = None, events_cnn: str | None = None,
     return rows
 
 
-def reconstructor_precision_of(config: Any) -> str | None:
-    """Return the precision a run's event-frame reconstructor computes in (what "auto" chooses on this machine), or
-    None when the run reconstructs no frames or uses a classical method (``config``: a PipelineConfig)."""
-    if "events" not in frame_streams(config.frames) or config.reconstructor in ("direct", "high_pass"):
-        return None
-    from evio_lib.events.reconstruct import reconstructor_by_name_or_file
-
-    return reconstructor_by_name_or_file(config.reconstructor, 8, 8, what="reconstructor",
-                                         precision=config.reconstructor_precision).precision
-
 
 def _simulate(preset: str, duration: float, seed: int, with_events: bool, aps_exposure_s: float | None = None,
               speed: float = 1.0) -> None:
@@ -176,7 +166,7 @@ def table_job(preset: str, duration: float, seed: int, row: TableRow, threads: i
     except Exception as error:  # anything else fails this row only, named by its type so that a bug stays visible
         record["error"] = f"{type(error).__name__}: {(str(error).splitlines() or [''])[0]}"
         return record
-    precision = reconstructor_precision_of(config)
+    precision = reconstructor_precision_of(config.frames, config.reconstructor, config.reconstructor_precision)
     if precision is not None:
         record["reconstructor_precision"] = precision  # e.g. int8, where the default "auto" chose it
     record.update({k: v for k, v in result.metrics.items() if isinstance(v, (int, float))})
