@@ -23,6 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
+from evio_lib.events.reconstruct import PRECISIONS
+
 ROOT = Path(__file__).resolve().parents[1]
 SLIDER = ROOT.parent / "shared" / "data" / "real" / "ecd_slider_depth_slice"
 
@@ -51,8 +53,7 @@ def write_ecd_events(path: Path, t: np.ndarray, x: np.ndarray, y: np.ndarray, p0
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=420, help="copies of the 50 000-event slice (default 420)")
-    parser.add_argument("--precisions", nargs="+", default=["auto", "float32"],
-                        choices=["auto", "float32", "bfloat16", "int8"])
+    parser.add_argument("--precisions", nargs="+", default=["auto", "float32"], choices=PRECISIONS)
     parser.add_argument("--threads", type=int, default=2, help="torch threads of the child (default 2)")
     args = parser.parse_args()
     if args.repeats < 1:
@@ -69,7 +70,7 @@ def main() -> int:
     x, y = np.tile(slice_["x"], reps), np.tile(slice_["y"], reps)
     p01 = np.tile((slice_["p"] > 0).astype(np.int64), reps)
     with tempfile.TemporaryDirectory() as tmp:
-        folder = Path(tmp) / "slider_x{}".format(reps)
+        folder = Path(tmp) / f"slider_x{reps}"
         folder.mkdir()
         start = time.perf_counter()
         write_ecd_events(folder / "events.txt", t, x, y, p01)

@@ -439,23 +439,24 @@ def _normalize_in_place(grid: np.ndarray) -> np.ndarray:
     The non-zero values are gathered and written back by the Numba kernels of :mod:`evio_lib.events.voxel_kernels`
     where they load (about 7x faster than NumPy's boolean masks on a 240 x 180 x 5 grid, the same numbers bit for
     bit), else by NumPy: :func:`voxel_backend`."""
-    if voxel_backend() == "numba" and grid.flags.c_contiguous:
+    kernels = voxel_backend() == "numba" and grid.flags.c_contiguous
+    if kernels:
         from evio_lib.events import voxel_kernels
 
         flat = grid.reshape(-1)
         values = voxel_kernels.nonzero_values(flat, np.count_nonzero(flat))
-        if values.size == 0:
-            return grid
-        mean, std = float(values.mean()), float(values.std())
-        voxel_kernels.write_normalized(flat, np.float32(mean), np.float32(std), values.size > 1 and std > 0)
-        return grid
-    nonzero = grid != 0
-    values = grid[nonzero]
+    else:
+        nonzero = grid != 0
+        values = grid[nonzero]
     if values.size == 0:
         return grid
     mean = float(values.mean())
     std = float(values.std())
-    grid[nonzero] = (values - mean) / std if (values.size > 1 and std > 0) else values - mean
+    scale = values.size > 1 and std > 0
+    if kernels:
+        voxel_kernels.write_normalized(flat, np.float32(mean), np.float32(std), scale)
+    else:
+        grid[nonzero] = (values - mean) / std if scale else values - mean
     return grid
 
 

@@ -367,6 +367,8 @@ class PipelineResult:
         timings: seconds per stage (reconstruction, detection, matching, ransac, filter, total) and the real-time
             factor (recording seconds processed per wall-clock second).
         faults, rejections: the filter's counters.
+        reconstructor_precision: the precision the event-frame network computed in (what "auto" chose), or None
+            when the run reconstructed no frames with a network.
     """
 
     config: PipelineConfig
@@ -389,6 +391,7 @@ class PipelineResult:
     timings: dict[str, float]
     faults: dict[str, int] = field(default_factory=dict)
     rejections: dict[str, int] = field(default_factory=dict)
+    reconstructor_precision: str | None = None
 
     @property
     def R_ItoG(self) -> np.ndarray:
@@ -817,6 +820,7 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
         features_used=np.array([o.n_features_used for o in outputs]), R_CtoI=data.R_CtoI, p_CinI=data.p_CinI,
         tracking=stats_table(tracked) if tracked else {}, track_lengths=lengths, truth={}, metrics={},
         timings=timings, faults=dict(filt.faults), rejections=dict(filt.rejections),
+        reconstructor_precision=precision,
     )
     result.metrics = {"frames": int(len(t)), "duration_s": duration, "t_start": t_first, "t_end": float(t[-1]),
                       "init": init, "zupt_frames": int(zupt_frames)}

@@ -32,7 +32,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from evio_lib.pipeline.dataset import PRESETS, check_preset_duration, check_speed, preset_length
-from evio_lib.pipeline.frames import frame_streams, reconstructor_precision_of
+from evio_lib.pipeline.frames import frame_streams
 
 __all__ = ["TABLE_ROWS", "OPTIONAL_ROWS", "TableRow", "table_rows", "table_job", "run_table", "aggregate",
            "format_table6"]
@@ -166,9 +166,8 @@ def table_job(preset: str, duration: float, seed: int, row: TableRow, threads: i
     except Exception as error:  # anything else fails this row only, named by its type so that a bug stays visible
         record["error"] = f"{type(error).__name__}: {(str(error).splitlines() or [''])[0]}"
         return record
-    precision = reconstructor_precision_of(config.frames, config.reconstructor, config.reconstructor_precision)
-    if precision is not None:
-        record["reconstructor_precision"] = precision  # e.g. int8, where the default "auto" chose it
+    if result.reconstructor_precision is not None:
+        record["reconstructor_precision"] = result.reconstructor_precision  # e.g. int8, where "auto" chose it
     record.update({k: v for k, v in result.metrics.items() if isinstance(v, (int, float))})
     record["realtime_factor"] = result.timings["realtime_factor"]
     record["wall_s"] = time.perf_counter() - start

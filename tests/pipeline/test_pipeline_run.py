@@ -515,9 +515,11 @@ def test_reconstructor_precision_reaches_the_network(boxes_events):
     result = run_pipeline(boxes_events, config)
     assert len(result.t) > 5 and np.all(np.isfinite(result.p_IinG))
     assert "event frames: firenet computed in bfloat16 (reconstructor precision bfloat16)" in result.notes
+    assert result.reconstructor_precision == "bfloat16"
     high_pass = PipelineConfig(frames="events", reconstructor="high_pass", reconstructor_precision="bfloat16",
                                max_duration=0.3)  # the classical methods ignore it
     high_pass_result = run_pipeline(boxes_events, high_pass)
     assert len(high_pass_result.t) > 0 and not any("computed in" in note for note in high_pass_result.notes)
+    assert high_pass_result.reconstructor_precision is None
     with pytest.raises(ValueError, match="reconstructor_precision must be one of auto, float32, bfloat16, int8; got 'int4'"):
         PipelineConfig(frames="events", reconstructor_precision="int4")

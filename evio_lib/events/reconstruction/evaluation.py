@@ -225,8 +225,8 @@ def load_slider_slice(folder: str | Path | None = None) -> dict[str, np.ndarray]
 def quality_table(methods: Sequence[str], stretches: Sequence[str] = tuple(EVAL_STRETCHES), duration: float | None = None,
                   max_frames: int | None = 12, with_aps: bool = True, with_slider: bool = True,
                   seed: int = EVAL_SEED, precision: str | None = None) -> list[dict]:
-    """Return rows {method, sequence, mse, ssim, frames, precision}: every method (a reconstructor's name or a reconstruct-train
-    checkpoint file) on every held-out stretch (at the thesis's n),
+    """Return rows {method, sequence, mse, ssim, frames, precision}: every method (a reconstructor's name or a
+    reconstruct-train checkpoint file) on every held-out stretch (at the thesis's n),
     the blurred APS frames for reference, and the real slider frames (EVREAL protocol) when the real data is present.
     ``precision``: the networks' arithmetic (one of ``PRECISIONS``; None: each reconstructor's default); each row's
     ``precision`` is the one its network computed in (what ``auto`` chose; None for the classical methods)."""

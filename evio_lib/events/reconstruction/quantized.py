@@ -46,8 +46,8 @@ from torch.nn import functional as F
 
 from evio_lib.events.reconstruction.nets import FireNet
 
-__all__ = ["INT8_ENGINE", "Int8Ranges", "FireNetInt8", "calibrate_firenet", "calibration_voxels", "int8_forward", "int8_unavailable",
-           "stored_ranges", "weights_digest"]
+__all__ = ["INT8_ENGINE", "Int8Ranges", "FireNetInt8", "calibrate_firenet", "calibration_voxels", "int8_forward",
+           "int8_unavailable", "stored_ranges", "weights_digest"]
 
 #: Gate inputs (summed inside sigmoid/tanh) are clipped to [-GATE_INPUT_CAP, GATE_INPUT_CAP]: see the module docstring.
 GATE_INPUT_CAP = 6.0
