@@ -22,12 +22,13 @@ from typing import Callable, Iterator
 
 import numpy as np
 
+from evio_lib.events.reconstruct import Reconstructor
 from evio_lib.events.representations import MAX_EVENT_FRAME_RATE_HZ  # re-exported here
 from evio_lib.sequence import Sequence
 
 __all__ = ["FRAME_SOURCES", "MAX_EVENT_FRAME_RATE_HZ", "MC_MAX_WINDOW_S", "MC_MIN_EVENTS", "MC_MIN_WINDOW_S",
            "MC_WINDOW_FRACTION", "STREAM_ID_OFFSET", "THESIS_WINDOW_FRACTION", "aps_frames", "default_window_fraction",
-           "event_frames", "frame_streams", "mc_event_frames", "reconstructor_precision_of"]
+           "event_frames", "frame_streams", "mc_event_frames"]
 
 FRAME_SOURCES = ("aps", "events", "mc-events", "aps+events", "aps+mc-events")
 #: A source "a+b" feeds two frame streams into one run (:func:`frame_streams` splits it): each has its own tracker,
@@ -124,19 +125,8 @@ def _event_windows(sequence: Sequence, window_fraction: float | None, adaptive: 
     return events, bounds, events["t"][bounds[:, 0]], events["t"][bounds[:, 1] - 1]
 
 
-def reconstructor_precision_of(frames: str, reconstructor: str, precision: str) -> str | None:
-    """Return the precision in which the event-frame reconstructor of a run computes (what ``"auto"`` chooses on this
-    machine: :func:`evio_lib.events.reconstruction.nets.resolve_precision`), or None when the run's ``frames``
-    reconstruct nothing or ``reconstructor`` is a classical method. Loads the network (a shipped one in well under
-    a second; another FireNet checkpoint in int8 also calibrates it, about 4 s)."""
-    if "events" not in frame_streams(frames) or reconstructor in ("direct", "high_pass"):
-        return None
-    from evio_lib.events.reconstruct import reconstructor_by_name_or_file
-
-    return reconstructor_by_name_or_file(reconstructor, 8, 8, what="reconstructor", precision=precision).precision
-
-
-def event_frames(sequence: Sequence, reconstructor: str = "firenet", window_fraction: float | None = None,
+def event_frames(sequence: Sequence, reconstructor: str | Reconstructor = "firenet",
+                 window_fraction: float | None = None,
                  adaptive: bool = False, t_start: float = -np.inf, t_end: float = np.inf, threads: int | None = 1,
                  min_window_s: float = 0.0, max_window_s: float | None = None,
                  **reconstructor_options) -> Iterator[tuple[float, np.ndarray, float]]:
@@ -145,7 +135,9 @@ def event_frames(sequence: Sequence, reconstructor: str = "firenet", window_frac
     Args:
         sequence: a recording with events and a camera (its width x height).
         reconstructor: a name of :func:`evio_lib.events.reconstruct.create_reconstructor` ('firenet', 'high_pass',
-            'direct', or 'learned' with ``checkpoint=PATH`` in ``reconstructor_options``).
+            'direct', or 'learned' with ``checkpoint=PATH`` in ``reconstructor_options``), or a reconstructor already
+            made for the sequence's sensor (then ``threads`` and ``reconstructor_options`` must be left out: it
+            was made with its own); it is reset first.
         window_fraction: n of N_e = n H W (default: the thesis's n for the preset, :func:`default_window_fraction`).
         adaptive: adaptive windows (2 events per active pixel) instead of fixed N_e.
         t_start, t_end: only events in this span are used; the recurrent state starts empty at t_start.
@@ -155,13 +147,24 @@ def event_frames(sequence: Sequence, reconstructor: str = "firenet", window_frac
     """
     from evio_lib.events.reconstruct import create_reconstructor
 
+    width, height = sequence.camera.width, sequence.camera.height
+    if isinstance(reconstructor, Reconstructor):
+        if reconstructor_options or threads != 1:
+            raise ValueError("event_frames: a reconstructor already made takes no threads or reconstructor options "
+                             f"(make it with them instead); got threads={threads!r}, options "
+                             f"{sorted(reconstructor_options)}")
+        if (reconstructor.width, reconstructor.height) != (width, height):
+            raise ValueError(f"event_frames: the reconstructor was made for a {reconstructor.width}x"
+                             f"{reconstructor.height} sensor; the sequence's camera is {width}x{height}")
     events, bounds, _, ends = _event_windows(sequence, window_fraction, adaptive, min_window_s, max_window_s, t_start,
                                              t_end)
-    width, height = sequence.camera.width, sequence.camera.height
-    options = dict(reconstructor_options)
-    if reconstructor not in ("direct", "high_pass") and threads is not None:
-        options.setdefault("threads", threads)
-    rec = create_reconstructor(reconstructor, width, height, **options)
+    if isinstance(reconstructor, Reconstructor):
+        rec = reconstructor
+    else:
+        options = dict(reconstructor_options)
+        if reconstructor not in ("direct", "high_pass") and threads is not None:
+            options.setdefault("threads", threads)
+        rec = create_reconstructor(reconstructor, width, height, **options)
     rec.reset()
     for (a, b), t in zip(bounds, ends):
         if b <= a:

@@ -46,6 +46,7 @@ from typing import Any, Iterator, Mapping
 
 import numpy as np
 
+from evio_lib.events.reconstruct import Reconstructor
 from evio_lib.evaluation.trajectory_metrics import orientation_errors, relative_errors_by_length, summarize
 from evio_lib.frontend import FrontendConfig, camera_rotation_prior, create_tracker, stats_table
 from evio_lib.geometry.rotation import quat_to_rot
@@ -56,7 +57,7 @@ from evio_lib.msckf.initialization import initial_state_from_static, initial_sta
 from evio_lib.msckf.zero_velocity import StandstillDetector, ZeroVelocityConfig
 from evio_lib.pipeline.dataset import LoadedDataset
 from evio_lib.pipeline.frames import (FRAME_SOURCES, STREAM_ID_OFFSET, aps_frames, event_frames, frame_streams,
-                                      mc_event_frames, reconstructor_precision_of)
+                                      mc_event_frames)
 from evio_lib.threads import set_threads, single_threaded_blas  # re-exported: `from evio_lib.pipeline.run import set_threads` keeps working
 
 __all__ = ["FAR_POINT_MODES", "FAR_POINT_SCENE_DEPTH", "FAR_POINT_STARVATION", "FUSED_EVENT_NOISE_FACTOR",
@@ -581,10 +582,29 @@ def _filter_track_gaps(config: PipelineConfig) -> int | tuple[int, ...]:
     return tuple(config.frontend_config(name).max_gap_frames for name in streams)
 
 
+def _event_reconstructor(data: LoadedDataset, config: PipelineConfig) -> Reconstructor | None:
+    """Return the reconstructor of a run's event frames (made once, so that the run can say what precision "auto"
+    chose before any frame is made), or None when ``config.frames`` reconstructs no frames from events."""
+    if "events" not in frame_streams(config.frames):
+        return None
+    from evio_lib.events.reconstruct import available_reconstructors, create_reconstructor
+
+    camera = data.sequence.camera
+    precision = config.reconstructor_precision  # checked for every name; the classical methods ignore it
+    if config.reconstructor in ("direct", "high_pass"):
+        return create_reconstructor(config.reconstructor, camera.width, camera.height, precision=precision)
+    if config.reconstructor in available_reconstructors():
+        return create_reconstructor(config.reconstructor, camera.width, camera.height, threads=1, precision=precision)
+    return create_reconstructor("learned", camera.width, camera.height, checkpoint=config.reconstructor, threads=1,
+                                precision=precision)  # a reconstruct-train checkpoint file
+
+
 def _frames(data: LoadedDataset, config: PipelineConfig, t_start: float, t_end: float,
-            gyro_bias: Any = None, stream: str | None = None) -> Iterator[tuple[float, np.ndarray, float]]:
+            gyro_bias: Any = None, stream: str | None = None, reconstructor: Reconstructor | None = None
+            ) -> Iterator[tuple[float, np.ndarray, float]]:
     """Return the frame source of ``stream`` (one of ``frame_streams(config.frames)``; None: ``config.frames``, a
-    single stream); ``gyro_bias`` (a callable) gives mc-events the filter's current gyro bias."""
+    single stream); ``gyro_bias`` (a callable) gives mc-events the filter's current gyro bias; ``reconstructor``
+    (:func:`_event_reconstructor`) makes the events stream's frames."""
     stream = config.frames if stream is None else stream
     if len(frame_streams(stream)) > 1:
         raise ValueError(f"_frames makes one stream; split {stream!r} with frame_streams")
@@ -594,15 +614,10 @@ def _frames(data: LoadedDataset, config: PipelineConfig, t_start: float, t_end: 
     if stream == "mc-events":
         return mc_event_frames(data.sequence, data.R_CtoI, config.window_fraction, config.adaptive_windows, t_start,
                                t_end, min_window_s=low, max_window_s=high, gyro_bias=gyro_bias)
-    from evio_lib.events.reconstruct import available_reconstructors
-
-    precision = config.reconstructor_precision
-    if config.reconstructor in available_reconstructors():
-        return event_frames(data.sequence, config.reconstructor, config.window_fraction, config.adaptive_windows,
-                            t_start, t_end, min_window_s=low, max_window_s=high, precision=precision)
-    return event_frames(data.sequence, "learned", config.window_fraction, config.adaptive_windows, t_start, t_end,
-                        min_window_s=low, max_window_s=high, checkpoint=config.reconstructor,  # a reconstruct-train file
-                        precision=precision)
+    if reconstructor is None:
+        reconstructor = _event_reconstructor(data, config)
+    return event_frames(data.sequence, reconstructor, config.window_fraction, config.adaptive_windows, t_start, t_end,
+                        min_window_s=low, max_window_s=high)
 
 
 def _tagged(frames: Iterator[tuple[float, np.ndarray, float]], stream: int
@@ -718,7 +733,8 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
     sigmas_px = [config.stream_pixel_noise(name) for name in streams]  # each stream's feature noise
     exposure_s = _aps_exposure(data) if config.aps_blur_noise is not None else None  # None: σ fixed
     aps_sigmas: list[float] = []  # the APS frames' σ where it grows with the blur
-    precision = reconstructor_precision_of(config.frames, config.reconstructor, config.reconstructor_precision)
+    reconstructor = None if config.imu_only else _event_reconstructor(data, config)
+    precision = getattr(reconstructor, "precision", None)  # networks only
     if precision is not None:  # what "auto" chose: int8 on an x86 CPU, else float32
         notes.append(f"event frames: {config.reconstructor} computed in {precision} (reconstructor precision "
                      f"{config.reconstructor_precision})")
@@ -745,7 +761,8 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
         def bias() -> np.ndarray:
             return filt.state.imu.b_g
 
-        parts = [_tagged(_frames(data, config, t_first, t_last, gyro_bias=bias, stream=name), k)
+        parts = [_tagged(_frames(data, config, t_first, t_last, gyro_bias=bias, stream=name,
+                                   reconstructor=reconstructor), k)
                  for k, name in enumerate(streams)]
         source = parts[0] if len(parts) == 1 else heapq.merge(*parts, key=lambda item: item[0])
     # one BLAS thread: the front-end's and the filter's matrices are small, and threaded BLAS spins (evio_lib.threads)

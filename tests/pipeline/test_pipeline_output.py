@@ -238,8 +238,6 @@ def test_table_rows():
 def test_table_rows_take_a_reconstructor_precision_and_the_table_names_it():
     """--reconstructor-precision lands on the rows that reconstruct event frames only; a run records the precision
     its reconstructor computed in (what "auto" chose), and the table names it beside the row."""
-    from evio_lib.pipeline.frames import reconstructor_precision_of
-
     rows = {r.key: r for r in table_rows(["sift_aps", "sift_events", "klt_mc_events", "klt_events"],
                                          reconstructor_precision="float32")}
     assert dict(rows["sift_events"].options)["reconstructor_precision"] == "float32"
@@ -248,11 +246,6 @@ def test_table_rows_take_a_reconstructor_precision_and_the_table_names_it():
     assert "reconstructor_precision" not in dict(rows["klt_mc_events"].options)  # no reconstructor there
     assert {k: r.uses_reconstructed_frames for k, r in rows.items()} == {
         "sift_aps": False, "sift_events": True, "klt_mc_events": False, "klt_events": True}
-    assert reconstructor_precision_of("events", "firenet", "float32") == "float32"
-    assert reconstructor_precision_of("aps+events", "firenet", "auto") in ("int8", "float32")  # int8 on x86 CPUs
-    assert reconstructor_precision_of("events", "high_pass", "auto") is None
-    assert reconstructor_precision_of("mc-events", "firenet", "auto") is None
-    assert reconstructor_precision_of("aps", "firenet", "auto") is None
     records = [{"preset": "boxes_like", "row": "sift_events", "label": "SIFT, event frames", "seed": s,
                 "rmse_m": 1.0 + s, "reconstructor_precision": "int8"} for s in (0, 1)]
     row = aggregate(records)[0]

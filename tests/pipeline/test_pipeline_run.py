@@ -183,6 +183,25 @@ def test_event_frames_follow_the_window_size(boxes_events):
     assert len(times) == len(seq.events) // n_e
 
 
+def test_event_frames_take_a_reconstructor_already_made(boxes_events):
+    """A reconstructor made beforehand gives the frames the name gives, reset first (so it serves twice); it must
+    fit the sensor and takes no options of its own here."""
+    from evio_lib.events.reconstruct import create_reconstructor
+    from evio_lib.pipeline.frames import event_frames
+
+    seq = boxes_events.sequence
+    by_name = list(event_frames(seq, "high_pass", window_fraction=0.5, t_end=1.0))
+    made = create_reconstructor("high_pass", seq.camera.width, seq.camera.height)
+    for _ in range(2):  # the second pass starts from an empty state again
+        again = list(event_frames(seq, made, window_fraction=0.5, t_end=1.0))
+        assert len(again) == len(by_name) >= 3
+        assert all(ta == tb and np.array_equal(a, b) for (ta, a, _), (tb, b, _) in zip(by_name, again))
+    with pytest.raises(ValueError, match="made for a 24x18 sensor; the sequence's camera is 240x180"):
+        next(event_frames(seq, create_reconstructor("high_pass", 24, 18)))
+    with pytest.raises(ValueError, match="takes no threads or reconstructor options"):
+        next(event_frames(seq, made, cutoff_hz=1.0))
+
+
 def test_euroc_runs_with_static_initialisation(real_data_dir):
     from evio_lib.pipeline.dataset import load_dataset
 
