@@ -22,7 +22,7 @@ from typing import Callable, Iterator
 
 import numpy as np
 
-from evio_lib.events.reconstruct import Reconstructor
+from evio_lib.events.reconstruct import Reconstructor, create_reconstructor
 from evio_lib.events.representations import MAX_EVENT_FRAME_RATE_HZ  # re-exported here
 from evio_lib.sequence import Sequence
 
@@ -137,7 +137,8 @@ def event_frames(sequence: Sequence, reconstructor: str | Reconstructor = "firen
         reconstructor: a name of :func:`evio_lib.events.reconstruct.create_reconstructor` ('firenet', 'high_pass',
             'direct', or 'learned' with ``checkpoint=PATH`` in ``reconstructor_options``), or a reconstructor already
             made for the sequence's sensor (then ``threads`` and ``reconstructor_options`` must be left out: it
-            was made with its own); it is reset first.
+            was made with its own). It is reset when the first frame is asked for, and it carries one stream's
+            state: two generators must not share one while both are read.
         window_fraction: n of N_e = n H W (default: the thesis's n for the preset, :func:`default_window_fraction`).
         adaptive: adaptive windows (2 events per active pixel) instead of fixed N_e.
         t_start, t_end: only events in this span are used; the recurrent state starts empty at t_start.
@@ -145,14 +146,12 @@ def event_frames(sequence: Sequence, reconstructor: str | Reconstructor = "firen
         min_window_s, max_window_s: time bounds of the fixed windows (0 and None: none); a window capped at
             ``max_window_s`` may hold few events (a frame at least every ``max_window_s`` in a still stretch).
     """
-    from evio_lib.events.reconstruct import create_reconstructor
-
     width, height = sequence.camera.width, sequence.camera.height
     if isinstance(reconstructor, Reconstructor):
-        if reconstructor_options or threads != 1:
+        given = ([f"threads={threads!r}"] if threads != 1 else []) + sorted(reconstructor_options)
+        if given:
             raise ValueError("event_frames: a reconstructor already made takes no threads or reconstructor options "
-                             f"(make it with them instead); got threads={threads!r}, options "
-                             f"{sorted(reconstructor_options)}")
+                             f"(make it with them instead); got {', '.join(given)}")
         if (reconstructor.width, reconstructor.height) != (width, height):
             raise ValueError(f"event_frames: the reconstructor was made for a {reconstructor.width}x"
                              f"{reconstructor.height} sensor; the sequence's camera is {width}x{height}")

@@ -46,7 +46,7 @@ from typing import Any, Iterator, Mapping
 
 import numpy as np
 
-from evio_lib.events.reconstruct import Reconstructor
+from evio_lib.events.reconstruct import Reconstructor, available_reconstructors, create_reconstructor
 from evio_lib.evaluation.trajectory_metrics import orientation_errors, relative_errors_by_length, summarize
 from evio_lib.frontend import FrontendConfig, camera_rotation_prior, create_tracker, stats_table
 from evio_lib.geometry.rotation import quat_to_rot
@@ -228,8 +228,6 @@ class PipelineConfig:
         if high is not None and high <= low:
             raise ValueError(f"max_window_s ({high:g}) must be greater than min_window_s ({low:g})")
         if "events" in frame_streams(self.frames):  # before the recording loads: a name or a checkpoint file
-            from evio_lib.events.reconstruct import available_reconstructors
-
             names = available_reconstructors()
             if not isinstance(self.reconstructor, str) or (self.reconstructor not in names
                                                            and not Path(self.reconstructor).is_file()):
@@ -587,8 +585,6 @@ def _event_reconstructor(data: LoadedDataset, config: PipelineConfig) -> Reconst
     chose before any frame is made), or None when ``config.frames`` reconstructs no frames from events."""
     if "events" not in frame_streams(config.frames):
         return None
-    from evio_lib.events.reconstruct import available_reconstructors, create_reconstructor
-
     camera = data.sequence.camera
     precision = config.reconstructor_precision  # checked for every name; the classical methods ignore it
     if config.reconstructor in ("direct", "high_pass"):

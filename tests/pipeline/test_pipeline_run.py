@@ -198,8 +198,10 @@ def test_event_frames_take_a_reconstructor_already_made(boxes_events):
         assert all(ta == tb and np.array_equal(a, b) for (ta, a, _), (tb, b, _) in zip(by_name, again))
     with pytest.raises(ValueError, match="made for a 24x18 sensor; the sequence's camera is 240x180"):
         next(event_frames(seq, create_reconstructor("high_pass", 24, 18)))
-    with pytest.raises(ValueError, match="takes no threads or reconstructor options"):
+    with pytest.raises(ValueError, match="takes no threads or reconstructor options .*; got cutoff_hz$"):
         next(event_frames(seq, made, cutoff_hz=1.0))
+    with pytest.raises(ValueError, match="got threads=2$"):
+        next(event_frames(seq, made, threads=2))
 
 
 def test_euroc_runs_with_static_initialisation(real_data_dir):
@@ -540,5 +542,11 @@ def test_reconstructor_precision_reaches_the_network(boxes_events):
     high_pass_result = run_pipeline(boxes_events, high_pass)
     assert len(high_pass_result.t) > 0 and not any("computed in" in note for note in high_pass_result.notes)
     assert high_pass_result.reconstructor_precision is None
+    # the network of a two-stream run is made once and names its precision; a run that makes no frame has none
+    fused = run_pipeline(boxes_events, PipelineConfig(frames="aps+events", tracker="klt", features="fast",
+                                                      reconstructor_precision="float32", max_duration=0.3))
+    assert fused.reconstructor_precision == "float32" and len(fused.t) > 0
+    imu_only = run_pipeline(boxes_events, PipelineConfig(frames="events", imu_only=True, max_duration=0.3))
+    assert imu_only.reconstructor_precision is None and not any("computed in" in n for n in imu_only.notes)
     with pytest.raises(ValueError, match="reconstructor_precision must be one of auto, float32, bfloat16, int8; got 'int4'"):
         PipelineConfig(frames="events", reconstructor_precision="int4")
