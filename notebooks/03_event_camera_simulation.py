@@ -83,7 +83,8 @@ notebook_start = time.perf_counter()
 # %% [markdown]
 # ## 1. The principle: one pixel, log intensity, contrast threshold
 #
-# An event-camera pixel continuously compares its **log intensity** $L(t) = \log(I(t) + \varepsilon)$ with a
+# An event-camera pixel continuously compares its **log intensity** $L(t) = \log(I(t) + \varepsilon)$ (a small
+# $\varepsilon = 10^{-3}$ keeps a black pixel's log finite) with a
 # **reference** level $r$, the value of $L$ at its last event. When $L$ has moved by a contrast threshold $C$ away
 # from the reference, the pixel emits an event $e = (t, x, y, p)$ and moves the reference by $C$:
 #
@@ -118,8 +119,9 @@ plt.show()
 
 # %% [markdown]
 # Note the **hysteresis** at each turning point: at the peak the reference sits on the last level crossed
-# ($L_0 + 4C$); on the way down the first OFF event needs a full $C$ *below* it. So four ON events on the first
-# rise but eight OFF events on the way down.
+# ($L_0 + 4C$); on the way down the first OFF event needs a full $C$ *below* it. The first rise spans $A = 0.9$ and
+# gives four ON events ($0.9 / 0.2 = 4.5$); the fall spans $2A = 1.8$ but starts from $L_0 + 4C$ rather than from the
+# peak, so it gives eight OFF events, not nine.
 #
 # **Check against the analytic crossing times.** Between two extrema $L$ is monotone, so the pixel fires at
 # $r \pm C, r \pm 2C, \dots$ as long as those levels are reached, and each crossing time solves $L(t) = r \pm kC$
@@ -222,14 +224,16 @@ order_lib = np.lexsort((step_events["t"], step_events["x"], step_events["y"]))
 print(f"{len(step_events)} events from one step; pixels firing more than once: {int((reps > 1).sum())}")
 assert len(t_hand) == len(step_events)
 assert np.array_equal(xs[order_hand], step_events["x"][order_lib])
+assert np.array_equal(ys[order_hand], step_events["y"][order_lib])
 assert np.array_equal(np.sign(step_C[ys, xs])[order_hand], step_events["p"][order_lib])
 assert np.allclose(t_hand[order_hand], step_events["t"][order_lib], atol=1e-6)
 
 # %% [markdown]
 # **(c) The events add up to the brightness change.** Because each event moves the reference by exactly one
-# threshold and the reference always stays within one threshold of $L$, for every pixel
+# threshold and the reference always stays within one threshold of $L$, for every pixel, with its own thresholds
+# $C_+, C_-$ (drawn around 0.2 with the mismatch of (b), so some exceed 0.2),
 #
-# $$\Big|\,\big(L(t_b) - L(t_a)\big) - \big(N_{\text{ON}}\,C_+ - N_{\text{OFF}}\,C_-\big)\Big| < C .$$
+# $$-C_- < \big(L(t_b) - L(t_a)\big) - \big(N_{\text{ON}}\,C_+ - N_{\text{OFF}}\,C_-\big) < C_+ .$$
 #
 # This is why events can be integrated back into images (and why event frames look like edge maps: only where
 # the brightness changed). We simulate the whole second with 200 renders and check it per pixel.
@@ -251,7 +255,8 @@ n_on = event_count_image(tiny_events[tiny_events["p"] > 0], W, H)
 n_off = event_count_image(tiny_events[tiny_events["p"] < 0], W, H)
 dL = log_intensity(tiny_render(T_TINY)).astype(np.float64) - log_intensity(tiny_render(0.0))
 residual = dL - (n_on * tiny_sim.thresholds_pos - n_off * tiny_sim.thresholds_neg)
-print(f"{len(tiny_events)} events; residual per pixel in [{residual.min():.3f}, {residual.max():.3f}]")
+print(f"{len(tiny_events)} events; residual per pixel in [{residual.min():.3f}, {residual.max():.3f}]; the pixels' "
+      f"thresholds C+ up to {tiny_sim.thresholds_pos.max():.3f}, C- up to {tiny_sim.thresholds_neg.max():.3f}")
 assert np.all(residual < tiny_sim.thresholds_pos) and np.all(residual > -tiny_sim.thresholds_neg)
 fig = plot_image_row([dL, event_count_image(tiny_events, W, H, signed=True) * 0.2, residual],
                      ["L(1 s) - L(0)", "0.2 x (N_ON - N_OFF)", "residual"], cmaps="bwr", symmetric=True,
@@ -278,7 +283,8 @@ assert broken.any()  # (c) held for every pixel without the refractory period
 
 # %% [markdown]
 # **(e) Noise.** Real sensors also fire without any brightness change: *background* (shot) noise with random
-# polarity and *leak* events (positive). The simulator draws them as Poisson processes per pixel. On a static
+# polarity and *leak* events (positive: charge slowly leaking in the pixel's circuit makes it fire ON events with
+# no change of light). The simulator draws them as Poisson processes per pixel. On a static
 # scene all events are noise, so their number must be close to rate $\times$ pixels $\times$ time.
 
 # %%
@@ -355,7 +361,8 @@ print(boxes_cfg.aps)
 
 # %% [markdown]
 # First, what the two worlds look like: one render at the start of each recording, with its depth map (the
-# renderer also returns the 3-D point behind every pixel, used later for perfect-data-association tests).
+# renderer also returns the 3-D point behind every pixel, used later for tests where the true 3-D point behind each
+# feature is known).
 
 # %%
 scenes = {"boxes_like": scene_from_preset("boxes_like"), "aerial_like": scene_from_preset("aerial_like")}
@@ -370,7 +377,7 @@ fig = plot_image_row(views, ["boxes_like: intensity", "depth [m]", "aerial_like:
 plt.show()
 
 # %% [markdown]
-# Simulating takes a while (about a minute for both recordings in full mode on a 2-core machine), so `simulate_sequence_cached` stores
+# Simulating takes a while (minutes in full mode), so `simulate_sequence_cached` stores
 # each recording in the project's cache folder (`data/cache/sequences/`, or `$EVIO_CACHE_DIR`), under a name that
 # hashes every field of its config, and reads it back on the next run; `simulate_sequence` alone always simulates.
 # The two recordings are independent: in full mode, when they are not cached yet, `map_in_workers` simulates them
@@ -483,7 +490,9 @@ assert s_event_frames["calmest"] > 3 * s_aps_frames["calmest"]  # an edge map's 
 # Plotted over $(x, y, t)$, events are not a sequence of images but surfaces: each moving edge sweeps a sheet
 # through space-time, ON events on one side of a bright edge, OFF events on the other. Here: 100 ms of the events
 # in a square patch in the middle of the image, at 20 % of the boxes recording (calm motion; the sheets are the
-# mortar lines of the brick wall sliding through the patch).
+# mortar lines of the brick wall sliding through the patch). The sheets need the full lesson's resolution and
+# recording: fast mode's patch, at half the resolution and 2 s of motion, holds only a few hundred scattered events
+# (the count is in the title).
 
 # %%
 t_cloud = boxes_cfg.start_time + 0.2 * boxes_cfg.duration
@@ -493,6 +502,7 @@ cloud = events_between(boxes.events, t_cloud, t_cloud + 0.1)
 cloud = cloud[(cloud["x"] >= x0) & (cloud["x"] < x0 + patch) & (cloud["y"] >= y0) & (cloud["y"] < y0 + patch)]
 fig = plot_event_cloud(cloud, max_points=15000)
 plt.show()
+assert len(cloud) < 1000 if FAST else len(cloud) > 3000
 
 # %% [markdown]
 # ### IMU signals against ground truth
@@ -501,7 +511,8 @@ plt.show()
 # $R_{G\to I}(\mathbf a - \mathbf g_G)$ — at rest the accelerometer reads $+9.81$ m/s² *upwards*. Both carry white
 # noise and slowly wandering biases (an MPU-6150-class sensor, like the DAVIS's). After removing the true bias
 # (kept in `groundtruth_imu`), what is left of the gyro error must be white noise with standard deviation
-# $\sigma_g \sqrt{f_{\mathrm{IMU}}}$ (noise density times the square root of the rate).
+# $\sigma_g \sqrt{f_{\mathrm{IMU}}}$ (noise density times the square root of the rate; a noise density, in
+# rad/s/$\sqrt{\text{Hz}}$, is the noise per square root of bandwidth, so sampling faster lets in more noise).
 
 # %%
 imu = boxes.imu
@@ -560,12 +571,12 @@ assert (5 < boxes_per_px / aerial_per_px < 15) if FAST else (2 < boxes_per_px / 
 assert camera.fx * w_a.max() >= camera.fx * 20 / 250  # at times rotation moves the image as fast as the flight
 
 # %% [markdown]
-# In the room the rate follows the angular speed closely (the printed correlation) and grows several-fold from
-# the gentle first quarter to the violent last one. The flight produces several times fewer events per pixel and
-# second than the room: about 3x at the DAVIS resolution of the full lesson, about 9x in fast mode, where bigger
-# pixels average away the terrain's fine texture. At 250 m, 20 m/s of translation moves the image by only ~16 px/s
-# (~8 px/s at half resolution), so there the aircraft's slow rotations — turbulence and banking, printed in px/s —
-# at times move the image as fast as its speed does, or faster.
+# In the room the rate follows the angular speed closely (the printed correlation) and grows several-fold from the
+# gentle first quarter to the violent last one. The flight produces several times fewer events per pixel and second
+# than the room: about 3x at the DAVIS resolution of the full lesson, about 9x in fast mode (half the resolution and a
+# shorter, different stretch of the flight). At 250 m, 20 m/s of translation moves the image by only ~16 px/s (~8 px/s
+# at half resolution), so there the aircraft's slow rotations — turbulence and banking, printed in px/s — at times
+# move the image as fast as its speed does, or faster.
 
 # %% [markdown]
 # ## 5. Files: the Event-Camera-Dataset layout
@@ -637,13 +648,15 @@ print(f"whole notebook so far: {time.perf_counter() - notebook_start:.0f} s")
 # 4. Simulate `aerial_like` with `background_rate_hz = 0.1` and compare signal and noise events per second. At what
 #    noise rate is every second event noise? (Thesis §4.1 found the aerial event frames noisy.)
 #
-#    *Hint:* `dataclasses.replace(cfg.events, background_rate_hz=0.1)`; noise adds rate x pixels x seconds events, so
+#    *Hint:* `dataclasses.replace(aerial_cfg, events=dataclasses.replace(aerial_cfg.events, background_rate_hz=0.1))`
+#    makes the changed config; noise adds rate x pixels x seconds events, so
 #    compare it with the signal's events per pixel and second.
 # 5. Write a longer clip with `write_ecd` and read only its IMU and ground truth (`read_ecd(..., load_events=False)`).
 #    Integrate the gyro (minus the true bias) and compare the orientation with the ground truth after 1 s.
 #
-#    *Hint:* `with_events=False, with_frames=False` simulates only the IMU and ground truth; integrate with `so3_exp`
-#    of the mid-point rate and compare with `groundtruth_imu`.
+#    *Hint:* `with_events=False, with_frames=False` simulates only the IMU and ground truth; integrate the rotation
+#    step by step, $R_{k+1} = R_k \exp([\boldsymbol\omega_k \Delta t]_\times)$ with $\boldsymbol\omega_k$ the mid-point
+#    rate (`so3_exp`; lesson 09 derives this rule), and compare with `groundtruth_imu`.
 #
 # Solutions, with the code to run (checked by `tests/test_solutions.py`):
 # [docs/solutions/03_event_camera_simulation.md](../docs/solutions/03_event_camera_simulation.md).
