@@ -63,7 +63,8 @@ ext = CameraImuExtrinsics.default()
 # Gravity makes roll and pitch observable (the accelerometer feels "down"), and the camera sees relative motion.
 # But if the whole world — trajectory and landmarks together — is **shifted** by any vector, or **rotated about
 # the gravity axis** (yaw), every IMU sample and every image stays exactly the same. Those four directions of the
-# error state $[\delta\theta, \delta b_g, \delta v, \delta b_a, \delta p]$ span the nullspace (Eq. 80)
+# error state $[\delta\theta, \delta b_g, \delta v, \delta b_a, \delta p]$ span the nullspace of the observability
+# matrix (Eq. 80), the directions along which no sequence of IMU samples and images can tell two errors apart:
 #
 # $$N = \begin{bmatrix} 0_3 & R_{G\to I}\, g^G \\ 0_3 & 0 \\ 0_3 & -[v_I^G\times] g^G \\ 0_3 & 0 \\
 #   I_3 & -[p_I^G\times] g^G \end{bmatrix},$$
@@ -141,11 +142,13 @@ assert mismatch_plain[0] > 1e-3 and mismatch_plain[1:].max() < 1e-2 * mismatch_p
 #
 # ## 3. Update: $H N = 0$ only at one linearisation point
 #
-# A feature measurement depends on the camera poses and the feature, so the directions act on them too: a camera
-# block gets $[R_{G\to C} g;\ I_3, -[p_C\times] g]$ and the feature $N_f = [I_3, -[p_F\times] g]$. The plain
-# Jacobians (Eqs. 45-47) satisfy $H_x N + H_f N_f = 0$ at the *current* estimate — but the nullspace that
-# propagation preserved is the one of the *first estimates*. The OC-EKF projects each camera block so that
-# $H_{C} u = 0$ with the first-estimate $u$ and rebuilds $H_f = -H_C[:, 3{:}6]$ (Eqs. 85-86):
+# A feature measurement depends on the camera poses and the feature, so the directions act on them too: a camera's
+# (attitude, position) block gets $N_C = \begin{bmatrix} 0_3 & R_{G\to C}\, g \\ I_3 & -[p_C\times] g
+# \end{bmatrix}$ and the feature $N_f = [I_3,\ -[p_F\times] g]$. The plain Jacobians (Eqs. 45-47) satisfy
+# $H_x N + H_f N_f = 0$ at the *current* estimate — but the nullspace that propagation preserved is the one of the
+# *first estimates*. The OC-EKF projects each camera's 2 x 6 block so that $H_C u_C = 0$ with
+# $u_C = [R_{G\to C}\, g;\ [(p_F - p_C)\times] g]$ built from the camera's first estimates (the camera's and the
+# feature's yaw columns combined), and rebuilds $H_f = -H_C[:, 3{:}6]$ (Eqs. 85-86):
 
 # %%
 cam_state = state
@@ -183,21 +186,21 @@ assert residual["OC H, first estimates"] < 1e-9
 # %% [markdown]
 # ## 4. Consistency: NEES over Monte-Carlo runs
 #
-# With the pose error $e_k = [\delta\theta_I; \delta p]$ and its reported covariance $P_k$ (6x6), the
-# **normalised estimation error squared** $\epsilon_k = e_k^T P_k^{-1} e_k$ of a consistent filter is
-# $\chi^2_6$-distributed: mean 6. Averaged over $n$ independent runs, $n\bar\epsilon_k \sim \chi^2_{6n}$, which
-# gives a 95 % band (Bar-Shalom et al. 2001). The yaw alone has 1 DoF. `evio_lib.msckf.experiment.run_vio_sim`
-# runs the perfect-data-association experiment (boxes_like, 60 tracks, 1 px, noisy IMU with unknown biases, the
-# initial error drawn from $P_0$) and returns these NEES series; each seed is one Monte-Carlo run. The initial errors
-# are small: 1 mrad of attitude and, instead of the library's 0.1 m/s, 0.03 m/s of velocity (`boxes_like` starts
-# slowly, and a 3-4σ velocity draw at 0.1 m/s can make every early triangulation fail;
-# [docs/msckf_consistency.md](../docs/msckf_consistency.md) has the measurements). `run_vio_sim_seeds` runs one
-# experiment per seed; in full mode it spreads them over the CPU's cores (fast mode's short runs go one after the
-# other). Each run draws only from its own seed, so the numbers are the same either way.
+# With the pose error $e_k = [\delta\theta_I; \delta p]$ and its reported covariance $P_k$ (6x6), the **normalised
+# estimation error squared** $\epsilon_k = e_k^T P_k^{-1} e_k$ of a consistent filter is $\chi^2_6$-distributed: mean
+# 6. Averaged over $n$ independent runs, $n\bar\epsilon_k \sim \chi^2_{6n}$, which gives a 95 % band (Bar-Shalom et
+# al. 2001). The yaw alone has 1 DoF. `evio_lib.msckf.experiment.run_vio_sim` runs the perfect-data-association
+# experiment (boxes_like, 60 tracks, 1 px, noisy IMU with unknown biases, the initial error drawn from $P_0$) and
+# returns these NEES series; each seed is one Monte-Carlo run. The initial errors are small: 1 mrad of attitude and,
+# instead of the library's 0.1 m/s, 0.03 m/s of velocity (`boxes_like` starts slowly, and a 3-4σ velocity draw at 0.1
+# m/s can make every early triangulation fail; [docs/msckf_consistency.md](../docs/msckf_consistency.md) has the
+# measurements). `run_vio_sim_seeds` runs one experiment per seed; in full mode it spreads them over worker processes
+# (one per core, at most four, or `EVIO_JOBS`; fast mode's short runs go one after the other). Each run draws only
+# from its own seed, so the numbers are the same either way.
 
 # %%
 n_runs = 3 if FAST else 8
-jobs = 1 if FAST else None  # worker processes (None: one per core); fast mode's runs are too short to pay for them
+jobs = 1 if FAST else None  # worker processes (None: one per core, at most 4); fast mode's runs are too short for them
 duration = 3.0 if FAST else 10.0
 start = {"init_sigma_velocity": 0.03}
 results = {}
@@ -262,7 +265,7 @@ else:  # 8 runs of 10 s: every excursion above the band, all within the first 6 
 # %% [markdown]
 # Averaged over time, both variants sit inside the band printed above, and they differ by a few per cent. Image by
 # image they do not: a consistent filter would keep each image's average pose NEES inside its 95 % band on about 95 %
-# of the images, and here only about two thirds are (the printed shares, 63-71 %). In the 10 s runs of full mode every
+# of the images, and here only about two thirds are (the printed shares). In the 10 s runs of full mode every
 # excursion lies *above* the band (overconfident) in stretches within the first 6 s, and the pose NEES stays inside
 # after that; in the 3 runs of 3 s of fast mode they go both ways, mostly *below* the band (pessimistic). The time
 # mean hides these stretches. Both variants leave the band on largely the same images (the printed share), so the
@@ -273,14 +276,16 @@ else:  # 8 runs of 10 s: every excursion above the band, all within the first 6 
 # Is the OC-EKF pointless, then? No: the spurious yaw information of the plain EKF is real (section 3 shows it
 # exactly) but it grows with the distance between the current estimate and the first estimate, and with a 1 mrad
 # initial attitude error the estimates barely move. An MSCKF also uses each observation only once, so the same
-# feature is not re-linearised at ever-changing estimates as in EKF-SLAM.
+# feature is not re-linearised at ever-changing estimates as in EKF-SLAM (which keeps the landmarks in its state and
+# linearises their measurements again at every update).
 #
 # ## 5. A 3° attitude error: the plain EKF learns a yaw it cannot see
 #
 # Start the same experiment with an initial attitude standard deviation of 0.05 rad (about 3°) per axis. Roll and
 # pitch become observable through gravity and their standard deviation shrinks quickly (the printed roll/pitch σ).
-# Yaw cannot: a filter that respects the unobservable directions keeps its yaw standard deviation near 2.9° (the
-# gyroscope noise would even add a little). Watch `sigma_yaw`, the filter's own yaw standard deviation.
+# Yaw cannot: an ideal filter, which takes no yaw information from anywhere, would keep its yaw standard deviation
+# near 2.9° (the gyroscope's noise would even add a little); the OC-EKF keeps close to 90 % of it (printed below).
+# Watch `sigma_yaw`, the filter's own yaw standard deviation.
 
 # %%
 n_runs_att, duration_att = (3, 3.0) if FAST else (8, 10.0)
@@ -365,7 +370,7 @@ else:  # 10 s: OC on: attitude far above (yaw inside: roll/pitch), position just
 # the printed numbers with their band: a mean NEES *above* the band means the filter is overconfident, below it means
 # it is pessimistic.
 #
-# Consistency needed more than the OC-EKF. Three things in this library's filter matter as much, and you have met
+# Consistency needs more than the OC-EKF. Three things in this library's filter matter as much, and you have met
 # two of them: the gate's bias (notebook 11, section 7: the whole track is gated, and at 0.99 for these outlier-free
 # tracks), pruning the oldest third of a window of 40 (notebook 11, section 9), and a start the linearisation
 # survives (section 4). How each was measured, with 20 runs of 20 s, is told in
@@ -386,13 +391,14 @@ else:  # 10 s: OC on: attitude far above (yaw inside: roll/pitch), position just
 # * The standard EKF evaluates $\Phi$ and $H$ at different estimates, so $\Phi N \ne N$ and $H N \ne 0$ for
 #   the directions it carries: it **gains spurious yaw information**.
 # * The **OC-EKF** keeps first estimates and minimally modifies $\Phi$ (Eqs. 81-84) and every camera block of
-#   $H$ (Eqs. 85-86), restoring both properties exactly.
+#   $H$ (Eqs. 85-86), restoring both properties exactly (the library's default update constrains the projected
+#   Jacobian instead: section 6).
 # * **NEES** over Monte-Carlo runs against $\chi^2$ bands is the test of consistency; yaw alone is the sharpest.
 # * With small initial errors, OC on and off behave alike: their time-averaged NEES lies inside this notebook's band,
 #   but only about two thirds of the images do, the rest in stretches outside it on largely the same images
 #   (section 4). With a 3° attitude error the plain EKF's yaw standard deviation falls although yaw is unobservable;
 #   the OC-EKF keeps most of it, and over 10 s pays with overconfident roll and pitch (section 5).
-# * Consistency needed more than OC: an unbiased use of the gate, the oldest third pruned from a window of 40,
+# * Consistency needs more than OC: an unbiased use of the gate, the oldest third pruned from a window of 40,
 #   and a start the linearisation can survive.
 #
 # ## Exercises
@@ -415,7 +421,9 @@ else:  # 10 s: OC on: attitude far above (yaw inside: roll/pitch), position just
 #    `H_x @ N_first[:, :3] + H_f @ N_f[:, :3]` with the plain Jacobians.
 # 4. Rerun section 4 with S-MSCKF's settings, `msckf_overrides={"init_sigma_velocity": 0.03,
 #    "marginalize_third": False, "max_camera_states": 20}` and `gate_probability=0.95`: which part of the pose NEES
-#    grows — position or attitude (`nees_position`, `nees_attitude`)? Compare with `gating_mean_shrink(1, 0.95)`.
+#    grows — position or attitude (`nees_position`, `nees_attitude`)? This library gates each feature on its whole
+#    track whatever the pruning: compare `gating_mean_shrink(37, 0.95)` with S-MSCKF's 1-row gate,
+#    `gating_mean_shrink(1, 0.95)` (`from evio_lib.msckf.update import gating_mean_shrink`).
 #
 #    *Hint:* pass `msckf_overrides=` and `gate_probability=0.95` to `run_vio_sim` and average `nees_position` and
 #    `nees_attitude` over the runs.
@@ -425,7 +433,7 @@ else:  # 10 s: OC on: attitude far above (yaw inside: roll/pitch), position just
 #
 # ## What you have built so far, and what the thesis found
 #
-# Twelve lessons ago you started with a pinhole camera. Since then you have built, and checked against an
+# In notebook 01 you started with a pinhole camera. Since then you have built, and checked against an
 # independent truth at every step:
 #
 # * **geometry** (01-02): projection, distortion, the epipolar constraint and the essential matrix;
