@@ -17,11 +17,11 @@
 # follow. This lesson answers it on ordinary photographs, where every detector is easy to see at work; lesson 08
 # runs the same detectors on event frames.
 #
-# A visual odometry front end does not track every pixel. It picks a few hundred **features** — small image
-# regions it can find again in the next frame — measures where they moved, and feeds those measurements to the
-# motion estimator (lessons 02 and, later, the MSCKF). The thesis (§2.1.3) judges a detector by "localization
-# accuracy, repeatability, computational efficiency, robustness to noise, and invariance to photometric and geometric
-# changes"; for matching, a feature also needs a distinctive descriptor. In short, a good feature is:
+# A visual odometry front end does not track every pixel. It picks a few hundred **features** — small image regions it
+# can find again in the next frame — measures where they moved, and feeds those measurements to the motion estimator
+# (lesson 02 and, later, the MSCKF, the filter of lessons 10-12). The thesis (§2.1.3) judges a detector by
+# "localization accuracy, repeatability, computational efficiency, robustness to noise, and invariance to photometric
+# and geometric changes"; for matching, a feature also needs a distinctive descriptor. In short, a good feature is:
 #
 # * **well localised**: its position is sharply defined in both directions (a corner, not a point on a straight edge);
 # * **repeatable**: the detector fires on the same physical point after the camera moved or the light changed;
@@ -143,7 +143,7 @@ assert np.all(R_numpy[kind == 2] > R_numpy[kind == 1].min())  # corners score ab
 # NMS spreads the points over the image — a cluster of responses around one corner is a single feature.
 #
 # **Shi-Tomasi** ("good features to track") uses the smaller eigenvalue $\lambda_2 = \lambda_{\min}$ directly as the
-# score: a point is only as good as its weakest direction. Both are checked against the eigenvalues above.
+# score: a point is only as good as its weakest direction. Both are checked against $R$ and $\lambda_2$ above.
 
 # %%
 harris = create_detector("harris", max_keypoints=300, nms_radius=4).detect_and_describe(image)
@@ -194,7 +194,7 @@ plt.show()
 # circle alternates between four short bright and dark arcs of about four pixels each, none of them 9 long, so FAST
 # stays silent. Harris and Shi-Tomasi only ask for strong gradients in two directions, which both kinds of corner
 # have. A drawn test image shows it: a square with four L-corners and a 4 x 4 checkerboard with nine inner
-# X-junctions (its outer corners are L-corners again).
+# X-junctions (along its outline, wherever a bright square meets the dark background, there are L-corners again).
 
 # %%
 drawing = np.full((120, 200), 60, np.uint8)
@@ -219,7 +219,8 @@ assert found_on_drawing["harris"][:2] == (4, 9) and found_on_drawing["shi_tomasi
 #
 # Corners detected at one pixel scale are not found again when the camera moves closer. SIFT searches over
 # **scale** as well: it blurs the image with Gaussians of growing $\sigma$, takes differences of neighbouring
-# levels (the *difference of Gaussians*, an approximation of the scale-normalised Laplacian)
+# levels (the *difference of Gaussians*, an approximation of the scale-normalised Laplacian $\sigma^2 \nabla^2 G$,
+# whose response peaks at blobs of about its own size)
 #
 # $$D(x, y, \sigma) = \big(G(k\sigma) - G(\sigma)\big) * I,$$
 #
@@ -252,7 +253,8 @@ assert np.allclose(np.linalg.norm(sift.descriptors, axis=1), 1.0, atol=1e-5)
 # of many intensity comparisons between pixel pairs of the smoothed patch as bits:
 #
 # * **ORB** = FAST keypoints on an image pyramid, ranked by the Harris score, with an orientation from the patch's
-#   intensity centroid, described by rotated **BRIEF** — 256 comparisons of random pixel pairs, 32 bytes.
+#   intensity centroid, described by rotated **BRIEF** — 256 comparisons of pixel pairs (chosen by a learning step
+#   to be uncorrelated), 32 bytes.
 # * **FREAK** samples the patch on a retina-like pattern (dense in the centre, coarse outside) and compares
 #   selected pairs, 512 bits = 64 bytes. Here it describes FAST keypoints ("FAST-FREAK" in thesis Tables 4-5).
 #
@@ -315,8 +317,8 @@ assert border_distance(features["fast_freak"].keypoints, image_240.shape) > 2 * 
 
 # %% [markdown]
 # Not every detector fills its quota of 300 (the table above): SIFT finds fewer blobs above its contrast threshold,
-# ORB's points come from several pyramid levels and partly coincide, and FREAK drops the FAST points whose sampling
-# pattern does not fit inside the image, so FAST-FREAK keeps away from the border.
+# ORB's points from several pyramid levels cluster around the same corners and the NMS merges them, and FREAK drops
+# the FAST points whose sampling pattern does not fit inside the image, so FAST-FREAK keeps away from the border.
 #
 # ## 5. Repeatability
 #
@@ -369,7 +371,8 @@ plt.show()
 # %% [markdown]
 # ### Repeatability of every detector
 #
-# A few photographs shipped with scikit-image, resized to 240 x 320, each warped by random homographies
+# A few photographs shipped with scikit-image, resized to 240 x 320 (fast mode: 2 photographs at 120 x 160, one warp
+# each), each warped by random homographies
 # (viewpoint) and, separately, given a strong photometric change with the geometry untouched (illumination:
 # gamma, contrast and brightness). Thesis settings: best 300 points, NMS radius 4. The library version with
 # every option (keep the best $k$ in the shared view, several $\varepsilon$ at once) is used from here on; lesson
@@ -426,11 +429,12 @@ assert max(at("illumination", 0).values()) < 0.9  # the same geometry, yet point
 #
 # * The corner detectors (Harris, Shi-Tomasi, FAST, and FAST-FREAK, which detects with FAST) are more repeatable
 #   than SIFT and ORB for moderate viewpoint changes at $\varepsilon = 3$ px, and more than SIFT at 5 px — in the
-#   thesis's Table 2, Harris has the best HPatches viewpoint repeatability of all methods at $\varepsilon = 3$ and
-#   5 px (0.758 and 0.868), while at 1 px its pre-trained DetDesc (Round 2) leads (0.377 against Harris's 0.312).
+#   thesis's Table 2 (HPatches, a standard benchmark of photographed planar scenes, lesson 08), Harris has the best
+#   viewpoint repeatability of all methods at $\varepsilon = 3$ and 5 px (0.758 and 0.868), while at 1 px the
+#   thesis's learned detector (pre-trained DetDesc Round 2, lesson 07) leads (0.377 against Harris's 0.312).
 # * At $\varepsilon = 1$ px every detector scores lower, the corner detectors by more than 0.1 on the viewpoint
 #   pairs: integer-pixel corners and the resampling of the warp move points by a pixel or so.
-# * SIFT is less repeatable by this measure: its blobs are spread over scales, and a blob's centre is less
+# * At 3 and 5 px SIFT is less repeatable by this measure: its blobs are spread over scales, and a blob's centre is less
 #   precisely defined than a corner. Repeatability ignores what SIFT is good at, its descriptor.
 # * Under illumination changes the geometry is identical, yet every detector loses points (none reaches 0.9 at 1 px):
 #   thresholds and the ranking of the best 300 depend on contrast. Lesson 08 asks whether the learned detector of
@@ -440,7 +444,7 @@ assert max(at("illumination", 0).values()) < 0.9  # the same geometry, yet point
 #
 # * The structure tensor $M$ summarises the gradients around a pixel; its eigenvalues separate flat regions, edges
 #   and corners. Harris scores corners with $R = \det M - k(\operatorname{tr} M)^2$, Shi-Tomasi with
-#   $\lambda_{\min}$. Our few NumPy lines reproduce `cv2.cornerHarris` exactly.
+#   $\lambda_{\min}$. Our few NumPy lines reproduce `cv2.cornerHarris` to float32 rounding.
 # * FAST decides with a segment test on a 16-pixel circle — very cheap, no gradients; it finds L-corners but not the
 #   X-junctions of a checkerboard (section 2).
 # * SIFT finds blobs in a difference-of-Gaussian scale space and describes them with a 4 x 4 grid of 8-bin gradient
@@ -463,22 +467,22 @@ assert max(at("illumination", 0).values()) < 0.9  # the same geometry, yet point
 #
 #    *Hint:* measure the distance from each true corner and X-junction to the nearest FAST point; which circle pixels
 #    does a blurred junction's ramp make darker than the centre?
-# 3. Rotate the image by 30 degrees (a homography with `sample_homography(..., translation=False, scaling=False,
-#    perspective=False)` or `cv2.getRotationMatrix2D`). Which detectors stay repeatable? Then match descriptors
-#    with mutual nearest neighbours: why do the upright SIFT descriptors of Harris points fail where SIFT's own
-#    (oriented) descriptors succeed?
+# 3. Rotate the image by 30 degrees about its centre. Which detectors stay repeatable? Then match descriptors with
+#    mutual nearest neighbours (a match is kept only when each descriptor is the other's nearest): why do the upright
+#    SIFT descriptors of Harris points fail where SIFT's own (oriented) descriptors succeed?
 #
-#    *Hint:* `cv2.getRotationMatrix2D` gives the top two rows of $H$; for matching, check
+#    *Hint:* `H = np.vstack([cv2.getRotationMatrix2D(centre, 30, 1.0), [0, 0, 1]])`; match with
+#    `m = match_descriptors(d1, d2, mutual=True)` (`evio_lib.features.evaluation.evaluate`) and check
 #    `warp_points(H, kp1[m[:, 0]])` against `kp2[m[:, 1]]` within 3 px.
-# 4. Vary the NMS radius from 0 to 8 px and plot repeatability at $\varepsilon = 3$. Why does a larger radius
-#    first help and then hurt?
+# 4. Vary the NMS radius from 0 to 8 px and plot repeatability at $\varepsilon = 3$. How do repeatability and the
+#    number of 16 x 16 cells holding a point change with the radius, and which of the two does a tracker need?
 #
 #    *Hint:* besides the repeatability, count how many 16 x 16 cells hold a point: what does NMS buy a tracker?
 # 5. Time `detect_and_describe` of each detector at 180 x 240 (the DAVIS resolution) and 480 x 640. Which of them
-#    could run at 30 frames/s on this CPU?
+#    could run at 30 frames/s on your CPU?
 #
-#    *Hint:* use `time.perf_counter()` around `detect_and_describe`, best of a few runs after a warm-up; 30 frames/s
-#    is 33 ms per image.
+#    *Hint:* use `time.process_time()` (CPU time, steadier than the wall clock on a busy machine) around
+#    `detect_and_describe`, best of a few runs after a warm-up; 30 frames/s is 33 ms per image.
 #
 # Solutions, with the code to run (checked by `tests/test_solutions.py`):
 # [docs/solutions/05_classical_features.md](../docs/solutions/05_classical_features.md).
