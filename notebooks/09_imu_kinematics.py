@@ -17,7 +17,8 @@
 # gyroscope and the accelerometer, and the camera corrects it afterwards. This lesson is about that first half, with
 # no camera at all:
 #
-# 1. the **JPL quaternion** and its kinematics $\dot{\bar q} = \tfrac12\,\Omega(\omega)\,\bar q$ (thesis Eqs. 18-21, 31-32),
+# 1. the **JPL quaternion** (the convention of NASA's Jet Propulsion Laboratory technical reports, Trawny &
+#    Roumeliotis) and its kinematics $\dot{\bar q} = \tfrac12\,\Omega(\omega)\,\bar q$ (thesis Eqs. 18-21, 31-32),
 # 2. a **hand-written RK4 step** of the IMU equations, checked against the library's integrator,
 # 3. the **IMU measurement model**: angular rate, *specific force* (not acceleration!), gravity, biases and noise,
 # 4. **dead reckoning** over a simulated trajectory: how small the integration error is with perfect data,
@@ -109,7 +110,8 @@ assert np.allclose(quat_to_rot(quat_multiply(q0, p)), quat_to_rot(q0) @ quat_to_
 # %% [markdown]
 # ## 2. The IMU equations and one RK4 step by hand
 #
-# The nominal IMU state is $X_{IMU} = [\bar q_{GtoI}, \mathbf b_g, \mathbf v_{IinG}, \mathbf b_a, \mathbf p_{IinG}]$
+# The nominal IMU state (the estimate itself, as opposed to the error state a filter tracks, lesson 10)
+# is $X_{IMU} = [\bar q_{GtoI}, \mathbf b_g, \mathbf v_{IinG}, \mathbf b_a, \mathbf p_{IinG}]$
 # (thesis Eq. 21). With bias-corrected measurements $\boldsymbol\omega = \boldsymbol\omega_m - \mathbf b_g$ and
 # $\mathbf a = \mathbf a_m - \mathbf b_a$ it moves as (thesis Eq. 31)
 #
@@ -176,18 +178,20 @@ R_ref, p_ref, v_ref = integrate_imu_rk4(imu_short, s0.R_ItoG[0], s0.p_IinG[0], s
 print(f"hand RK4 vs sim.imu.integrate_imu_rk4: position {np.linalg.norm(p_hand - p_ref[-1]):.2e} m")
 assert np.linalg.norm(p_hand - p_ref[-1]) < 1e-8  # the same RK4 scheme: identical up to round-off
 assert dtheta < 1e-5 and np.linalg.norm(p_hand - p_lib[-1]) < 3e-6  # the filter's integrator: ~1 µm apart
-assert 3e-5 < lib_vs_truth < 1e-4 and lib_vs_truth > 20 * np.linalg.norm(p_hand - p_lib[-1])  # ~50 µm, 40-60x more
+assert 3e-5 < lib_vs_truth < 1e-4 and lib_vs_truth > 20 * np.linalg.norm(p_hand - p_lib[-1])  # ~50 µm, > 20x
 
 # %% [markdown]
 # The hand-written step reproduces the simulator's reference RK4 integrator (`integrate_imu_rk4`) to round-off.
 # The filter's integrator differs from it by about a micrometre after 2 s: it rotates the quaternion in closed form
 # with the mean rate of each half step, which is exact for a constant rate but only second order for a changing one.
-# Both are about 50 µm from the truth, some 40-60 times more than they differ from each other. That remaining error is
-# *not* RK4's fault, as section 4 shows.
+# Both are about 50 µm from the truth, more than 20 times what they differ by (the printed numbers). That remaining
+# error is *not* RK4's fault, as section 4 shows: with a cubic mid-point the same RK4 comes within a tiny fraction of
+# it.
 #
 # ## 3. The IMU measurement model
 #
-# A strapdown IMU measures, in its own frame $I$ (the simulator's model, `evio_lib.sim.imu`):
+# A strapdown IMU (fixed rigidly to the body, so it measures along the body's axes) measures,
+# in its own frame $I$ (the simulator's model, `evio_lib.sim.imu`):
 #
 # $$\boldsymbol\omega_m = \boldsymbol\omega_I + \mathbf b_g + \mathbf n_g,\qquad
 # \mathbf a_m = R_{GtoI}\,(\mathbf a_{IinG} - \mathbf g_G) + \mathbf b_a + \mathbf n_a,$$
@@ -198,7 +202,8 @@ assert 3e-5 < lib_vs_truth < 1e-4 and lib_vs_truth > 20 * np.linalg.norm(p_hand 
 #   $\sigma_a$ [m/s²/√Hz]; a sample taken at rate $f$ has standard deviation $\sigma\sqrt f$.
 # * the biases $\mathbf b_g, \mathbf b_a$ start at some unknown value and wander as **random walks**,
 #   $\dot{\mathbf b} = \mathbf n_w$ with densities $\sigma_{wg}$ [rad/s²/√Hz], $\sigma_{wa}$ [m/s³/√Hz]: after a time
-#   $T$ a bias has drifted by about $\sigma_w\sqrt T$.
+#   $T$ a bias has drifted by about $\sigma_w\sqrt T$ per axis ($\sigma_w\sqrt{3T}$ for the length of the 3-axis
+#   drift, printed below; one random draw, so it may come out well below or above).
 #
 # The simulator's defaults describe the MPU-6150-class IMU inside the DAVIS240C:
 
@@ -268,7 +273,8 @@ dead_reckoning["1000 Hz, cubic mid-point"] = np.interp(
     t_grid, imu_1k.t, np.linalg.norm(p_cubic - traj.evaluate(imu_1k.t).p_IinG, axis=1))
 
 for label, err in dead_reckoning.items():
-    print(f"{label:>26}: position error after {DURATION:g} s = {err[-1] * 1e3:.4f} mm")
+    print(f"{label:>26}: position error after {DURATION:g} s = {err[-1]:.1e} m")
+assert dead_reckoning["1000 Hz, cubic mid-point"][-1] < 1e-3 * dead_reckoning["1000 Hz"][-1]  # not RK4's error
 plot_error_growth(t_grid, dead_reckoning, ylabel="|p_est - p_true| [m]",
                   title="dead reckoning with a perfect IMU (boxes_like)")
 plt.yscale("log")
@@ -385,7 +391,8 @@ assert abs(ratio_end / (DURATION / t_cross) - 1) < 0.2
 # Averaging a second of data therefore gives the gyroscope bias directly, $\hat{\mathbf b}_g = \overline{\boldsymbol\omega_m}$,
 # and the direction of "up" in $I$, $\mathbf z_I = \overline{\mathbf a_m}/|\overline{\mathbf a_m}|$ (because $-\mathbf g_G$ points
 # up), which fixes roll and pitch. Yaw stays unknown: gravity says nothing about the heading, so it is set to 0 by
-# choice. The accelerometer bias cannot be separated from a small tilt: it moves $\mathbf z_I$ by about $|\mathbf b_a|/g$ rad.
+# choice. The accelerometer bias cannot be separated from a small tilt: it moves $\mathbf z_I$ by about
+# $|\mathbf b_{a,\perp}|/g$ rad, with $\mathbf b_{a,\perp}$ the part of $\mathbf b_a$ across gravity.
 #
 # **On simulated data**, where the truth is known: a tilted IMU at rest, with biases (a dozen lines that apply the
 # model above):
@@ -395,8 +402,10 @@ R_ItoG_rest = quat_to_rot(quat_from_rotvec([0.15, -0.3, 1.0])).T  # tilted and y
 b_g_rest, b_a_rest = np.array([0.02, -0.01, 0.03]), np.array([0.05, -0.08, 0.02])
 t_rest = np.arange(0.0, 1.0, 1.0 / rate)
 n_rest = t_rest.shape[0]
-gyro_rest = b_g_rest + noise.gyro_noise_density * np.sqrt(rate) * rng.standard_normal((n_rest, 3))
-accel_rest = R_ItoG_rest.T @ (-G) + b_a_rest + noise.accel_noise_density * np.sqrt(rate) * rng.standard_normal((n_rest, 3))
+rng_rest = np.random.default_rng(919)  # its own generator: the same second of rest in fast and full mode
+gyro_rest = b_g_rest + noise.gyro_noise_density * np.sqrt(rate) * rng_rest.standard_normal((n_rest, 3))
+accel_rest = (R_ItoG_rest.T @ (-G) + b_a_rest
+              + noise.accel_noise_density * np.sqrt(rate) * rng_rest.standard_normal((n_rest, 3)))
 
 q_init, b_g_init, stats = static_initialization(t_rest, gyro_rest, accel_rest, duration=1.0)
 
@@ -418,10 +427,11 @@ assert 1 / 3 < np.linalg.norm(b_g_init - b_g_rest) / (np.sqrt(3) * sigma_mean) <
 assert abs(tilt - np.degrees(horizontal_ba / 9.81)) < 0.05
 
 # %% [markdown]
-# The gyroscope bias error is of the order of 1e-4 rad/s, within a factor of three of what the averaging of $M$
-# samples predicts, and the tilt error is almost entirely the accelerometer bias seen as a tilt.
+# The gyroscope bias error is within a factor of three of what the averaging of $M$ samples predicts (printed),
+# and the tilt error is almost entirely the accelerometer bias seen as a tilt.
 #
-# **On the real EuRoC recording** (V1_01_easy: a micro aerial vehicle standing on the ground with its rotors
+# **On the real EuRoC recording** (a public data set of micro-aerial-vehicle flights with an IMU and ground truth;
+# V1_01_easy: a micro aerial vehicle standing on the ground with its rotors
 # spinning for the first seconds), when the data folder is present next to the repository. The ground truth comes
 # with the biases estimated offline, so we can grade the static initialisation, then dead-reckon 5 s from the true
 # state with three choices of biases.
@@ -500,11 +510,11 @@ else:
 #   integrates it, and our twelve-line RK4 step agrees with `evio_lib.msckf.propagation.integrate_imu`.
 # * The accelerometer measures the specific force $R_{GtoI}(\mathbf a - \mathbf g)$; both sensors add a bias (a random walk)
 #   and white noise given as densities (per-sample std $= \sigma\sqrt f$).
-# * With perfect data, dead reckoning is accurate to < 1 mm over 10 s at 1 kHz; the error shrinks like $h^2$ because of
-#   the linear interpolation between samples.
+# * With perfect data, dead reckoning is accurate to < 1 mm over 10 s at 1 kHz (full mode; fast mode shows 3 s);
+#   the error shrinks like $h^2$ because of the linear interpolation between samples.
 # * Uncorrected biases make the position error grow like $t^2$ (accelerometer) and $t^3$ (gyroscope, through gravity);
 #   without a camera, even corrected biases leave about half a metre after 10 s (white noise and the bias random
-#   walk), and uncorrected ones tens of metres.
+#   walk), and uncorrected ones tens of metres (full mode; fast mode shows 3 s).
 # * At rest, averaging gives the gyroscope bias and the gravity direction (roll and pitch); yaw and the accelerometer
 #   bias are not observable there.
 #
@@ -529,7 +539,7 @@ else:
 #
 #    *Hint:* the mean of $fT$ samples of std $\sigma_g\sqrt f$ has std $\sigma_g/\sqrt T$ per axis; solve $\sqrt
 #    3\,\sigma_g/\sqrt T < 10^{-4}$.
-# 5. On the EuRoC data, move the static window to after take-off (`t_start = imu.t[0] + 8`) and read the error message.
+# 5. On the EuRoC data, move the static window to after take-off (`t_start=imu_r.t[0] + 8`) and read the error message.
 #    Which test rejects the window?
 #
 #    *Hint:* catch the `ValueError` and read which of the three tests (gyro spread, accelerometer spread, $|a|$
