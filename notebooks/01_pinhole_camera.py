@@ -71,7 +71,7 @@ print("K =\n", cam.K.round(2))
 # A ray at angle $\theta$ from the axis lands $f_x \tan\theta$ pixels from the principal point, so (ignoring the lens
 # distortion for now) the horizontal field of view is
 # $\mathrm{FOV}_x = \arctan\frac{c_x + 0.5}{f_x} + \arctan\frac{W - 0.5 - c_x}{f_x}$, roughly $2\arctan\frac{W}{2 f_x}$.
-# The real lens bends rays at the border (see §3), so the true field of view comes from casting the rays of the
+# The real lens bends rays at the border (see §2), so the true field of view comes from casting the rays of the
 # edge pixels with `pixel_rays`, which includes the distortion.
 
 # %%
@@ -154,7 +154,7 @@ assert np.allclose(distort_by_hand(xy, *cam.dist_coeffs), cam.distort_normalized
 # ### Where straight lines bend
 # Draw a square grid of straight lines in undistorted normalised coordinates and map it through the lens into
 # pixels. Near the centre $r$ is small and nothing happens; towards the corners the lines bow outwards — the
-# classic barrel shape. The grey rectangle is the sensor.
+# classic barrel shape. The black rectangle is the sensor; the grey lines are the ideal, straight grid.
 
 # %%
 samples_per_line = 50 if FAST else 200
@@ -226,7 +226,8 @@ assert 2.5 < cubic_fit < 3.5  # roughly r^3
 # $2\times 10^{-4}$ in normalised coordinates, a few hundredths of a pixel.
 #
 # The library instead solves $\mathbf{d}(\mathbf{x}) - \mathbf{x}_d = 0$ with **Newton's method**, using the
-# $2\times2$ Jacobian of the distortion; the error roughly squares at every step.
+# $2\times2$ Jacobian of the distortion (the matrix of partial derivatives $\partial(x_d, y_d)/\partial(x, y)$); the
+# error roughly squares at every step.
 
 # %%
 u, v = np.meshgrid(np.arange(0, cam.width, 4 if FAST else 1, dtype=float),
@@ -255,8 +256,8 @@ ax.semilogy(steps, np.maximum(fixed_point_errors, 1e-17), "o-", label="fixed poi
 ax.semilogy(steps, np.maximum(newton_errors, 1e-17), "s-", label="Newton (evio_lib)")
 ax.axvline(5, color="0.6", ls="--", lw=1)
 ax.text(5.2, 1e-12, "OpenCV default: 5", color="0.4")
-ax.set(xlabel="iterations", ylabel="worst error over the sensor\n[normalised image units, 1/f_x px]",
-       title="Undistorting every DAVIS240C pixel")
+ax.set(xlabel="iterations", ylabel="worst error over the sensor\n[normalised units; x f_x for pixels]",
+       title="Undistorting the DAVIS240C's pixels")
 ax.legend()
 plt.show()
 print(f"after 5 iterations: fixed point {fixed_point_errors[4]:.1e}, Newton {newton_errors[4]:.1e} "
@@ -272,6 +273,8 @@ assert 1e-4 < fixed_point_errors[4] < 5e-4 and fixed_point_errors[4] * cam.fx < 
 pixel_step = 4 if FAST else 1
 u, v = np.meshgrid(np.arange(0, cam.width, pixel_step, dtype=float), np.arange(0, cam.height, pixel_step, dtype=float))
 all_pixels = np.c_[u.ravel(), v.ravel()]
+corners = [[0, 0], [cam.width - 1, 0], [0, cam.height - 1], [cam.width - 1, cam.height - 1]]
+all_pixels = np.unique(np.r_[all_pixels, corners], axis=0)  # the four corner pixels, also in fast mode's coarse grid
 round_trip = cam.normalized_to_pixels(cam.unproject(all_pixels))
 round_trip_error = np.abs(round_trip - all_pixels).max()
 print(f"{len(all_pixels)} pixels, worst round-trip error {round_trip_error:.1e} px")
@@ -384,7 +387,7 @@ assert error.mean() < 0.05 and (error > 0.25).mean() < 0.1
 #    *Hint:* copy the fixed-point loop of §3 and stop when `np.abs(xy - cam.unproject(pixels)).max() < 1e-8`;
 #    `undistort_normalized(..., iterations=n, tol=0.0)` runs n Newton steps.
 # 4. `cam.scaled(2)` describes the same lens with a sensor of twice the resolution. Why is
-#    $c_x' = 2(c_x + 0.5) - 0.5$ and not simply $2c_x$? (Hint: where are the pixel centres?)
+#    $c_x' = 2(c_x + 0.5) - 0.5$ and not simply $2c_x$?
 #
 #    *Hint:* a pixel $u$ covers $[u - 0.5, u + 0.5]$: where is the sensor's left edge, and what does doubling the
 #    resolution do to it?
