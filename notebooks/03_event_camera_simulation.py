@@ -231,7 +231,7 @@ assert np.allclose(t_hand[order_hand], step_events["t"][order_lib], atol=1e-6)
 # %% [markdown]
 # **(c) The events add up to the brightness change.** Because each event moves the reference by exactly one
 # threshold and the reference always stays within one threshold of $L$, for every pixel, with its own thresholds
-# $C_+, C_-$ (drawn around 0.2 with the mismatch of (b), so some exceed 0.2),
+# $C_+, C_-$ (drawn around 0.2 with the mismatch of (a), so some exceed 0.2),
 #
 # $$-C_- < \big(L(t_b) - L(t_a)\big) - \big(N_{\text{ON}}\,C_+ - N_{\text{OFF}}\,C_-\big) < C_+ .$$
 #

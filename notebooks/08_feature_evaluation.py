@@ -557,7 +557,7 @@ if cnn:
         event_rep["pretrained_detdesc_round2_cpu"] < 0.5 * event_rep["harris"]  # less than half of Harris
     thesis_table3 = {"Harris": 0.885, "Pre-trained DetDesc (Round 2)": 0.839}  # the thesis's best network, eps = 3
     print("thesis Table 3 at eps = 3:", thesis_table3)
-    assert 0 < thesis_table3["Harris"] - thesis_table3["Pre-trained DetDesc (Round 2)"] < 0.05
+    # the thesis's gap: 0.885 - 0.839 = 0.046, within 0.05
     on_firenet_frames = {"harris": 0.767, "pretrained_detdesc_round1_gpu": 0.696}  # docs/reconstruction.md, terrain
     if "pretrained_detdesc_round1_gpu" in event_rep:  # the gap on these count images is the larger
         assert (event_rep["harris"] - event_rep["pretrained_detdesc_round1_gpu"]

@@ -379,7 +379,7 @@ for prob in (0.95, 0.99, 0.999):
     shrink[prob] = r_mc[kept, 0].mean() / mu
     print(f"gate {prob}: mean of kept residuals / mu = {shrink[prob]:.3f}  "
           f"(closed form {gating_mean_shrink(k_rows, prob):.3f})")
-assert abs(shrink[0.95] - gating_mean_shrink(k_rows, 0.95)) < (0.05 if FAST else 0.02)
+assert abs(shrink[0.95] - gating_mean_shrink(k_rows, 0.95)) < 0.02
 assert gating_mean_shrink(1, 0.95) < 0.8 < 0.98 < gating_mean_shrink(37, 0.99)
 assert round(gating_mean_shrink(1, 0.95), 2) == 0.76 and round(gating_mean_shrink(37, 0.95), 2) == 0.97
 assert round(gating_mean_shrink(37, 0.99), 2) == 0.99

@@ -580,7 +580,7 @@ print("share of samples inside ±3σ:", {k: round(float(v), 3) for k, v in insid
 print(f"position σ (x, y, z): {sigma[0, 12:15].round(4)} m at the first frame, "
       f"{sigma[-1, 12:15].round(4)} m at the last")
 print(f"largest angle of y_I to the vertical: {vertical_deg[:, 1].max():.1f} deg")
-assert min(inside.values()) > 0.7
+assert min(inside.values()) > 0.7 and max(inside.values()) < 0.997  # fewer than a consistent filter keeps
 assert np.all(sigma[-1, 12:15] > sigma[0, 12:15])
 assert vertical_deg[:, 1].max() < 12 and vertical_deg[:, [0, 2]].min() > 75
 assert sigma[-1, 1] > max(sigma[-1, 0], sigma[-1, 2])  # the yaw band ends the widest
