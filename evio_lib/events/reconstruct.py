@@ -260,11 +260,14 @@ def _check_precision(precision: str) -> None:
 
 
 def reconstructor_by_name_or_file(method: str, width: int, height: int, what: str = "method",
-                                  precision: str | None = None) -> Reconstructor:
+                                  precision: str | None = None, threads: int | None = None) -> Reconstructor:
     """Return the reconstructor named ``method`` (:func:`available_reconstructors`), else the one in the
     reconstruct-train checkpoint file ``method``; ``what`` names the setting in the error for anything else.
-    ``precision`` (one of :data:`PRECISIONS`) applies to networks; the classical methods ignore it."""
+    ``precision`` (one of :data:`PRECISIONS`) applies to networks; the classical methods ignore it. ``threads``: a
+    network's torch threads (None: torch's default); the classical methods have none."""
     options = {} if precision is None else {"precision": precision}
+    if threads is not None and method not in ("direct", "high_pass"):
+        options["threads"] = threads
     if method in available_reconstructors():
         return create_reconstructor(method, width, height, **options)
     if method.endswith(".pt") or Path(method).is_file():

@@ -46,7 +46,7 @@ from typing import Any, Iterator, Mapping
 
 import numpy as np
 
-from evio_lib.events.reconstruct import Reconstructor, available_reconstructors, create_reconstructor
+from evio_lib.events.reconstruct import Reconstructor, available_reconstructors, reconstructor_by_name_or_file
 from evio_lib.evaluation.trajectory_metrics import orientation_errors, relative_errors_by_length, summarize
 from evio_lib.frontend import FrontendConfig, camera_rotation_prior, create_tracker, stats_table
 from evio_lib.geometry.rotation import quat_to_rot
@@ -585,14 +585,9 @@ def _event_reconstructor(data: LoadedDataset, config: PipelineConfig) -> Reconst
     chose before any frame is made), or None when ``config.frames`` reconstructs no frames from events."""
     if "events" not in frame_streams(config.frames):
         return None
-    camera = data.sequence.camera
-    precision = config.reconstructor_precision  # checked for every name; the classical methods ignore it
-    if config.reconstructor in ("direct", "high_pass"):
-        return create_reconstructor(config.reconstructor, camera.width, camera.height, precision=precision)
-    if config.reconstructor in available_reconstructors():
-        return create_reconstructor(config.reconstructor, camera.width, camera.height, threads=1, precision=precision)
-    return create_reconstructor("learned", camera.width, camera.height, checkpoint=config.reconstructor, threads=1,
-                                precision=precision)  # a reconstruct-train checkpoint file
+    camera = data.sequence.camera  # a network takes one torch thread, as event_frames' default
+    return reconstructor_by_name_or_file(config.reconstructor, camera.width, camera.height, what="reconstructor",
+                                         precision=config.reconstructor_precision, threads=1)
 
 
 def _frames(data: LoadedDataset, config: PipelineConfig, t_start: float, t_end: float,
