@@ -40,7 +40,11 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _cmd_course(args: argparse.Namespace) -> int:
-    """Build the notebooks from their jupytext sources, execute them in order, optionally open JupyterLab."""
+    """Build the notebooks from their jupytext sources, execute them in order, optionally open JupyterLab.
+
+    A failing cell stops the course with one line ``error: notebook NN_name, cell K: ...; the partial notebook is at
+    PATH`` on stderr and exit status 1; the notebook is written with the outputs up to that cell.
+    """
     from evio_lib import course
 
     fast = True if args.fast else course.fast_mode()  # checks EVIO_FAST's value before any work
@@ -57,7 +61,13 @@ def _cmd_course(args: argparse.Namespace) -> int:
         for path in built:
             start = time.perf_counter()
             print(f"executing {path.name} ({mode} mode) ...", flush=True)
-            course.execute_notebook(path, fast=fast)
+            try:
+                course.execute_notebook(path, fast=fast)
+            except course.NotebookFailed as failure:  # one line naming the lesson and the cell, not nbclient's traceback
+                if args.debug:
+                    raise
+                print(f"error: {failure}", file=sys.stderr)
+                return 1  # the command ran, a lesson failed (2 is for a mistake in the input)
             print(f"  done in {time.perf_counter() - start:.1f} s")
     if args.open:
         return subprocess.call([sys.executable, "-m", "jupyter", "lab", str(course.BUILD_DIR)])

@@ -124,3 +124,95 @@ def test_stop_workers_ends_the_reusable_pool_without_making_one():
     assert not any(p.is_alive() for p in processes)
     exec(course._STOP_WORKERS, {})  # a stopped pool again: nothing to do, no error
     assert Parallel(n_jobs=2)(delayed(abs)(-i) for i in range(3)) == [0, 1, 2]  # joblib starts a new pool
+
+
+# ---------------------------------------------------------------------------------------------- a failing lesson
+FAILING_LESSON = '''# %% [markdown]
+# # A lesson whose second cell fails
+
+# %%
+counts = [1, 2, 3]
+print("three counts")
+
+# %%
+total = sum(counts)
+assert (len(counts)
+        == 4)
+print("never printed")
+
+# %%
+print("never run")
+'''
+
+
+def test_a_failing_cell_is_one_line_naming_the_lesson_and_the_cell(tmp_path, monkeypatch, capsys):
+    """The course command prints one line, not nbclient's traceback, and leaves the executed part for the student."""
+    from evio_lib import cli
+
+    (tmp_path / "lessons").mkdir()
+    (tmp_path / "lessons" / "01_demo.py").write_text(FAILING_LESSON)
+    build = tmp_path / "build" / "notebooks"
+    notebook_sources, build_notebooks = course.notebook_sources, course.build_notebooks
+    monkeypatch.setattr(course, "notebook_sources", lambda: notebook_sources(tmp_path / "lessons"))
+    monkeypatch.setattr(course, "build_notebooks", lambda sources: build_notebooks(sources, out_dir=build))
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(["course", "--fast"]) == 1
+    err = capsys.readouterr().err
+    assert err == ("error: notebook 01_demo, cell 2: AssertionError (line 2: assert (len(counts) == 4)); "
+                   "the partial notebook is at build/notebooks/01_demo.ipynb\n")
+    cells = json.loads((build / "01_demo.ipynb").read_text())["cells"]
+    assert [c.get("execution_count") for c in cells] == [None, 1, 2, None]
+    assert "three counts" in "".join(cells[1]["outputs"][0]["text"])
+    assert [o["output_type"] for o in cells[2]["outputs"]] == ["error"] and cells[3]["outputs"] == []
+
+
+class _Cell(dict):
+    """The part of an nbformat cell that the failure message reads."""
+
+    def __init__(self, source):
+        super().__init__(source=source, cell_type="code")
+        self.source = source
+
+
+@pytest.mark.parametrize("ename, evalue, traceback, expected", [
+    ("AssertionError", "", "Cell \x1b[0;32mIn[7], line 2\x1b[0m\n----> 2 assert x == 3",
+     "AssertionError (line 2: assert x == 3)"),
+    ("AssertionError", "the counts differ", "Cell In[7], line 2", "AssertionError: the counts differ (line 2: assert x == 3)"),
+    ("ValueError", "\nbad shape (3,)\nexpected (2,)", "Cell In[4], line 1\n...\nFile lib.py:9, in f\n",
+     "ValueError: bad shape (3,) ... (line 1: x = 2)"),
+    ("ZeroDivisionError", "division by zero", "Input In [4], in <cell line: 2>()",  # IPython 8.0-8.5
+     "ZeroDivisionError: division by zero (line 2: assert x == 3)"),
+    ("SyntaxError", "invalid syntax (2977855035.py, line 1)", "  Cell In[3], line 9", "SyntaxError: invalid syntax "
+     "(2977855035.py, line 1)"),  # no such line in the cell: no code shown
+])
+def test_failure_message_is_the_exception_and_the_cells_line(ename, evalue, traceback, expected):
+    from nbclient.exceptions import CellExecutionError
+
+    cell = _Cell("x = 2\nassert x == 3")
+    assert course._failure_message(CellExecutionError(traceback, ename, evalue), cell, 60) == expected
+
+
+def test_failure_message_of_a_timeout_and_a_dead_kernel():
+    from nbclient.exceptions import CellTimeoutError, DeadKernelError
+
+    assert course._failure_message(CellTimeoutError("x"), _Cell("x"), 1800) == "still running after 1800 s, the limit per cell"
+    assert course._failure_message(DeadKernelError("Kernel died"), _Cell("x"), 60) == "the kernel stopped (Kernel died)"
+
+
+def test_notebook_failed_names_the_lesson_the_cell_and_the_file(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    failed = course.NotebookFailed("13_evio_pipeline", 41, "AssertionError (line 3: assert a < b)",
+                                   tmp_path / "build" / "notebooks" / "13_evio_pipeline.ipynb")
+    assert str(failed) == ("notebook 13_evio_pipeline, cell 41: AssertionError (line 3: assert a < b); the partial "
+                           "notebook is at build/notebooks/13_evio_pipeline.ipynb")
+    elsewhere = course.NotebookFailed("01_x", None, "the kernel stopped (Kernel died)", "/elsewhere/01_x.ipynb")
+    assert str(elsewhere).startswith("notebook 01_x, after its last cell: ") and str(elsewhere).endswith("/elsewhere/01_x.ipynb")
+
+
+def test_statement_at_shows_a_split_statement_whole():
+    source = 'x = 1\nfor i in range(3):\n    assert (i\n            < 2), "big"\nif x: assert x\n'
+    assert course._statement_at(source, 4) == 'assert (i\n            < 2), "big"'
+    assert course._statement_at(source, 2) == "for i in range(3):"  # a loop's header, not its body
+    assert course._statement_at(source, 5) == "assert x"
+    assert course._statement_at(source, 9) == ""
+    assert course._statement_at("%time " + source, 4) == '            < 2), "big"'  # IPython, not Python: the line
