@@ -314,7 +314,10 @@ class Sequence:
     R_CtoI a (3, 3) rotation, p_CinI of shape (3,); frames must match frame_times and the camera. So slicing by
     time (binary search) is right; only an in-place edit of an array can break the order, which :meth:`validate`
     (and slice_time, for IMU and ground-truth times) re-checks. :meth:`validate` also checks events inside the
-    sensor and unit quaternions. Arrays are stored as given (no copy) and never modified.
+    sensor and unit quaternions. Arrays are stored as given (no copy) and never modified. The events may be a
+    read-only memory map of an ``.npy`` file (the ROS bag and HDF5 readers write one,
+    :mod:`evio_lib.io.event_source`): they are then checked a block at a time through the file, and the consumers
+    that walk them (event frames, ``reconstruct``) read one window at a time.
 
     >>> from evio_lib.events.array import make_events
     >>> Sequence("bad", events=[(0.0, 1, 2, 1)])
@@ -353,7 +356,14 @@ class Sequence:
         if name == "events":
             if value is None:
                 return empty_events()
-            _check_event_array(value)
+            if isinstance(value, np.memmap) and value.dtype == EVENT_DTYPE and value.ndim == 1:
+                # events on disk (a ROS bag or an HDF5 file read through evio_lib.io.event_source): checked a block
+                # at a time through the file, so that the check leaves no page of the map resident
+                from evio_lib.io.event_source import check_events_streamed
+
+                check_events_streamed(value, "events")
+            else:
+                _check_event_array(value)
         elif name == "frame_times":
             if value is None:
                 return np.zeros(0, dtype=np.float64)
@@ -444,7 +454,11 @@ class Sequence:
                      "groundtruth_imu", "R_CtoI", "p_CinI"):
             self._checked_field(name, getattr(self, name))
         size = self.sensor_size
-        if size is not None:
+        if size is not None and isinstance(self.events, np.memmap):
+            from evio_lib.io.event_source import check_events_streamed
+
+            check_events_streamed(self.events, "events", size)
+        elif size is not None:
             try:
                 validate_events(self.events, *size)
             except ValueError as exc:
@@ -499,7 +513,13 @@ class Sequence:
             t = self.events["t"]
             dur = float(t[-1] - t[0])
             rate = f", {n / dur / 1e3:.1f} kev/s" if dur > 0 else ""
-            pos = 100.0 * float(np.mean(self.events["p"] > 0))
+            if isinstance(self.events, np.memmap):  # events on disk: counted a block at a time
+                from evio_lib.io.event_source import event_source
+
+                chunks = event_source(self.events).chunks()
+                pos = 100.0 * sum(int(np.count_nonzero(chunk["p"] > 0)) for _, chunk in chunks) / n
+            else:
+                pos = 100.0 * float(np.mean(self.events["p"] > 0))
             lines.append(f"  events          {n:,} over {t[0]:.6f} .. {t[-1]:.6f} s ({dur:.3f} s{rate}), {pos:.1f} % positive")
         else:
             lines.append("  events          none")

@@ -23,6 +23,7 @@ from typing import Callable, Iterator
 import numpy as np
 
 from evio_lib.events.reconstruct import Reconstructor, create_reconstructor
+from evio_lib.io.event_source import EventSource
 from evio_lib.events.representations import MAX_EVENT_FRAME_RATE_HZ  # re-exported here
 from evio_lib.sequence import Sequence
 
@@ -78,51 +79,75 @@ def aps_frames(sequence: Sequence, t_start: float = -np.inf, t_end: float = np.i
 
 def _event_windows(sequence: Sequence, window_fraction: float | None, adaptive: bool, min_window_s: float,
                    max_window_s: float | None, t_start: float, t_end: float
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Return (events in [t_start, t_end), bounds (K, 2), start_times (K,), end_times (K,)): an event source's windows.
+                   ) -> tuple[EventSource, np.ndarray, np.ndarray, np.ndarray]:
+    """Return (the events as a source, bounds (K, 2) into it, start_times (K,), end_times (K,)): an event stream's
+    windows over [t_start, t_end).
 
     Fixed windows hold N_e = n H W events (held between ``min_window_s`` and ``max_window_s`` when given:
     :func:`~evio_lib.events.representations.bounded_count_windows`); adaptive ones follow the texture. A count window
-    starts at its first event and ends at its last; bounded windows start where the previous one ended."""
+    starts at its first event and ends at its last; bounded windows start where the previous one ended. Events in
+    memory are cut by the functions of :mod:`evio_lib.events.representations`; events on disk (a recording read from
+    a ROS bag or an HDF5 file, :mod:`evio_lib.io.event_source`) by their block-at-a-time twins, which give the same
+    bounds while holding one block of timestamps."""
     from evio_lib.events.representations import (MAX_WINDOWS, adaptive_windows, bounded_count_windows,
                                                  count_windows, window_size_from_fraction)
+    from evio_lib.io.event_source import (ArrayEventSource, adaptive_windows_source, bounded_count_windows_source,
+                                          count_windows_source, event_source)
 
     if sequence.camera is None:
         raise ValueError("event frames need the camera's size: the recording has no calibration")
     width, height = sequence.camera.width, sequence.camera.height
-    events = sequence.events
-    lo, hi = np.searchsorted(events["t"], [t_start, t_end], side="left")
-    events = events[lo:hi]
+    source = event_source(sequence.events)
+    in_memory = isinstance(source, ArrayEventSource)
+    lo, hi = source.index_at(t_start), source.index_at(t_end)
+    events = source.events[lo:hi] if in_memory else None  # the in-memory path: the arrays as before
+    size = hi - lo
+
+    def time_of(index: int) -> float:  # time of the index-th event of [lo, hi)
+        return float(events["t"][index]) if in_memory else source.time_at(lo + index)
+
+    def times_of(indices: np.ndarray) -> np.ndarray:
+        if in_memory:
+            return events["t"][indices]
+        return np.array([source.time_at(lo + int(i)) for i in indices], dtype=np.float64)
+
     n = default_window_fraction(sequence.name) if window_fraction is None else float(window_fraction)
     if not np.isfinite(n) or n <= 0:
         raise ValueError(f"window_fraction must be a number > 0 (thesis: 0.2-0.7); got {window_fraction!r}")
     if adaptive:
-        bounds = np.asarray(adaptive_windows(events, width, height), dtype=np.int64).reshape(-1, 2)
-        return events, bounds, events["t"][bounds[:, 0]], events["t"][bounds[:, 1] - 1]
+        bounds = (adaptive_windows(events, width, height) if in_memory
+                  else adaptive_windows_source(source, lo, hi, width, height) - lo)
+        bounds = np.asarray(bounds, dtype=np.int64).reshape(-1, 2)
+        return source, bounds + lo, times_of(bounds[:, 0]), times_of(bounds[:, 1] - 1)
     per_window = window_size_from_fraction(n, width, height)
-    span = float(events["t"][-1] - events["t"][0]) if events.size > 1 else 0.0
+    span = time_of(size - 1) - time_of(0) if size > 1 else 0.0
     if min_window_s > 0 or max_window_s is not None:
-        first = float(t_start) if np.isfinite(t_start) else (float(events["t"][0]) if events.size else 0.0)
-        last = float(t_end) if np.isfinite(t_end) else (float(events["t"][-1]) if events.size else first)
-        bounds, ends = bounded_count_windows(events, per_window, min_window_s, max_window_s, t_start=first,
-                                             t_end=last)
-        return events, bounds, np.concatenate([[first], ends[:-1]]), ends
+        first = float(t_start) if np.isfinite(t_start) else (time_of(0) if size else 0.0)
+        last = float(t_end) if np.isfinite(t_end) else (time_of(size - 1) if size else first)
+        if in_memory:
+            bounds, ends = bounded_count_windows(events, per_window, min_window_s, max_window_s, t_start=first,
+                                                 t_end=last)
+        else:
+            bounds, ends = bounded_count_windows_source(source, lo, hi, per_window, min_window_s, max_window_s,
+                                                        t_start=first, t_end=last)
+            bounds = bounds - lo
+        return source, bounds + lo, np.concatenate([[first], ends[:-1]]), ends
     # estimated before the reconstructor loads: a window per event would never end
-    if 0 < events.size < per_window:  # not one frame: say why, not "no events"
-        raise ValueError(f"the {events.size:,} events in [{events['t'][0]:.3f}, {events['t'][-1]:.3f}] s are fewer "
+    if 0 < size < per_window:  # not one frame: say why, not "no events"
+        raise ValueError(f"the {size:,} events in [{time_of(0):.3f}, {time_of(size - 1):.3f}] s are fewer "
                          f"than one window of N_e = n H W = {per_window:,} events (window_fraction "
                          f"(--window-fraction) n = {n:g}, {width} x {height} px); use n <= "
-                         f"{events.size / (width * height):.3g}, adaptive windows (--adaptive), a time cap "
+                         f"{size / (width * height):.3g}, adaptive windows (--adaptive), a time cap "
                          f"(--max-window) or APS frames")
     most = min(MAX_WINDOWS, max(1.0, MAX_EVENT_FRAME_RATE_HZ * span))
-    if events.size / per_window > most:
-        raise ValueError(f"window_fraction (--window-fraction) {n:g} gives about {events.size / per_window:.3g} "
+    if size / per_window > most:
+        raise ValueError(f"window_fraction (--window-fraction) {n:g} gives about {size / per_window:.3g} "
                          f"windows of {per_window:,} event(s) (n H W = {n * width * height:.3g}) for "
-                         f"{events.size:,} events over {span:.3g} s; the most is {most:,.0f} (MAX_WINDOWS "
+                         f"{size:,} events over {span:.3g} s; the most is {most:,.0f} (MAX_WINDOWS "
                          f"{MAX_WINDOWS:,}, MAX_EVENT_FRAME_RATE_HZ {MAX_EVENT_FRAME_RATE_HZ:g} per second; use n >= "
-                         f"{events.size / (most * width * height):.3g})")
-    bounds = count_windows(events, per_window)
-    return events, bounds, events["t"][bounds[:, 0]], events["t"][bounds[:, 1] - 1]
+                         f"{size / (most * width * height):.3g})")
+    bounds = count_windows(events, per_window) if in_memory else count_windows_source(source, lo, hi, per_window) - lo
+    return source, bounds + lo, times_of(bounds[:, 0]), times_of(bounds[:, 1] - 1)
 
 
 def event_frames(sequence: Sequence, reconstructor: str | Reconstructor = "firenet",
@@ -155,7 +180,7 @@ def event_frames(sequence: Sequence, reconstructor: str | Reconstructor = "firen
         if (reconstructor.width, reconstructor.height) != (width, height):
             raise ValueError(f"event_frames: the reconstructor was made for a {reconstructor.width}x"
                              f"{reconstructor.height} sensor; the sequence's camera is {width}x{height}")
-    events, bounds, _, ends = _event_windows(sequence, window_fraction, adaptive, min_window_s, max_window_s, t_start,
+    source, bounds, _, ends = _event_windows(sequence, window_fraction, adaptive, min_window_s, max_window_s, t_start,
                                              t_end)
     if isinstance(reconstructor, Reconstructor):
         rec = reconstructor
@@ -169,7 +194,7 @@ def event_frames(sequence: Sequence, reconstructor: str | Reconstructor = "firen
         if b <= a:
             continue
         start = time.perf_counter()
-        image = rec.reconstruct(events[a:b])
+        image = rec.reconstruct(source.take(a, b))
         yield float(t), image, time.perf_counter() - start
 
 
@@ -196,7 +221,7 @@ def mc_event_frames(sequence: Sequence, R_CtoI: np.ndarray, window_fraction: flo
     from evio_lib.events.motion_compensation import motion_compensated_frame
 
     n = MC_WINDOW_FRACTION if window_fraction is None else window_fraction
-    events, bounds, starts, ends = _event_windows(sequence, n, adaptive, min_window_s, max_window_s, t_start, t_end)
+    source, bounds, starts, ends = _event_windows(sequence, n, adaptive, min_window_s, max_window_s, t_start, t_end)
     imu = sequence.imu
     for (a, b), t0, t1 in zip(bounds, starts, ends):
         if b - a < MC_MIN_EVENTS:
@@ -204,6 +229,6 @@ def mc_event_frames(sequence: Sequence, R_CtoI: np.ndarray, window_fraction: flo
         start = time.perf_counter()
         t_ref = 0.5 * (float(t0) + float(t1))
         bias = None if gyro_bias is None else gyro_bias()
-        image = motion_compensated_frame(events[a:b], sequence.camera, t_ref, imu.t, imu.gyro, R_CtoI, bias,
+        image = motion_compensated_frame(source.take(a, b), sequence.camera, t_ref, imu.t, imu.gyro, R_CtoI, bias,
                                          blur_sigma_px=blur_sigma_px)
         yield t_ref, image, time.perf_counter() - start
