@@ -118,11 +118,19 @@ def execute_notebook(path: Path, timeout_s: int = 1800, fast: bool | None = None
     def on_cell_start(cell: object, cell_index: int) -> None:
         started.append(cell_index)
 
+    async def on_cell_error(cell: object, cell_index: int, execute_reply: object) -> None:
+        # the notebook stops at this cell: stop the joblib workers as after the last one, before the kernel shuts down
+        try:
+            await client.async_wait_for_reply(client.kc.execute(_STOP_WORKERS, store_history=False))
+        except Exception:  # noqa: BLE001 -- a clean-up that fails must not hide the lesson's own error
+            pass
+
     # The kernel app's own log (not the cells' output or warnings) only says, once per notebook, that a local kernel
     # talks over TCP without encryption; keep it quiet so the course's output shows what the lessons print.
     client = NotebookClient(notebook, timeout=timeout_s, kernel_name="python3",
                             resources={"metadata": {"path": str(path.parent)}},
-                            extra_arguments=["--IPKernelApp.log_level=ERROR"], on_cell_start=on_cell_start)
+                            extra_arguments=["--IPKernelApp.log_level=ERROR"], on_cell_start=on_cell_start,
+                            on_cell_error=on_cell_error)
     notebook.cells.append(nbformat.v4.new_code_cell(_STOP_WORKERS))  # executed last, never stored
     failure: BaseException | None = None
     try:

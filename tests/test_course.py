@@ -155,8 +155,10 @@ def test_a_failing_cell_is_one_line_naming_the_lesson_and_the_cell(tmp_path, mon
     notebook_sources, build_notebooks = course.notebook_sources, course.build_notebooks
     monkeypatch.setattr(course, "notebook_sources", lambda: notebook_sources(tmp_path / "lessons"))
     monkeypatch.setattr(course, "build_notebooks", lambda sources: build_notebooks(sources, out_dir=build))
+    monkeypatch.setattr(course, "_STOP_WORKERS", "open('workers_stopped', 'w').close()")
     monkeypatch.chdir(tmp_path)
     assert cli.main(["course", "--fast"]) == 1
+    assert (build / "workers_stopped").exists()  # the clean-up of a last cell also ran after the failing one
     err = capsys.readouterr().err
     assert err == ("error: notebook 01_demo, cell 2: AssertionError (line 2: assert (len(counts) == 4)); "
                    "the partial notebook is at build/notebooks/01_demo.ipynb\n")
