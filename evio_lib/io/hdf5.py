@@ -369,9 +369,11 @@ def write_tumvie_h5(events: np.ndarray, path: str | Path, sensor_size: tuple[int
     return Path(path)
 
 
-def write_mvsec_h5(sequence: Any, path: str | Path, side: str = "left") -> Path:
+def write_mvsec_h5(sequence: Any, path: str | Path, side: str = "left", pose_matrices: np.ndarray | None = None
+                   ) -> Path:
     """Write a Sequence in MVSEC's layout under ``davis/<side>``: events (N, 4) x y t p, image_raw(+_ts), imu (N, 6)
-    ax ay az gx gy gz (+ imu_ts), and the camera ground truth as pose (N, 4, 4) camera-to-world (+ pose_ts)."""
+    ax ay az gx gy gz (+ imu_ts), and the camera ground truth as pose (N, 4, 4) camera-to-world (+ pose_ts):
+    ``pose_matrices`` when given (one per ground-truth time), else made from the quaternions."""
     import h5py
 
     from evio_lib.geometry.rotation import quat_to_rot
@@ -387,9 +389,12 @@ def write_mvsec_h5(sequence: Any, path: str | Path, side: str = "left") -> Path:
             g.create_dataset("imu_ts", data=sequence.imu.t)
         if sequence.groundtruth is not None:
             gt = sequence.groundtruth
-            T = np.tile(np.eye(4), (len(gt), 1, 1))
-            T[:, :3, :3] = np.swapaxes(quat_to_rot(gt.q_GtoB), -1, -2)  # R_CtoG = C(q_GtoC)^T
-            T[:, :3, 3] = gt.p_BinG
+            if pose_matrices is not None:
+                T = np.asarray(pose_matrices, dtype=np.float64)
+            else:
+                T = np.tile(np.eye(4), (len(gt), 1, 1))
+                T[:, :3, :3] = np.swapaxes(quat_to_rot(gt.q_GtoB), -1, -2)  # R_CtoG = C(q_GtoC)^T
+                T[:, :3, 3] = gt.p_BinG
             g.create_dataset("pose", data=T)
             g.create_dataset("pose_ts", data=gt.t)
     return Path(path)

@@ -17,7 +17,8 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("dataset", nargs="?", default="boxes_like", metavar="DATASET",
                    help="a preset (boxes_like [default], aerial_like; simulated on first use and cached), an ECD folder "
                         "(events.txt, images.txt + images/, imu.txt, calib.txt, optional groundtruth.txt), a EuRoC "
-                        "ASL folder (mav0/) or an AEDAT4 file (.aedat4, with --calib)")
+                        "ASL folder (mav0/), an AEDAT4 file (.aedat4, with --calib), a ROS bag (.bag file or ROS2 "
+                        "folder) or an HDF5 file (.h5/.hdf5: DSEC, TUM-VIE, MVSEC; with --calib)")
     p.add_argument("--frames", choices=["aps", "events", "mc-events", "aps+events", "aps+mc-events"], default="aps",
                    help="aps: the recorded frames (default); events: frames reconstructed from event windows; "
                         "mc-events: event windows warped with the gyroscope's rotation and counted (no network); "
@@ -107,7 +108,13 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="a Kalibr YAML with T_cam_imu, overriding the recording's extrinsics")
     p.add_argument("--calib", type=Path, default=None,
                    help="camera calibration, one line 'fx fy cx cy k1 k2 p1 p2 [k3]' (the ECD calib.txt format): "
-                        "required for an AEDAT4 file, overrides a folder's calibration")
+                        "required for an AEDAT4 or HDF5 file and a bag without CameraInfo, overrides a folder's or "
+                        "a bag's calibration")
+    p.add_argument("--topics", default=None, metavar="TOPICS",
+                   help="ROS bags: which topics to read, a dataset preset (ecd, mvsec-left, mvsec-right, uzh-fpv, "
+                        "vector-left) or role=/topic pairs, e.g. events=/davis/left/events,imu=/davis/left/imu "
+                        "(default: found by message type; several of one type are refused with their list); MVSEC "
+                        "HDF5 files: the camera group, e.g. davis/left")
     p.add_argument("--out", type=output_folder(), default=None,
                    help="write trajectory.txt (TUM), states.csv, tracking.csv, metrics.json and figures/ here "
                         "(must be new or empty unless --force)")
@@ -202,7 +209,7 @@ def main_run(args: argparse.Namespace) -> int:
                         need_events=args.frames != "aps" and not args.imu_only,
                         need_frames="aps" in args.frames.split("+") or args.imu_only, extrinsics=args.extrinsics,
                         progress=not args.quiet, calib=args.calib, aps_exposure_s=args.aps_exposure,
-                        speed=args.speed)
+                        speed=args.speed, topics=getattr(args, "topics", None))
     print(f"loaded {data.sequence.name} ({data.kind}) in {time.perf_counter() - start:.1f} s")
     for note in data.notes:
         print(f"  {note}")

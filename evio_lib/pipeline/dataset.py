@@ -20,6 +20,13 @@ Every recording's IMU is checked by :func:`evio_lib.io.imu_checks.check_imu_unit
 swapped columns, gravity on an axis the ground truth contradicts), and stored noise densities that are negative or
 NaN are refused, never replaced by defaults (defaults for missing ones are named in the notes).
 
+- A ROS bag (a ROS1 ``.bag`` file or a ROS2 bag folder, :mod:`evio_lib.io.rosbag`): topics found by message type,
+  ``topics=`` (``--topics``) picks among several (a stereo rig) or names a dataset's preset; the camera from its
+  CameraInfo topic, else ``calib=`` (required then, as for AEDAT4).
+- An HDF5 file (``.h5``, ``.hdf5``: DSEC, TUM-VIE, MVSEC layouts, :mod:`evio_lib.io.hdf5`): no layout holds a
+  calibration, so ``calib=`` is required for a run; DSEC and TUM-VIE files hold no IMU (refused by ``run``).
+  Bags and HDF5 files keep their events on disk (a memory-mapped ``.npy`` in the cache), read a window at a time.
+
 ``extrinsics=PATH`` (a Kalibr camchain YAML with ``T_cam_imu``) overrides every source of extrinsics.
 """
 from __future__ import annotations
@@ -51,7 +58,7 @@ class LoadedDataset:
 
     Attributes:
         sequence: the recording (frames, events, IMU, ground truth, camera).
-        kind: 'preset', 'ecd', 'euroc' or 'aedat4'.
+        kind: 'preset', 'ecd', 'euroc', 'aedat4', 'rosbag' or 'hdf5'.
         source: the preset name or the folder read.
         R_CtoI, p_CinI: camera-IMU extrinsics used (x_I = R_CtoI x_C + p_CinI).
         noise: IMU noise densities for the filter.
@@ -266,7 +273,11 @@ def _noise_from_metadata(metadata: dict, source: str) -> tuple[ImuNoiseParams | 
 _TRUTH_FILES = {"preset": ("the simulated camera ground truth", "the simulated IMU ground truth"),
                 "ecd": ("groundtruth.txt", "groundtruth_imu.txt"),
                 "euroc": ("the ground truth", "the ground truth (state_groundtruth_estimate0/data.csv)"),
-                "aedat4": ("the ground truth", "the ground truth")}
+                "aedat4": ("the ground truth", "the ground truth"),
+                "rosbag": ("the pose topic", "the pose topic"),
+                "hdf5": ("the ground truth (pose, pose_ts)", "the ground truth (pose, pose_ts)")}
+#: File suffixes of HDF5 recordings.
+HDF5_SUFFIXES = (".h5", ".hdf5")
 
 
 def _check_truth_times(gt: Any, imu_t: np.ndarray, name: str) -> None:
@@ -290,6 +301,14 @@ def _check_truth_times(gt: Any, imu_t: np.ndarray, name: str) -> None:
                          f"the sensor's clock)")
 
 
+def _is_bag_or_h5(text: str) -> bool:
+    """Return True for a ROS bag (``.bag`` file, ROS2 folder) or an HDF5 file (``.h5``, ``.hdf5``)."""
+    from evio_lib.io.rosbag import is_rosbag
+
+    path = Path(text)
+    return (path.is_file() and path.suffix.lower() in HDF5_SUFFIXES) or is_rosbag(path)
+
+
 def _is_euroc(folder: Path) -> bool:
     return (folder / "mav0").is_dir() or (folder.name == "mav0" and (folder / "imu0").is_dir())
 
@@ -297,7 +316,8 @@ def _is_euroc(folder: Path) -> bool:
 def load_dataset(dataset: str | Path | None = None, *, duration: float | None = None, seed: int = 0,
                  need_events: bool = False, need_frames: bool = True, extrinsics: str | Path | None = None,
                  progress: bool = False, calib: str | Path | None = None, start: float = 0.0,
-                 aps_exposure_s: float | None = None, speed: float | None = None) -> LoadedDataset:
+                 aps_exposure_s: float | None = None, speed: float | None = None,
+                 topics: str | None = None) -> LoadedDataset:
     """Return the recording named by ``dataset`` (a preset name, a folder or a file; None: ``boxes_like``).
 
     Args:
@@ -316,7 +336,10 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
         extrinsics: a Kalibr YAML with T_cam_imu overriding the recording's extrinsics.
         progress: show the simulator's progress bars.
         calib: a calibration file in the ECD ``calib.txt`` format (``fx fy cx cy k1 k2 p1 p2 [k3]``): required for
-            an AEDAT4 file (it holds none), overrides the calibration of a folder; refused for a preset.
+            an AEDAT4 file, an HDF5 file and a bag without a CameraInfo topic (they hold none), overrides the
+            calibration of a folder or a bag; refused for a preset.
+        topics: ROS bags: a preset of :data:`evio_lib.io.rosbag.TOPIC_PRESETS` or ``role=/topic`` pairs; MVSEC HDF5
+            files: the camera group (``davis/left``); refused for other recordings.
 
     The IMU of every recording goes through :func:`evio_lib.io.imu_checks.check_imu_units` (units, swapped columns,
     gravity against the ground truth).
@@ -333,6 +356,9 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
                          "was recorded")
     if speed is not None and text not in PRESETS and Path(text).exists():
         raise ValueError("--speed applies to simulated presets; a recording's motion is the one it was recorded with")
+    if topics is not None and not _is_bag_or_h5(text):
+        raise ValueError("--topics applies to ROS bags and MVSEC HDF5 files (which hold several cameras); "
+                         f"{text} is neither")
     if text in PRESETS:
         if calib is not None:
             raise ValueError(f"--calib applies to recordings; the preset {text} knows its camera")
@@ -344,6 +370,30 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
             notes.append(f"motion: the preset's played at speed {speed:g} (rates x {speed:g}, accelerations x "
                          f"{speed * speed:g}; its whole motion lasts {preset_length(text, speed):g} s)")
         kind, source = "preset", text
+    elif _is_bag_or_h5(text):
+        if duration is not None:
+            raise ValueError("--duration applies to simulated presets; for a recording use --max-duration")
+        if Path(text).suffix.lower() in HDF5_SUFFIXES:
+            from evio_lib.io.hdf5 import read_hdf5
+
+            seq, kind = read_hdf5(text, load_events=need_events, load_frames=need_frames, group=topics), "hdf5"
+            missing = "no calibration in the file"
+        else:
+            from evio_lib.io.rosbag import read_rosbag
+
+            seq, kind = read_rosbag(text, load_events=need_events, load_frames=need_frames, topics=topics), "rosbag"
+            missing = "no sensor_msgs/CameraInfo topic in the bag"
+            notes.append("topics: " + ", ".join(f"{role} {topic}" for role, topic in seq.metadata["topics"].items()))
+        source = text
+        if seq.camera is None and calib is None:
+            raise ValueError(f"{text}: {missing}; give one with --calib FILE (one line fx fy cx cy k1 k2 p1 p2 [k3] "
+                             f"in pixels, the ECD calib.txt format)")
+        if seq.groundtruth is None:
+            notes.append(f"ground truth: none in the {'bag' if kind == 'rosbag' else 'file'}: static "
+                         f"initialisation (the sensor must start still), no error metrics")
+        else:
+            notes.append("ground truth: " + ("the pose topic, taken as the camera's pose in the world"
+                                             if kind == "rosbag" else "pose (camera-to-world matrices)"))
     elif Path(text).is_file() and Path(text).suffix.lower() == ".aedat4":
         from evio_lib.io.aedat4 import read_aedat4
 
@@ -365,7 +415,8 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
             raise ValueError(f"DATASET {text!r} is neither a preset ({', '.join(PRESETS)}) nor an existing folder")
         if not folder.is_dir():
             raise ValueError(f"DATASET {text!r} is a file; expected a preset name, an ECD folder (events.txt, imu.txt, "
-                             f"...), a EuRoC ASL folder (mav0/) or an AEDAT4 file (.aedat4)")
+                             f"...), a EuRoC ASL folder (mav0/), an AEDAT4 file (.aedat4), a ROS bag (.bag, or a ROS2 "
+                             f"bag folder) or an HDF5 file (.h5, .hdf5)")
         if _is_euroc(folder):
             from evio_lib.io.euroc import read_euroc
 
@@ -389,6 +440,13 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
         seq.camera = read_calib(calib, *seq.sensor_size)
         notes.append(f"camera: from --calib {calib}" + ("" if kind == "aedat4" else " (replaces the recording's)"))
     if seq.imu is None or len(seq.imu.t) < 2:
+        if kind == "hdf5":
+            raise ValueError(f"{source}: the {seq.metadata['format']} layout holds no IMU, and the MSCKF needs one; "
+                             f"its events still make frames (python -m evio_lib reconstruct {source} --out DIR) and "
+                             f"an ECD folder (python -m evio_lib convert {source} --out DIR)")
+        if kind == "rosbag":
+            raise ValueError(f"{source} has no sensor_msgs/Imu topic (topics read: {seq.metadata['topics']}): the "
+                             f"MSCKF needs the IMU")
         raise ValueError(f"{source} has no IMU samples (imu.txt / mav0/imu0/data.csv): the MSCKF needs the IMU")
     for gt, name in ((seq.groundtruth, _TRUTH_FILES[kind][0]), (seq.groundtruth_imu, _TRUTH_FILES[kind][1])):
         _check_truth_times(gt, seq.imu.t, f"{source}: {name}")
@@ -402,7 +460,8 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
     elif seq.R_CtoI is not None and seq.p_CinI is not None:
         R_CtoI, p_CinI = np.asarray(seq.R_CtoI, float), np.asarray(seq.p_CinI, float)
         notes.append("extrinsics: from the recording (" + {"preset": "simulator", "ecd": "evio_sim.json",
-                                                           "euroc": "sensor.yaml", "aedat4": "file"}[kind] + ")")
+                                                           "euroc": "sensor.yaml", "aedat4": "file", "rosbag": "bag",
+                                                           "hdf5": "file"}[kind] + ")")
     else:
         R_CtoI, p_CinI = np.eye(3), np.zeros(3)
         notes.append("extrinsics: none in the recording; assumed camera = IMU frame (the DAVIS's own IMU); "
