@@ -111,6 +111,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 #: OpenCV (seconds); the options modules import none of them, so ``--help`` and a usage error start in well under a
 #: second, and :func:`main` imports the main module of the one command that runs.
 _COMMAND_MODULES = {
+    "convert": ("evio_lib.io.convert", "add_convert_arguments", "evio_lib.io.convert", "main_convert"),
     "features-benchmark": ("evio_lib.features.evaluation.options", "add_benchmark_arguments",
                            "evio_lib.features.evaluation.benchmark", "main_benchmark"),
     "features-train": ("evio_lib.features.training.options", "add_train_arguments", "evio_lib.features.training.train",
@@ -221,10 +222,18 @@ def build_parser(full: Container[str] | None = None) -> argparse.ArgumentParser:
     _add_options(p, "vio-sim", full)
 
     p = sub.add_parser("reconstruct", help="events of a recording -> image frames (images.txt + PNGs, ECD layout)",
-                       description="Reconstruct image frames from the events of an ECD folder or a simulated preset "
+                       description="Reconstruct image frames from the events of an ECD folder, a ROS bag, an HDF5 "
+                                   "file (read a window at a time) or a simulated preset "
                                    "with the shipped network (default), direct integration or the high-pass filter; "
                                    "writes images.txt and images/frame_XXXXXXXX.png.")
     _add_options(p, "reconstruct", full)
+
+    p = sub.add_parser("convert", help="a recording (ROS bag, HDF5, AEDAT4, ECD, EuRoC, preset) -> an ECD folder or "
+                                       "the binary cache",
+                       description="Read any recording the library reads, with the same checks as run (units, axes, "
+                                   "clocks, calibration), and write it as an ECD folder (events.txt written a block at "
+                                   "a time) or as DIR/sequence.npz.")
+    _add_options(p, "convert", full)
 
     p = sub.add_parser("reconstruct-data", help="simulate a training set for the event-to-image networks",
                        description="Simulate many short, independent sequences (layered textured planes, random "
@@ -240,7 +249,8 @@ def build_parser(full: Container[str] | None = None) -> argparse.ArgumentParser:
 
     p = sub.add_parser("run", help="the whole EVIO pipeline on a recording: frames -> features -> MSCKF -> trajectory",
                        description="Run frames (APS or reconstructed from events) -> feature tracking -> MSCKF on a "
-                                   "simulated preset, an ECD folder or a EuRoC folder; print the errors against the "
+                                   "simulated preset, an ECD or EuRoC folder, an AEDAT4 file, a ROS bag or an HDF5 "
+                                   "file; print the errors against the "
                                    "ground truth and write a TUM trajectory, metrics and figures with --out. With no "
                                    "argument: SIFT on the APS frames of the 60 s boxes_like preset (simulated on first "
                                    "use, about 1 min, then cached).")

@@ -292,7 +292,7 @@ def _all_parsers(parser: argparse.ArgumentParser):
 
 def test_every_option_has_help_text():
     parsers = list(_all_parsers(cli.build_parser()))
-    assert len(parsers) == 11  # the top level and ten commands
+    assert len(parsers) == 12  # the top level and eleven commands
     missing = [f"{p.prog} {a.dest}" for p in parsers for a in p._actions
                if not isinstance(a, argparse._SubParsersAction) and not (a.help and a.help.strip())]
     assert missing == []

@@ -58,7 +58,7 @@ class LoadedDataset:
 
     Attributes:
         sequence: the recording (frames, events, IMU, ground truth, camera).
-        kind: 'preset', 'ecd', 'euroc', 'aedat4', 'rosbag' or 'hdf5'.
+        kind: 'preset', 'ecd', 'euroc', 'aedat4', 'rosbag', 'hdf5' or 'cache' (a folder with sequence.npz).
         source: the preset name or the folder read.
         R_CtoI, p_CinI: camera-IMU extrinsics used (x_I = R_CtoI x_C + p_CinI).
         noise: IMU noise densities for the filter.
@@ -275,6 +275,7 @@ _TRUTH_FILES = {"preset": ("the simulated camera ground truth", "the simulated I
                 "euroc": ("the ground truth", "the ground truth (state_groundtruth_estimate0/data.csv)"),
                 "aedat4": ("the ground truth", "the ground truth"),
                 "rosbag": ("the pose topic", "the pose topic"),
+                "cache": ("the ground truth of sequence.npz", "the IMU ground truth of sequence.npz"),
                 "hdf5": ("the ground truth (pose, pose_ts)", "the ground truth (pose, pose_ts)")}
 #: File suffixes of HDF5 recordings.
 HDF5_SUFFIXES = (".h5", ".hdf5")
@@ -427,9 +428,13 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
             from evio_lib.io.ecd import read_ecd
 
             seq, kind = read_ecd(folder, load_events=need_events, load_frames=need_frames), "ecd"
+        elif (folder / "sequence.npz").is_file():  # the binary cache (convert --format cache, simulate --cache)
+            from evio_lib.io.cache import load_sequence_npz
+
+            seq, kind = load_sequence_npz(folder / "sequence.npz"), "cache"
         else:
-            raise ValueError(f"{folder} is not a recording folder: expected events.txt (ECD layout) or mav0/ "
-                             f"(EuRoC ASL layout)")
+            raise ValueError(f"{folder} is not a recording folder: expected events.txt (ECD layout), mav0/ "
+                             f"(EuRoC ASL layout) or sequence.npz (the binary cache)")
         source = str(folder)
     if calib is not None:
         from evio_lib.io.ecd import read_calib
@@ -461,7 +466,7 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
         R_CtoI, p_CinI = np.asarray(seq.R_CtoI, float), np.asarray(seq.p_CinI, float)
         notes.append("extrinsics: from the recording (" + {"preset": "simulator", "ecd": "evio_sim.json",
                                                            "euroc": "sensor.yaml", "aedat4": "file", "rosbag": "bag",
-                                                           "hdf5": "file"}[kind] + ")")
+                                                           "hdf5": "file", "cache": "sequence.npz"}[kind] + ")")
     else:
         R_CtoI, p_CinI = np.eye(3), np.zeros(3)
         notes.append("extrinsics: none in the recording; assumed camera = IMU frame (the DAVIS's own IMU); "

@@ -26,15 +26,17 @@ def _cache(tmp_path, monkeypatch):
     monkeypatch.setenv("EVIO_CACHE_DIR", str(tmp_path / "cache"))
 
 
-def _sequence(grid: str = "ns", n: int = 4000, seed: int = 0, start_us: int = 1_600_000_000_000_000) -> Sequence:
-    """A small recording on the ns (bags) or us (HDF5) grid: events, frames, IMU, camera poses, camera."""
+def _sequence(grid: str = "ns", n: int = 4000, seed: int = 0, start_us: int = 1_600_000_000_000_000,
+              region: tuple[int, int] = (240, 180)) -> Sequence:
+    """A small recording on the ns (bags) or us (HDF5) grid: events (pixels in ``region``), frames, IMU, camera
+    poses, camera (240 x 180)."""
     rng = np.random.default_rng(seed)
     if grid == "ns":
         to_s, t0, step = rosbag.ns_to_seconds, T0_NS, 1_000_000_000
     else:
         to_s, t0, step = us_to_seconds, start_us, 1_000_000
     t_events = to_s(np.sort(rng.integers(t0, t0 + 2 * step, n)))
-    events = make_events(t_events, rng.integers(0, 240, n), rng.integers(0, 180, n), rng.choice([-1, 1], n))
+    events = make_events(t_events, rng.integers(0, region[0], n), rng.integers(0, region[1], n), rng.choice([-1, 1], n))
     t_imu = to_s(np.arange(t0, t0 + 2 * step, step // 200))
     imu = ImuSamples(t=t_imu, gyro=rng.normal(0, 0.02, (t_imu.size, 3)),
                      accel=np.array([0.0, 0.0, 9.81]) + rng.normal(0, 0.02, (t_imu.size, 3)))

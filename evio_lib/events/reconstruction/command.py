@@ -104,7 +104,8 @@ def add_reconstruct_arguments(parser: argparse.ArgumentParser) -> argparse.Argum
     from evio_lib.events.reconstruct import PRECISIONS, available_reconstructors
 
     parser.add_argument("sequence", metavar="SEQUENCE",
-                        help="an ECD-layout folder (events.txt, optional calib.txt) or a preset: boxes_like, aerial_like")
+                        help="an ECD-layout folder (events.txt, optional calib.txt), a ROS bag (.bag or a ROS2 folder), "
+                             "an HDF5 file (.h5/.hdf5: DSEC, TUM-VIE, MVSEC) or a preset: boxes_like, aerial_like")
     parser.add_argument("--out", type=output_folder(), required=True,
                         help="output folder for images.txt and images/ (created; never an input or inside one)")
     parser.add_argument("--method", default="firenet",
@@ -131,6 +132,9 @@ def add_reconstruct_arguments(parser: argparse.ArgumentParser) -> argparse.Argum
     parser.add_argument("--duration", type=float, default=2.0,
                         help="seconds to simulate when SEQUENCE is a preset (default 2)")
     parser.add_argument("--seed", type=int, default=0, help="simulation seed when SEQUENCE is a preset (default 0)")
+    parser.add_argument("--topics", default=None, metavar="TOPICS",
+                        help="a ROS bag's event topic (a preset such as mvsec-left, or events=/topic) or an MVSEC "
+                             "file's camera (davis/left), where the recording holds several")
     parser.add_argument("--force", action="store_true", help="replace a non-empty --out folder")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     return parser
@@ -151,6 +155,23 @@ def _load_events(args: argparse.Namespace) -> tuple[np.ndarray, int, int]:
             raise FileNotFoundError(f"--events file {args.events} does not exist")
         width, height = size or _frame_size(folder) or (240, 180)
         return read_ecd_events(args.events, sensor_size=(width, height)), width, height
+    from evio_lib.pipeline.dataset import _is_bag_or_h5
+
+    topics = getattr(args, "topics", None)
+    if _is_bag_or_h5(args.sequence):
+        # events stay on disk (a memory-mapped .npy in the cache), read a window at a time below
+        if folder.suffix.lower() in (".h5", ".hdf5"):
+            from evio_lib.io.hdf5 import read_hdf5
+
+            sequence = read_hdf5(folder, load_frames=False, group=topics)
+        else:
+            from evio_lib.io.rosbag import read_rosbag
+
+            sequence = read_rosbag(folder, load_frames=False, topics=topics)
+        width, height = size or sequence.sensor_size
+        return sequence.events, int(width), int(height)
+    if topics is not None:
+        raise ValueError("--topics applies to ROS bags and MVSEC HDF5 files")
     if folder.is_dir():
         from evio_lib.io.ecd import read_ecd
 
@@ -228,37 +249,55 @@ def main_reconstruct(args: argparse.Namespace | Sequence[str] | None = None) -> 
                                       max_window_events=window_size_from_fraction(fraction, width, height))
         frame_times = times
     else:
+        from evio_lib.io.event_source import (ArrayEventSource, adaptive_windows_source, count_windows_source,
+                                              event_source)
+
+        source = event_source(events)  # events on disk (a bag, an HDF5 file): windows read one at a time
         if args.adaptive:
-            bounds = adaptive_windows(events, width, height)
+            bounds = (adaptive_windows(events, width, height) if isinstance(source, ArrayEventSource)
+                      else adaptive_windows_source(source, 0, len(source), width, height))
         elif args.window_time is not None:
-            bounds, _ = time_windows(events, args.window_time)
+            if isinstance(source, ArrayEventSource):
+                bounds, _ = time_windows(events, args.window_time)
+            else:  # time_windows' edges, found by binary search in the file
+                bounds, ends = time_windows(np.asarray(events[[0, -1]]), args.window_time)
+                if len(bounds):
+                    edges = np.concatenate([[float(events["t"][0])], ends])
+                    index = np.array([source.index_at(float(t)) for t in edges], dtype=np.int64)
+                    bounds = np.stack([index[:-1], index[1:]], axis=1)
         else:
-            bounds = count_windows(events, window_size_from_fraction(fraction, width, height))
+            bounds = count_windows_source(source, 0, len(source), window_size_from_fraction(fraction, width, height)) \
+                if not isinstance(source, ArrayEventSource) else \
+                count_windows(events, window_size_from_fraction(fraction, width, height))
         if len(bounds) == 0:
             raise ValueError(f"{args.sequence}: {events.size} events make no complete window; use a smaller "
                              f"--window-fraction or --window-time")
-        iterator = bounds
-        if not args.quiet:
-            from tqdm.auto import tqdm
 
-            iterator = tqdm(bounds, desc=f"reconstructing ({reconstructor.name})", unit="frame")
-        reconstructor.reset()
-        frames, frame_times = [], []
-        for a, b in iterator:
-            window = events[a:b]
-            frames.append(reconstructor.reconstruct(window))
-            frame_times.append(float(window["t"][-1]) if b > a else (frame_times[-1] if frame_times else 0.0))
-        frames, frame_times = np.asarray(frames), np.asarray(frame_times)
+        def reconstructed():  # frames one at a time: a long recording never holds them all
+            iterator = bounds
+            if not args.quiet:
+                from tqdm.auto import tqdm
+
+                iterator = tqdm(bounds, desc=f"reconstructing ({reconstructor.name})", unit="frame")
+            reconstructor.reset()
+            last = 0.0
+            for a, b in iterator:
+                window = source.take(a, b)
+                last = float(window["t"][-1]) if b > a else last
+                yield last, reconstructor.reconstruct(window)
+
+        frames = None
     with atomic_output_dir(args.out, args.force) as tmp:
         (tmp / "images").mkdir()
         lines = []
-        for i, (t, frame) in enumerate(zip(frame_times, frames)):
+        for i, (t, frame) in enumerate(zip(frame_times, frames) if frames is not None else reconstructed()):
             name = f"images/frame_{i:08d}.png"
             if not cv2.imwrite(str(tmp / name), np.round(np.clip(frame, 0, 1) * 255).astype(np.uint8)):
                 raise OSError(f"could not write {tmp / name}")
             lines.append(f"{t:.9f} {name}\n")
         (tmp / "images.txt").write_text("".join(lines))
+        written = len(lines)
     chosen = getattr(reconstructor, "precision", None)  # a network's arithmetic (what --precision auto chose)
     what = reconstructor.name if chosen is None else f"{reconstructor.name}, {chosen}"
-    print(f"wrote {len(frame_times)} frames ({what}, {width}x{height}) to {args.out}")
+    print(f"wrote {written} frames ({what}, {width}x{height}) to {args.out}")
     return 0
