@@ -12,7 +12,9 @@ from evio_lib.evaluation.plots_features import (  # noqa: E402
     plot_cell_correspondences,
     plot_cell_probabilities,
     plot_detections,
+    plot_evaluation_schematic,
     plot_fast_circle,
+    plot_feature_schematic,
     plot_heatmap_row,
     plot_homography_corners,
     plot_keypoints,
@@ -46,8 +48,11 @@ def _render(fig) -> np.ndarray:
 
 def test_structure_tensor_classes_renders_three_panels(image: np.ndarray) -> None:
     classes = (image > 0.5).astype(int) + (image > 0.9)
-    fig = plot_structure_tensor_classes(image, image - 0.5, classes)
-    assert len(fig.axes) == 3 and _render(fig).size > 0
+    fig = plot_structure_tensor_classes(image, image - 0.5, classes, clip=0.05)
+    assert len(fig.axes) == 4 and _render(fig).size > 0  # three panels and the colour bar of R
+    assert fig.axes[1].images[0].get_clim() == pytest.approx((-0.05 * np.abs(image - 0.5).max(),
+                                                               0.05 * np.abs(image - 0.5).max()))
+    assert fig.axes[3].get_ylabel().startswith("R (colour scale clipped at ±5 %")
     with pytest.raises(ValueError, match="share one shape"):
         plot_structure_tensor_classes(image, image[:10], classes)
 
@@ -57,7 +62,10 @@ def test_keypoints_panels_titles_and_counts(image: np.ndarray, rng: np.random.Ge
     fig = plot_keypoints(image, sets, ncols=2, ranked=True)
     titles = [ax.get_title() for ax in fig.axes if ax.get_title()]
     assert titles == ["harris: 7", "fast: 0", "sift: 3"]
-    assert len(fig.axes) == 4  # 2 x 2 grid, the last panel empty
+    assert len(fig.axes) == 5  # 2 x 2 grid, the last panel empty, and one colour bar for the rank
+    assert fig.axes[4].get_ylabel() == "rank / count (0 = strongest, 1 = weakest)"
+    np.testing.assert_allclose(fig.axes[0].collections[0].get_array(), np.arange(7) / 6)  # strongest first
+    assert len(plot_keypoints(image, sets, ncols=2).axes) == 4  # one colour: no colour bar
     _render(fig)
     with pytest.raises(ValueError, match=r"\(N, 2\)"):
         plot_keypoints(image, {"bad": np.zeros((3, 3))})
@@ -79,8 +87,11 @@ def test_fast_circle_colours_follow_the_segment_test() -> None:
 
 
 def test_scale_space_binary_and_repeatability_figures(image: np.ndarray, rng: np.random.Generator) -> None:
-    fig = plot_scale_space([image - 0.5, 0.5 - image], [1.6, 2.0], image, rng.uniform(0, 40, (5, 2)))
-    assert [ax.get_title() for ax in fig.axes] == ["DoG, sigma = 1.60", "DoG, sigma = 2.00", "SIFT: 5 keypoints"]
+    fig = plot_scale_space([image - 0.5, 2 * (0.5 - image)], [1.6, 2.0], image, rng.uniform(0, 40, (5, 2)))
+    assert [ax.get_title() for ax in fig.axes] == ["DoG, sigma = 1.60", "DoG, sigma = 2.00", "SIFT: 5 keypoints", ""]
+    lim = 2 * np.abs(image - 0.5).max()  # both levels on the range of the larger one
+    assert fig.axes[0].images[0].get_clim() == fig.axes[1].images[0].get_clim() == pytest.approx((-lim, lim))
+    assert fig.axes[3].get_ylabel() == "D (image intensity units)"
     with pytest.raises(ValueError, match="equal length"):
         plot_scale_space([image], [1.6, 2.0], image, np.zeros((0, 2)))
 
@@ -142,11 +153,19 @@ def test_detections_grid_rows_are_detectors(image: np.ndarray) -> None:
 def test_heatmap_row_and_cell_correspondences(image: np.ndarray) -> None:
     fig = plot_heatmap_row([image, image * 2, image], ["image", "one view", "labels"], ["gray", "magma", "gray"],
                            points={2: np.array([[3.0, 4.0], [10.0, 12.0]])})
-    assert [ax.get_title() for ax in fig.axes] == ["image", "one view", "labels"]
+    assert [ax.get_title() for ax in fig.axes] == ["image", "one view", "labels", ""]  # a colour bar for the heatmap
     np.testing.assert_allclose(fig.axes[2].collections[0].get_offsets(), [[3.0, 4.0], [10.0, 12.0]])
     assert not fig.axes[1].collections  # no points on the other panels
     with pytest.raises(ValueError, match="panel indices"):
         plot_heatmap_row([image], ["a"], points={3: np.zeros((1, 2))})
+    fig = plot_heatmap_row([image, image * 2, image * 3], ["a", "b", "c"], ["gray", "magma", "magma"],
+                           colorbar_labels={0: "intensity", 2: "probability"}, shared=[(1, 2)])
+    assert [ax.get_ylabel() for ax in fig.axes[3:]] == ["intensity", "", "probability"]
+    assert fig.axes[1].images[0].get_clim() == fig.axes[2].images[0].get_clim() == (
+        pytest.approx(2 * image.min()), pytest.approx(3 * image.max()))
+    _render(fig)
+    with pytest.raises(ValueError, match="groups of panel indices"):
+        plot_heatmap_row([image, image], ["a", "b"], shared=[(0, 5)])
 
     centres = np.array([[3.5, 3.5], [11.5, 3.5], [19.5, 3.5]])
     S = np.array([[0, 1, 0], [0, 0, 1], [0, 0, 0]])
@@ -186,7 +205,8 @@ def test_cell_probabilities_shows_the_cell_and_cell_borders() -> None:
     probabilities[-1] = 0.5
     heatmap = np.zeros((16, 24))
     fig = plot_cell_probabilities(probabilities, heatmap, cell_name="(0, 1)")
-    left, right = fig.axes
+    left, right, left_bar, right_bar = fig.axes
+    assert (left_bar.get_ylabel(), right_bar.get_ylabel()) == ("probability", "keypoint probability")
     assert left.get_title() == "65 probabilities of cell (0, 1): 64 pixels + dustbin (last)"
     np.testing.assert_allclose(left.images[0].get_array(), probabilities[None])
     assert len(right.lines) == 3  # borders between the 2 x 3 cells: 2 vertical, then 1 horizontal
@@ -224,6 +244,7 @@ def test_homography_corners_draw_both_quadrilaterals_and_the_mean_error(image: n
     fig = plot_homography_corners(image, true, estimated)
     ax = fig.axes[0]
     assert ax.get_title() == "image 1's corners in image 2: mean error 3.75 px"
+    assert (ax.get_xlabel(), ax.get_ylabel()) == ("x in image 2 (px)", "y in image 2 (px)")
     x, y = ax.lines[0].get_data()
     np.testing.assert_allclose(np.column_stack([x, y]), true[[0, 1, 3, 2, 0]])  # a closed quadrilateral
     assert ax.get_xlim()[0] < true[:, 0].min() and ax.get_xlim()[1] > true[:, 0].max()  # corners outside the image
@@ -279,3 +300,45 @@ def test_oracle_corner_errors_scatter_clipped_for_log_axes() -> None:
         plot_oracle_corner_errors({})
     with pytest.raises(ValueError, match=r"diagnoses\['sift'\] must be two \(P,\) arrays of equal length"):
         plot_oracle_corner_errors({"sift": ([1, 2], [1.0])})
+
+
+def _arrow_styles(ax) -> list[str]:
+    """The line style of every arrow annotation of ``ax``: '-' solid or ':' dotted."""
+    return [a.arrow_patch.get_linestyle() for a in ax.texts if getattr(a, "arrow_patch", None) is not None]
+
+
+def test_feature_schematic_draws_detector_descriptor_window_shifts_and_repeatability() -> None:
+    fig = plot_feature_schematic(eps=3.0)
+    titles = [ax.get_title() for ax in fig.axes]
+    assert [t.split(":")[0] for t in titles] == ["detector", "one keypoint", "descriptor", "flat", "edge", "corner",
+                                                 "repeatability"]
+    flat, edge, corner = fig.axes[3:6]
+    solid, dotted = "-", ":"
+    assert set(_arrow_styles(flat)) == {dotted}  # no shift changes a flat window
+    assert sorted(_arrow_styles(edge)).count(dotted) == 2  # up and down along the vertical edge
+    assert set(_arrow_styles(corner)) == {solid}  # every shift changes a corner's window
+    assert "λ2 = 0.00" in flat.texts[-1].get_text() and "λ2 = 0.00" in edge.texts[-1].get_text()
+    assert "λ2 = 0.00" not in corner.texts[-1].get_text()
+    bars = fig.axes[2].patches
+    assert len(bars) == 32 and np.isclose(np.linalg.norm([b.get_height() for b in bars]), 1.0)  # unit length
+    assert titles[-1].endswith("Rep = (6 + 6) / (7 + 7) = 0.86")  # one detection drawn 9 px off
+    assert "Rep = (7 + 7)" in plot_feature_schematic(eps=10.0).axes[-1].get_title()
+    _render(fig)
+    with pytest.raises(ValueError, match="positive number of pixels"):
+        plot_feature_schematic(eps=0.0)
+
+
+def test_evaluation_schematic_draws_the_four_steps_with_computed_values() -> None:
+    fig = plot_evaluation_schematic(eps=3.0)
+    pair, repeat, match, homography = fig.axes
+    assert "Rep = (6 + 6) / (7 + 7) = 0.86" in repeat.get_title()
+    colours = [matplotlib.colors.to_hex(line.get_color()) for line in match.lines]
+    assert colours.count(matplotlib.colors.to_hex("tab:green")) == 4  # 7 matches: 2 swapped, 1 detection off
+    assert "(4 of 7)" in match.get_title()
+    assert "not correct at ε = 3 px" in homography.get_title()
+    assert "4.1 px" in homography.get_title()
+    assert plot_evaluation_schematic(eps=5.0).axes[3].get_title().endswith("\ncorrect at ε = 5 px")
+    assert (homography.get_xlabel(), homography.get_ylabel()) == ("x in image 2 (px)", "y in image 2 (px)")
+    _render(fig)
+    with pytest.raises(ValueError, match="positive number of pixels"):
+        plot_evaluation_schematic(eps=float("nan"))
