@@ -6,7 +6,11 @@ matplotlib.use("Agg")
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from evio_lib.evaluation.plots_imu import plot_pose_errors  # noqa: E402
+from evio_lib.evaluation.plots_imu import (  # noqa: E402
+    plot_imu_model_schematic,
+    plot_pose_errors,
+    specific_force_in_body,
+)
 
 
 
@@ -37,3 +41,22 @@ def test_plot_pose_errors_rejects_bad_input():
         plot_pose_errors(t, {})
     with pytest.raises(ValueError, match=r"t must be a finite array of shape \(T,\), T >= 2"):
         plot_pose_errors([0.0], {"a": ([0.0], [0.0], [0.0])})
+
+
+def test_imu_schematic_draws_the_specific_force_to_scale():
+    fig = plot_imu_model_schematic(tilt_deg=20.0, accel_G=(4.0, 0.0))
+    forces, blocks = fig.axes
+    assert (forces.get_xlabel(), forces.get_ylabel()) == ("x_G [m/s²]", "z_G (up) [m/s²]")
+    assert "(7.11, 7.85) m/s²" in forces.get_title()  # (4, 9.81) seen from a body pitched by 20 degrees
+    assert not blocks.axison and any("gyroscope" in t.get_text() for t in blocks.texts)
+    fig.canvas.draw()
+    with pytest.raises(ValueError, match="tilt_deg must be a pitch within"):
+        plot_imu_model_schematic(tilt_deg=80.0)
+
+
+def test_specific_force_at_rest_is_one_g_up_and_follows_the_tilt():
+    np.testing.assert_allclose(specific_force_in_body(0.0, (0.0, 0.0)), [0.0, 9.81])
+    np.testing.assert_allclose(specific_force_in_body(90.0, (0.0, 0.0)), [9.81, 0.0], atol=1e-12)  # nose up
+    np.testing.assert_allclose(specific_force_in_body(0.0, (0.0, -9.81)), [0.0, 0.0])  # free fall reads zero
+    with pytest.raises(ValueError, match=r"accel_G must be a finite \(a_x, a_z\) pair"):
+        specific_force_in_body(0.0, (1.0, 2.0, 3.0))
