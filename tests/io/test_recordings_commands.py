@@ -12,7 +12,20 @@ from evio_lib.events.reconstruction.command import main_reconstruct  # noqa: E40
 from evio_lib.io import event_source, hdf5, rosbag  # noqa: E402
 from evio_lib.io.convert import write_ecd_streamed  # noqa: E402
 from evio_lib.io.ecd import read_ecd, write_ecd  # noqa: E402
-from tests.io.test_recordings import _same, _sequence  # noqa: E402
+
+
+def _load_helpers():
+    """The recording helpers of test_recordings.py (the tests folder is no package)."""
+    import importlib.util
+    from pathlib import Path
+
+    spec = importlib.util.spec_from_file_location("_recordings_helpers", Path(__file__).with_name("test_recordings.py"))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module._same, module._sequence
+
+
+_same, _sequence = _load_helpers()
 
 
 @pytest.fixture(autouse=True)
