@@ -13,22 +13,44 @@
 #
 # Lesson 04 (`04_event_reconstruction`) turned a stream of events into **image frames**: count images, time surfaces
 # and reconstructed intensity. From here on the pipeline treats those frames like the pictures of an ordinary camera
-# (an APS frame skips the reconstruction step altogether), and the next question is which points of a frame to
+# (an APS frame, the ordinary intensity image of the same sensor, skips the reconstruction step altogether), and the next question is which points of a frame to
 # follow. This lesson answers it on ordinary photographs, where every detector is easy to see at work; lesson 08
 # runs the same detectors on event frames.
 #
 # A visual odometry front end does not track every pixel. It picks a few hundred **features** — small image regions it
 # can find again in the next frame — measures where they moved, and feeds those measurements to the motion estimator
-# (lesson 02 and, later, the MSCKF, the filter of lessons 10-12). The thesis (§2.1.3) judges a detector by
-# "localization accuracy, repeatability, computational efficiency, robustness to noise, and invariance to photometric
-# and geometric changes"; for matching, a feature also needs a distinctive descriptor. In short, a good feature is:
+# (lesson 02 and, later, the MSCKF, the filter of lessons 10-12). A **detector** decides where the features are
+# (keypoints: a position and a score each); a **descriptor** summarises the patch around each keypoint as a vector,
+# so that the same point can be recognised in another image by comparing vectors. The thesis this course follows
+# (Friedel 2020, *Event-based visual-inertial odometry using smart features*, §2.1.3) grades a detector by how
+# precisely it places its points, how reliably it finds them again, how fast and how robust to noise it is, and how
+# little a change of lighting or viewpoint disturbs it; for matching, a feature also needs a distinctive
+# descriptor. In short, a good feature is:
 #
 # * **well localised**: its position is sharply defined in both directions (a corner, not a point on a straight edge);
 # * **repeatable**: the detector fires on the same physical point after the camera moved or the light changed;
 # * **distinctive**: a **descriptor** — a vector summarising the patch around it — tells it apart from the others,
 #   so that it can be matched;
-# * **cheap** to compute, because a VIO system runs at camera rate.
+# * **cheap** to compute, because a visual-inertial odometry (VIO) system runs at camera rate.
 #
+# The figure draws these ideas on a made-up scene before any of them is computed. Top: a detector marks the corners
+# of two shapes; the patch around one of them becomes a descriptor, here a small histogram of gradient directions
+# in the four quarters of the patch. Bottom left: a small window (yellow) shifted in eight directions over a flat
+# patch, an edge and a corner; an arrow is green where the shift changes what the window sees. Only at the corner
+# does every shift change it, so only there is the position fixed in both directions (section 1 turns this into
+# the structure tensor and its two eigenvalues λ1, λ2, printed under each patch). Bottom right: **repeatability**,
+# the same points found again in a second view related to the first by a homography H (the 3 x 3 matrix that maps
+# one view of a plane onto another, lesson 02; section 5).
+
+# %%
+import matplotlib.pyplot as plt
+
+from evio_lib.evaluation.plots_features import plot_feature_schematic
+
+fig = plot_feature_schematic()
+plt.show()
+
+# %% [markdown]
 # This lesson builds intuition for the classical answers that the learned detector of lessons 06-08 is compared
 # with (thesis Tables 2-5):
 #
@@ -43,15 +65,17 @@
 # same `Features` record (keypoints, scores, descriptors).
 
 # %%
-import os
 import time
 
 import cv2
 import matplotlib.pyplot as plt
 import numpy as np
+from IPython.display import Markdown, display
 from scipy import ndimage
 from skimage import data
 from skimage.color import rgb2gray
+
+from evio_lib.course import fast_mode
 
 from evio_lib.features.base import available_detectors, create_detector, to_float_image, to_uint8_image
 from evio_lib.features.classical import fast_score, harris_response
@@ -67,10 +91,10 @@ from evio_lib.evaluation.plots_features import (
 )
 from evio_lib.geometry.homography import sample_homography, warp_image, warp_points
 
-FAST = os.environ.get("EVIO_FAST", "0") == "1"  # CI sets EVIO_FAST=1: smaller images, fewer image pairs
+FAST = fast_mode()
 rng = np.random.default_rng(5)
 
-image = data.camera()  # a 512 x 512 uint8 photograph shipped with scikit-image
+image = data.camera()  # a uint8 photograph that comes with scikit-image
 if FAST:
     image = cv2.resize(image, (256, 256), interpolation=cv2.INTER_AREA)
 img01 = to_float_image(image)  # float32 in [0, 1], the library's image convention
@@ -119,8 +143,10 @@ assert np.allclose(R_numpy, R_opencv, atol=1e-6 * np.abs(R_opencv).max())
 assert np.allclose(R_numpy, harris_response(image), atol=1e-6 * np.abs(R_opencv).max())
 
 # %% [markdown]
-# The eigenvalues of $M$ sort every pixel into flat, edge or corner. The picture shows $R$ (red: positive,
-# blue: negative) and that classification.
+# The eigenvalues of $M$ sort every pixel into flat, edge or corner: here a pixel counts as an edge when only
+# $\lambda_1$ exceeds 1 % of the image's largest $\lambda_1$, as a corner when $\lambda_2$ does too. The picture
+# shows $R$ (red: positive, blue: negative; the colour scale is clipped so that the weak responses show) and that
+# classification.
 
 # %%
 half_trace, det = (a + c) / 2, a * c - b**2
@@ -154,8 +180,7 @@ cols, rows = shi.keypoints[:, 0].astype(int), shi.keypoints[:, 1].astype(int)
 assert np.allclose(shi.scores, lam2[rows, cols], rtol=1e-3, atol=1e-6)
 print(f"Harris: {len(harris)} keypoints, Shi-Tomasi: {len(shi)} keypoints (best 300 after NMS 4)")
 
-fig = plot_keypoints(image, {"Harris (yellow = weaker)": harris.keypoints,
-                             "Shi-Tomasi (yellow = weaker)": shi.keypoints}, ncols=2, ranked=True)
+fig = plot_keypoints(image, {"Harris": harris.keypoints, "Shi-Tomasi": shi.keypoints}, ncols=2, ranked=True)
 plt.show()
 
 # %% [markdown]
@@ -244,8 +269,8 @@ assert np.allclose(np.linalg.norm(sift.descriptors, axis=1), 1.0, atol=1e-5)
 
 # %% [markdown]
 # Harris, Shi-Tomasi and FAST only detect. To compare them with the others on matching, the library describes their
-# keypoints with **upright SIFT descriptors** computed at the keypoint (a fixed patch size, orientation 0); this is
-# documented in `evio_lib.features.classical`.
+# keypoints with **upright SIFT descriptors** computed at the keypoint (a fixed patch size, orientation 0;
+# `evio_lib.features.classical`).
 #
 # ## 4. Binary descriptors: ORB and FREAK
 #
@@ -371,12 +396,12 @@ plt.show()
 # %% [markdown]
 # ### Repeatability of every detector
 #
-# A few photographs shipped with scikit-image, resized to 240 x 320 (fast mode: 2 photographs at 120 x 160, one warp
-# each), each warped by random homographies
-# (viewpoint) and, separately, given a strong photometric change with the geometry untouched (illumination:
-# gamma, contrast and brightness). Thesis settings: best 300 points, NMS radius 4. The library version with
-# every option (keep the best $k$ in the shared view, several $\varepsilon$ at once) is used from here on; lesson
-# 08 runs the full benchmark, with descriptors and homography estimation, on held-out images.
+# Photographs that come with scikit-image, resized and each warped by random homographies (viewpoint) and,
+# separately, given a strong photometric change with the geometry untouched (illumination: gamma, contrast and
+# brightness); the first line under the cell prints how many pairs and their size. Thesis settings: best 300
+# points, NMS radius 4. The library version with every option (keep the best $k$ in the shared view, several
+# $\varepsilon$ at once) is used from here on; lesson 08 runs the full benchmark, with descriptors and homography
+# estimation, on held-out images.
 
 # %%
 photos = [data.camera(), data.astronaut(), data.coffee(), data.chelsea(), data.brick(), data.rocket()]
@@ -406,7 +431,8 @@ for name in names:
                                              eps=eps_list, scores1=f1.scores, scores2=f2.scores, keep_k=300))
     table[name] = {split: np.nanmean(values, axis=0) for split, values in rows.items()}
 
-print(f"{len(pairs)} image pairs per split\n")
+print(f"{len(pairs)} image pairs per split ({len(photos)} photographs, {photos[0].shape[0]} x {photos[0].shape[1]} "
+      f"pixels)\n")
 print(f"{'detector':12s} | {'viewpoint eps=1/3/5':^22s} | {'illumination eps=1/3/5':^22s}")
 for name in names:
     v, i = table[name]["viewpoint"], table[name]["illumination"]
@@ -421,24 +447,39 @@ at = lambda split, k: {name: table[name][split][k] for name in names}  # repeata
 corner_detectors = ("harris", "shi_tomasi", "fast", "fast_freak")  # FAST-FREAK detects with FAST
 assert min(at("viewpoint", 1)[n] for n in corner_detectors) > max(at("viewpoint", 1)[n] for n in ("sift", "orb"))
 assert min(at("viewpoint", 2)[n] for n in corner_detectors) > at("viewpoint", 2)["sift"]
+assert all(at("viewpoint", k)["sift"] == min(at("viewpoint", k).values()) for k in (1, 2))  # SIFT last at 3, 5 px
 assert all(at("viewpoint", 1)[n] - at("viewpoint", 0)[n] > 0.1 for n in corner_detectors)  # eps = 1 px costs
 assert max(at("illumination", 0).values()) < 0.9  # the same geometry, yet points are lost
 
 # %% [markdown]
-# What to read from this (your numbers depend on the images; the thesis's HPatches results are in its Table 2):
-#
-# * The corner detectors (Harris, Shi-Tomasi, FAST, and FAST-FREAK, which detects with FAST) are more repeatable
-#   than SIFT and ORB for moderate viewpoint changes at $\varepsilon = 3$ px, and more than SIFT at 5 px — in the
-#   thesis's Table 2 (HPatches, a standard benchmark of photographed planar scenes, lesson 08), Harris has the best
-#   viewpoint repeatability of all methods at $\varepsilon = 3$ and 5 px (0.758 and 0.868), while at 1 px the
-#   thesis's learned detector (pre-trained DetDesc Round 2, lesson 07) leads (0.377 against Harris's 0.312).
-# * At $\varepsilon = 1$ px every detector scores lower, the corner detectors by more than 0.1 on the viewpoint
-#   pairs: integer-pixel corners and the resampling of the warp move points by a pixel or so.
-# * At 3 and 5 px SIFT is less repeatable by this measure: its blobs are spread over scales, and a blob's centre is less
-#   precisely defined than a corner. Repeatability ignores what SIFT is good at, its descriptor.
-# * Under illumination changes the geometry is identical, yet every detector loses points (none reaches 0.9 at 1 px):
-#   thresholds and the ranking of the best 300 depend on contrast. Lesson 08 asks whether the learned detector of
-#   lessons 06-07 does better here.
+# What to read from this (the numbers depend on the images; the sentences below are written from the table above):
+
+# %%
+span = lambda values: f"{min(values):.2f} to {max(values):.2f}"
+best_view3 = max(names, key=lambda n: at("viewpoint", 1)[n])
+drop = [at("viewpoint", 1)[n] - at("viewpoint", 0)[n] for n in corner_detectors]
+display(Markdown(
+    f"* The corner detectors (Harris, Shi-Tomasi, FAST, and FAST-FREAK, which detects with FAST) are more repeatable "
+    f"than SIFT and ORB under these viewpoint changes at ε = 3 px ({span([at('viewpoint', 1)[n] for n in corner_detectors])} "
+    f"against SIFT's {at('viewpoint', 1)['sift']:.2f} and ORB's {at('viewpoint', 1)['orb']:.2f}), and more than SIFT "
+    f"at 5 px ({span([at('viewpoint', 2)[n] for n in corner_detectors])} against {at('viewpoint', 2)['sift']:.2f}). "
+    f"The most repeatable here at 3 px is {best_view3} ({at('viewpoint', 1)[best_view3]:.2f}). In the thesis's "
+    f"Table 2 (HPatches, a standard benchmark of photographed planar scenes, lesson 08), which has no Shi-Tomasi "
+    f"row, Harris has the best viewpoint repeatability of all methods at ε = 3 and 5 px (0.758 and 0.868), while at "
+    f"1 px the thesis's learned detector (pre-trained DetDesc Round 2, lesson 07) leads (0.377 against Harris's "
+    f"0.312).\n"
+    f"* At ε = 1 px every detector scores lower; the corner detectors lose {span(drop)} of repeatability on the "
+    f"viewpoint pairs against 3 px: integer-pixel corners and the resampling of the warp move points by a pixel or "
+    f"so.\n"
+    f"* At 3 and 5 px SIFT is the least repeatable by this measure ({at('viewpoint', 1)['sift']:.2f} and "
+    f"{at('viewpoint', 2)['sift']:.2f}): its blobs are spread over scales, and a blob's centre is less precisely "
+    f"defined than a corner. Repeatability ignores what SIFT is good at, its descriptor.\n"
+    f"* Under illumination changes the geometry is identical, yet every detector loses points: at 1 px the best "
+    f"reaches {max(at('illumination', 0).values()):.2f} ({max(names, key=lambda n: at('illumination', 0)[n])}). "
+    f"Thresholds and the ranking of the best 300 depend on contrast. Lesson 08 asks whether the learned detector "
+    f"of lessons 06-07 does better here."))
+
+# %% [markdown]
 #
 # ## Summary
 #
@@ -484,5 +525,5 @@ assert max(at("illumination", 0).values()) < 0.9  # the same geometry, yet point
 #    *Hint:* use `time.process_time()` (CPU time, steadier than the wall clock on a busy machine) around
 #    `detect_and_describe`, best of a few runs after a warm-up; 30 frames/s is 33 ms per image.
 #
-# Solutions, with the code to run (checked by `tests/test_solutions.py`):
+# Worked solutions, with the code to run:
 # [docs/solutions/05_classical_features.md](../docs/solutions/05_classical_features.md).

@@ -193,16 +193,18 @@ def plot_fast_circle(image: ArrayLike, centre: Sequence[int], circle: ArrayLike,
 
 
 def plot_scale_space(dogs: Sequence[ArrayLike], sigmas: Sequence[float], image: ArrayLike,
-                     keypoints: ArrayLike) -> "Figure":
+                     keypoints: ArrayLike, clip_percentile: float = 99.5) -> "Figure":
     """Return one row: the difference-of-Gaussian levels (red > 0, blue < 0) and the image with SIFT keypoints.
 
-    Every level is drawn on one symmetric colour range (the largest |D| of all levels), with one colour bar.
+    Every level is drawn on one symmetric colour range, +-``clip_percentile`` of |D| over all levels (a few strong
+    responses would otherwise wash the rest out), with one colour bar.
 
     Args:
         dogs: K (H, W) difference-of-Gaussian images D = G(k sigma) * I - G(sigma) * I.
         sigmas: K scales sigma, one per level (used in the titles).
         image: (H, W) grayscale image.
         keypoints: (N, 2) keypoints (x, y).
+        clip_percentile: the percentile of |D| (over every level) where the colour scale ends, in (0, 100].
 
     >>> import matplotlib; matplotlib.use("Agg")
     >>> len(plot_scale_space([np.ones((4, 4))], [1.6], np.zeros((4, 4)), [[1.0, 1.0]]).axes)  # and a colour bar
@@ -213,19 +215,23 @@ def plot_scale_space(dogs: Sequence[ArrayLike], sigmas: Sequence[float], image: 
     if len(dogs) != len(sigmas) or len(dogs) == 0:
         raise ValueError(f"dogs and sigmas must be non-empty and of equal length; got {len(dogs)} and {len(sigmas)}")
     image, points = _image(image), _points(keypoints)
+    if not 0 < clip_percentile <= 100:
+        raise ValueError(f"clip_percentile must lie in (0, 100]; got {clip_percentile}")
     dogs = [_image(dog, "dog") for dog in dogs]
-    lim = max(max(float(np.abs(dog).max()) for dog in dogs), 1e-12)  # one colour range for every level
-    fig, axes = plt.subplots(1, len(dogs) + 1, figsize=(4 * (len(dogs) + 1) + 0.6, 4.3))
+    magnitudes = np.concatenate([np.abs(dog).ravel() for dog in dogs])
+    lim = max(float(np.percentile(magnitudes, clip_percentile)), 1e-12)  # one colour range for every level
+    fig, axes = plt.subplots(1, len(dogs) + 1, figsize=(4 * (len(dogs) + 1) + 0.8, 4.3), layout="constrained")
     for ax, dog, sigma in zip(axes, dogs, sigmas):
         shown = ax.imshow(dog, cmap="coolwarm", vmin=-lim, vmax=lim)
         ax.set_title(f"DoG, sigma = {sigma:.2f}")
         ax.axis("off")
+    extend = "both" if lim < magnitudes.max() else "neither"
+    fig.colorbar(shown, ax=list(axes[:-1]), fraction=0.02, pad=0.01, extend=extend).set_label(
+        "D (image intensity units)")
     axes[-1].imshow(image, cmap="gray")
     axes[-1].scatter(points[:, 0], points[:, 1], s=10, c="tab:orange")
     axes[-1].set_title(f"SIFT: {len(points)} keypoints")
     axes[-1].axis("off")
-    fig.tight_layout()
-    fig.colorbar(shown, ax=list(axes[:-1]), fraction=0.02, pad=0.01).set_label("D (image intensity units)")
     return fig
 
 

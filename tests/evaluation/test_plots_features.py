@@ -89,11 +89,13 @@ def test_fast_circle_colours_follow_the_segment_test() -> None:
 def test_scale_space_binary_and_repeatability_figures(image: np.ndarray, rng: np.random.Generator) -> None:
     fig = plot_scale_space([image - 0.5, 2 * (0.5 - image)], [1.6, 2.0], image, rng.uniform(0, 40, (5, 2)))
     assert [ax.get_title() for ax in fig.axes] == ["DoG, sigma = 1.60", "DoG, sigma = 2.00", "SIFT: 5 keypoints", ""]
-    lim = 2 * np.abs(image - 0.5).max()  # both levels on the range of the larger one
+    lim = np.percentile(np.abs(np.concatenate([image - 0.5, 2 * (0.5 - image)])), 99.5)  # over both levels
     assert fig.axes[0].images[0].get_clim() == fig.axes[1].images[0].get_clim() == pytest.approx((-lim, lim))
     assert fig.axes[3].get_ylabel() == "D (image intensity units)"
     with pytest.raises(ValueError, match="equal length"):
         plot_scale_space([image], [1.6, 2.0], image, np.zeros((0, 2)))
+    with pytest.raises(ValueError, match=r"clip_percentile must lie in \(0, 100\]"):
+        plot_scale_space([image], [1.6], image, np.zeros((0, 2)), clip_percentile=0)
 
     bits = np.unpackbits(rng.integers(0, 256, (20, 32), dtype=np.uint8), axis=1)
     fig = plot_binary_descriptors(bits, 12, "ORB")
