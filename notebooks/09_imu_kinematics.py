@@ -13,7 +13,8 @@
 #
 # Notebook 08 ended with what the filter asks of the front end: tracks of the same scene points over several images,
 # as undistorted coordinates with about a pixel of noise. Those tracks only *correct* the estimate. The MSCKF back-end
-# of the thesis (§3.3) is an *IMU-driven* filter: between two images the state is carried forward by integrating the
+# of the thesis this course follows (Friedel 2020, *Event-based visual-inertial odometry using smart features*, §3.3)
+# is an *IMU-driven* filter: between two images the state is carried forward by integrating the
 # gyroscope and the accelerometer, and the camera corrects it afterwards. This lesson is about that first half, with
 # no camera at all:
 #
@@ -31,6 +32,24 @@
 # `evio_lib.msckf.propagation.integrate_imu` (the filter's nominal integrator) and
 # `evio_lib.msckf.initialization.static_initialization`.
 
+# %% [markdown]
+# First the idea as a picture. Left, to scale in m/s²: a body pitched by 20° that accelerates forward. Gravity pulls
+# it down, but an accelerometer cannot feel gravity as such (it falls along with the body): it measures the
+# **specific force** $\mathbf f = \mathbf a - \mathbf g$, the orange sum of the acceleration and "$-\mathbf g$", and it
+# measures it along its own axes $x_I, z_I$ (the title gives the two components). Right: the model of section 3. The
+# gyroscope adds a bias and white noise to the true angular rate, the accelerometer adds its own bias and noise to the
+# true specific force; each bias wanders slowly (a random walk). Dead reckoning subtracts its estimates of the biases
+# and integrates: the rate into the attitude $\bar q_{GtoI}$, the specific force, rotated into the world frame $G$ by
+# that attitude and with gravity added back, into the velocity and then the position (thesis Eq. 31).
+
+# %%
+import matplotlib.pyplot as plt
+
+from evio_lib.evaluation.plots_imu import plot_imu_model_schematic
+
+fig = plot_imu_model_schematic(tilt_deg=20.0, accel_G=(4.0, 0.0))
+plt.show()
+
 # %%
 import os
 
@@ -41,8 +60,10 @@ from pathlib import Path  # noqa: E402
 
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from IPython.display import Markdown, display  # noqa: E402
 
 import evio_lib  # noqa: E402
+from evio_lib.course import fast_mode  # noqa: E402
 from evio_lib.evaluation.plots_imu import plot_pose_errors  # noqa: E402
 from evio_lib.evaluation.plots_msckf import plot_error_growth  # noqa: E402
 from evio_lib.evaluation.plots_sim import plot_imu_vs_truth  # noqa: E402
@@ -61,10 +82,10 @@ from evio_lib.msckf.state import ImuState  # noqa: E402
 from evio_lib.sim.imu import GRAVITY_G, ImuNoiseParams, integrate_imu_rk4, synthesize_imu  # noqa: E402
 from evio_lib.sim.trajectory import trajectory_from_preset  # noqa: E402
 
-FAST = os.environ.get("EVIO_FAST", "0") == "1"  # CI sets EVIO_FAST=1: a few seconds of data, same lesson
+FAST = fast_mode()
 rng = np.random.default_rng(909)
 DURATION = 3.0 if FAST else 10.0  # seconds of simulated motion
-print(f"FAST = {FAST}: {DURATION:g} s of simulated IMU data")
+print(f"{DURATION:g} s of simulated IMU data")
 
 # %% [markdown]
 # ## 1. JPL quaternions and their kinematics
@@ -178,15 +199,18 @@ R_ref, p_ref, v_ref = integrate_imu_rk4(imu_short, s0.R_ItoG[0], s0.p_IinG[0], s
 print(f"hand RK4 vs sim.imu.integrate_imu_rk4: position {np.linalg.norm(p_hand - p_ref[-1]):.2e} m")
 assert np.linalg.norm(p_hand - p_ref[-1]) < 1e-8  # the same RK4 scheme: identical up to round-off
 assert dtheta < 1e-5 and np.linalg.norm(p_hand - p_lib[-1]) < 3e-6  # the filter's integrator: ~1 µm apart
-assert 3e-5 < lib_vs_truth < 1e-4 and lib_vs_truth > 20 * np.linalg.norm(p_hand - p_lib[-1])  # ~50 µm, > 20x
+assert 3e-5 < lib_vs_truth < 1e-4 and lib_vs_truth > 20 * np.linalg.norm(p_hand - p_lib[-1])
+display(Markdown(
+    f"The hand-written step reproduces the simulator's reference RK4 integrator (`integrate_imu_rk4`) to round-off "
+    f"({np.linalg.norm(p_hand - p_ref[-1]):.0e} m). The filter's integrator differs from it by "
+    f"{np.linalg.norm(p_hand - p_lib[-1]) * 1e6:.1f} µm after 2 s: it rotates the quaternion in closed form with the "
+    f"mean rate of each half step, which is exact for a constant rate but only second order for a changing one. Both "
+    f"are {lib_vs_truth * 1e6:.0f} µm from the truth, {lib_vs_truth / np.linalg.norm(p_hand - p_lib[-1]):.0f} times "
+    f"what they differ by."))
 
 # %% [markdown]
-# The hand-written step reproduces the simulator's reference RK4 integrator (`integrate_imu_rk4`) to round-off.
-# The filter's integrator differs from it by about a micrometre after 2 s: it rotates the quaternion in closed form
-# with the mean rate of each half step, which is exact for a constant rate but only second order for a changing one.
-# Both are about 50 µm from the truth, more than 20 times what they differ by (the printed numbers). That remaining
-# error is *not* RK4's fault, as section 4 shows: with a cubic mid-point the same RK4 comes within a tiny fraction of
-# it.
+# That remaining error is *not* RK4's fault, as section 4 shows: with a cubic mid-point the same RK4 comes within a
+# tiny fraction of it.
 #
 # ## 3. The IMU measurement model
 #
@@ -218,6 +242,7 @@ window = imu_true.t <= 1.0
 fig = plot_imu_vs_truth(imu_true.t[window], imu_noisy.gyro[window], imu_true.gyro[window],
                         imu_noisy.accel[window], imu_true.accel[window])
 fig.suptitle("noisy 1 kHz IMU (thin) over the noise-free measurement (grey), first second of boxes_like")
+fig.tight_layout()
 plt.show()
 
 # %% [markdown]
@@ -243,14 +268,16 @@ print(f"accelerometer bias drift over {DURATION:g} s: {drift:.3f} m/s² "
       f"(σ_wa √(3T) = {noise.accel_random_walk * np.sqrt(3 * DURATION):.3f})")
 assert abs(n_g.std() / (noise.gyro_noise_density * np.sqrt(rate)) - 1) < 0.05
 assert abs(n_a.std() / (noise.accel_noise_density * np.sqrt(rate)) - 1) < 0.05
-assert 0.002 < n_g.std() < 0.004 and 0.1 < n_a.std() < 0.15  # ~3 mrad/s and ~0.12 m/s² per sample
+assert 0.002 < n_g.std() < 0.004 and 0.1 < n_a.std() < 0.15  # a few mrad/s and about 0.1 m/s² per sample
 assert bias_to_noise_g > 8 and 1 < bias_to_noise_a < 3  # the biases are not small next to one sample's noise
+display(Markdown(
+    f"Per sample, the noise is {n_g.std() * 1e3:.1f} mrad/s and {n_a.std():.2f} m/s² at {rate / 1e3:g} kHz, "
+    f"zero-mean: it averages out in the integration. The biases drawn here are larger still: the gyroscope's "
+    f"({np.linalg.norm(imu_noisy.bias_gyro[0]):.3f} rad/s) is {bias_to_noise_g:.1f} times the noise of one sample, "
+    f"the accelerometer's ({np.linalg.norm(imu_noisy.bias_accel[0]):.2f} m/s²) {bias_to_noise_a:.1f} times."))
 
 # %% [markdown]
-# Per sample, the noise is 3 mrad/s and 0.12 m/s² at 1 kHz, zero-mean: it averages out in the integration. The biases
-# drawn here are larger still: the gyroscope's (~0.035 rad/s) is more than ten times the noise of one sample, the
-# accelerometer's (~0.2 m/s²) about one and a half times. And unlike the noise they never average out: they are what
-# ruins dead reckoning (section 5).
+# And unlike the noise the biases never average out: they are what ruins dead reckoning (section 5).
 #
 # ## 4. Dead reckoning with perfect measurements
 #
@@ -279,14 +306,16 @@ plot_error_growth(t_grid, dead_reckoning, ylabel="|p_est - p_true| [m]",
                   title="dead reckoning with a perfect IMU (boxes_like)")
 plt.yscale("log")
 plt.show()
-assert dead_reckoning["1000 Hz"][-1] < 1e-3  # < 1 mm after 10 s (full mode) at 1 kHz
+assert dead_reckoning["1000 Hz"][-1] < 1e-3  # under a millimetre at 1 kHz
 assert 20 < dead_reckoning["200 Hz"][-1] / dead_reckoning["1000 Hz"][-1] < 30  # ~ (1000 / 200)^2 = 25: 2nd order
+display(Markdown(
+    f"With perfect data, 1 kHz and RK4 the integrator drifts by {dead_reckoning['1000 Hz'][-1] * 1e3:.2f} mm over "
+    f"the {DURATION:g} s run, and the ratio of {dead_reckoning['200 Hz'][-1] / dead_reckoning['1000 Hz'][-1]:.1f} "
+    f"between 200 Hz and 1 kHz confirms the $h^2$ law of the linear interpolation ($5^2 = 25$). With the cubic "
+    f"mid-point the same RK4 is off by {dead_reckoning['1000 Hz, cubic mid-point'][-1]:.0e} m."))
 
 # %% [markdown]
-# With perfect data, 1 kHz and RK4 the integrator drifts by well under a millimetre over the whole run (3 s in fast
-# mode, 10 s in full mode), and the 25× ratio
-# between 200 Hz and 1 kHz confirms the $h^2$ law of the linear interpolation. Integration error is therefore not
-# the problem of an IMU-only estimate. Sensor errors are.
+# Integration error is therefore not the problem of an IMU-only estimate. Sensor errors are.
 #
 # ## 5. What uncorrected biases do (thesis §4.4, Figs. 19-22)
 #
@@ -334,13 +363,25 @@ assert abs(att_rate / np.degrees(np.linalg.norm(true_b_g)) - 1) < 0.15  # attitu
 assert final["no bias correction"][3] > 1.0 and (FAST or final["no bias correction"][2] > 10)  # m after 3 s, tens after 10
 assert final["with bias correction"][3] < 0.1 and (FAST or 0.2 < final["with bias correction"][2] < 1.0)
 
+
+def position_errors(run):
+    """'x m after 3 s' and, for a longer run, 'and y m after T s' (run: the tuple of `final`)."""
+    text = f"{run[3]:.2f} m after 3 s"
+    return text + (f" and {run[2]:.2f} m after {DURATION:g} s" if DURATION > 3 else "")
+
+
+display(Markdown(
+    f"Without correction the attitude error grows linearly at the rate of the total gyroscope bias "
+    f"({np.linalg.norm(true_b_g):.3f} rad/s here, {np.degrees(np.linalg.norm(true_b_g)):.2f}° per second; the "
+    f"measured rate is {att_rate:.2f}°/s), and the position is off by {position_errors(final['no bias correction'])}. "
+    f"With the true biases the white noise and the bias random walk still make the error grow, only more slowly: "
+    f"{position_errors(final['with bias correction'])}."))
+
 # %% [markdown]
-# Without correction the attitude error grows linearly at the rate of the total gyroscope bias (~0.043 rad/s here,
-# about 2.5 deg per second), and the position is more than a metre off after three seconds and tens of metres after
-# ten (full mode), like the thesis's Fig. 19 (Boxes) and Fig. 21 (Camp Atterbury). Knowing the biases does not make
-# the IMU good enough on its own either (Figs. 20 and 22; Table 6: 29.19 m RMSE on Boxes, 77.18 m on Camp Atterbury,
-# with bias corrections): here, with the true biases, the white noise and the bias random walk still make the error
-# grow, only more slowly, to a few centimetres after 3 s and about half a metre after 10 s.
+# The uncorrected run diverges like the thesis's Fig. 19 (Boxes) and Fig. 21 (Camp Atterbury). Knowing the biases
+# does not make the IMU good enough on its own either: the thesis's corrected runs (Figs. 20 and 22) still reach an
+# RMSE of 29.19 m on Boxes and 77.18 m on Camp Atterbury, with final errors of 88.71 m and 203.65 m (quoted in its
+# §4.5), over whole recordings of tens of seconds.
 #
 # **Why these powers of t?** A constant accelerometer bias is a wrong acceleration: the velocity error grows like
 # $\mathbf b_a t$ and the position error like $\tfrac12\mathbf b_a t^2$. A gyroscope bias is worse: the attitude error grows
@@ -374,13 +415,19 @@ ratio_end = growth["gyro bias 0.01 rad/s only"][-1] / growth["accel bias 0.1 m/s
 print(f"the laws cross at t = 3 b_a / (g b_g) = {t_cross:.2f} s; after {DURATION:g} s gyro / accel error = "
       f"{ratio_end:.2f} (the laws: t / t_cross = {DURATION / t_cross:.2f})")
 assert abs(ratio_end / (DURATION / t_cross) - 1) < 0.2
+display(Markdown(
+    f"The fitted slopes are {slopes['accel bias 0.1 m/s² only']:.2f} (accelerometer) and "
+    f"{slopes['gyro bias 0.01 rad/s only']:.2f} (gyroscope). "
+    f"A gyroscope bias of only 0.01 rad/s ({np.degrees(0.01):.2f}°/s) costs as much position as an accelerometer bias "
+    f"of 0.1 m/s² after {t_cross:.2f} s (where $\\tfrac12 b_a t^2 = \\tfrac16 g\\,b_g t^3$), and after that ever "
+    f"more, in proportion to $t$: "
+    + (f"{ratio_end:.1f} times as much after {DURATION:g} s." if DURATION > t_cross + 1 else
+       f"this run stops at {DURATION:g} s, where the two errors are about equal ({ratio_end:.2f}).")))
 
 # %% [markdown]
-# The curves follow the two laws closely (the body turns during the trajectory, so the bias direction in $G$ changes
-# and the match is not exact). A gyroscope bias of only 0.01 rad/s (0.6 deg/s) costs as much position as an
-# accelerometer bias of 0.1 m/s² after about 3 s (where $\tfrac12 b_a t^2 = \tfrac16 g\,b_g t^3$), and after that ever
-# more: three times as much after 10 s in full mode. This is why the MSCKF keeps both biases in its state and
-# lets the camera estimate them, and why a good **initial** gyroscope bias matters.
+# The curves follow the two laws closely, not exactly: the body turns during the trajectory, so the direction of
+# the bias in $G$ changes. This is why the MSCKF keeps both biases in its state and lets the camera estimate them,
+# and why a good **initial** gyroscope bias matters.
 #
 # ## 6. Static initialisation
 #
@@ -402,7 +449,7 @@ R_ItoG_rest = quat_to_rot(quat_from_rotvec([0.15, -0.3, 1.0])).T  # tilted and y
 b_g_rest, b_a_rest = np.array([0.02, -0.01, 0.03]), np.array([0.05, -0.08, 0.02])
 t_rest = np.arange(0.0, 1.0, 1.0 / rate)
 n_rest = t_rest.shape[0]
-rng_rest = np.random.default_rng(919)  # its own generator: the same second of rest in fast and full mode
+rng_rest = np.random.default_rng(919)  # its own generator: this second of rest does not depend on the cells above
 gyro_rest = b_g_rest + noise.gyro_noise_density * np.sqrt(rate) * rng_rest.standard_normal((n_rest, 3))
 accel_rest = (R_ItoG_rest.T @ (-G) + b_a_rest
               + noise.accel_noise_density * np.sqrt(rate) * rng_rest.standard_normal((n_rest, 3)))
@@ -425,10 +472,10 @@ print(f"tilt error {tilt:.3f} deg; expected from the horizontal accel bias: {np.
 assert np.linalg.norm(b_g_init - b_g_rest) < 5e-4
 assert 1 / 3 < np.linalg.norm(b_g_init - b_g_rest) / (np.sqrt(3) * sigma_mean) < 3  # the size averaging predicts
 assert abs(tilt - np.degrees(horizontal_ba / 9.81)) < 0.05
-
-# %% [markdown]
-# The gyroscope bias error is within a factor of three of what the averaging of $M$ samples predicts (printed),
-# and the tilt error is almost entirely the accelerometer bias seen as a tilt.
+display(Markdown(
+    f"The gyroscope bias error is {np.linalg.norm(b_g_init - b_g_rest) / (np.sqrt(3) * sigma_mean):.2f} times what "
+    f"the averaging of $M = {n_rest}$ samples predicts, and the tilt error ({tilt:.3f}°) is almost entirely the "
+    f"accelerometer bias seen as a tilt ({np.degrees(horizontal_ba / 9.81):.3f}°)."))
 #
 # **On the real EuRoC recording** (a public data set of micro-aerial-vehicle flights with an IMU and ground truth;
 # V1_01_easy: a micro aerial vehicle standing on the ground with its rotors
@@ -492,15 +539,17 @@ if euroc_dir is not None:
     assert euroc_err["ground-truth biases"][-1] < euroc_err["no biases"][-1] / 5
     assert 10 < euroc_err["no biases"][-1] < 25 and euroc_err["ground-truth biases"][-1] < 1.0  # ~16 m -> < 1 m
     assert euroc_err["static-init b_g"][-1] < 0.15 * euroc_err["no biases"][-1]  # most of the damage is the gyro bias
-    assert 1.0 < euroc_err["static-init b_g"][-1] < 1.6  # about 1.3 m left
+    assert 1.0 < euroc_err["static-init b_g"][-1] < 1.6
+    display(Markdown(
+        f"On the real IMU the ground-truth biases take the error after 5 s from {euroc_err['no biases'][-1]:.1f} m "
+        f"down to {euroc_err['ground-truth biases'][-1]:.2f} m. The static gyroscope bias alone already removes most "
+        f"of the damage ({euroc_err['static-init b_g'][-1]:.2f} m left)."))
 else:
     print("EuRoC slice not found: skipped.")
 
 # %% [markdown]
-# On the real IMU the good biases take the error after 5 s from about 16 m down to under a metre. The static
-# gyroscope bias alone already removes most of the damage (about 1.3 m left), because the gyroscope bias drives the cubic term. What is
-# left comes from the accelerometer bias and from vibration, which a camera must correct: that is the MSCKF of the
-# next lessons.
+# The gyroscope bias is the big one because it drives the cubic term. What is left comes from the accelerometer
+# bias and from vibration, which a camera must correct: that is the MSCKF of the next lessons.
 #
 # ## Summary
 #
@@ -510,11 +559,11 @@ else:
 #   integrates it, and our twelve-line RK4 step agrees with `evio_lib.msckf.propagation.integrate_imu`.
 # * The accelerometer measures the specific force $R_{GtoI}(\mathbf a - \mathbf g)$; both sensors add a bias (a random walk)
 #   and white noise given as densities (per-sample std $= \sigma\sqrt f$).
-# * With perfect data, dead reckoning is accurate to < 1 mm over 10 s at 1 kHz (full mode; fast mode shows 3 s);
-#   the error shrinks like $h^2$ because of the linear interpolation between samples.
+# * With perfect data, dead reckoning at 1 kHz stays within a fraction of a millimetre (section 4); the error shrinks
+#   like $h^2$ because of the linear interpolation between samples.
 # * Uncorrected biases make the position error grow like $t^2$ (accelerometer) and $t^3$ (gyroscope, through gravity);
-#   without a camera, even corrected biases leave about half a metre after 10 s (white noise and the bias random
-#   walk), and uncorrected ones tens of metres (full mode; fast mode shows 3 s).
+#   without a camera, even corrected biases leave an error that grows (white noise and the bias random walk), and
+#   uncorrected ones a far larger one (section 5 renders both).
 # * At rest, averaging gives the gyroscope bias and the gravity direction (roll and pitch); yaw and the accelerometer
 #   bias are not observable there.
 #
@@ -545,5 +594,4 @@ else:
 #    *Hint:* catch the `ValueError` and read which of the three tests (gyro spread, accelerometer spread, $|a|$
 #    against $g$) exceeded its limit.
 #
-# Solutions, with the code to run (checked by `tests/test_solutions.py`):
-# [docs/solutions/09_imu_kinematics.md](../docs/solutions/09_imu_kinematics.md).
+# Worked solutions, with the code to run: [docs/solutions/09_imu_kinematics.md](../docs/solutions/09_imu_kinematics.md).
