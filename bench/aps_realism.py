@@ -4,14 +4,14 @@
    kernel N = [[1, -2, 1], [-2, 4, -2], [1, -2, 1]]), averaged over the flattest half of each image (the pixels with
    the smallest gradient, so that edges do not count as noise), median over frames, in grey levels (DN, 0-255). It is
    run on the real frames of ECD slider_depth (``../shared/data/real/ecd_slider_depth_slice/images``), on the
-   simulated frames of both presets as shipped (the noise matched to the real frames since 2026-11-27), on frames
+   simulated frames of both presets as shipped (the noise matched to the real frames), on frames
    simulated with another noise (``--read-noise``, ``--shot-noise``; default: the model used before, read noise 0.01
    and shot-noise scale 0.003) and without noise (the estimator's floor: what texture alone gives).
 2. With ``--pipeline``: the whole preset is simulated again (frames only, same seed, so the same motion, scene and
    IMU) with that other noise, and SIFT and KLT on APS frames run on both.
 
 Usage: python bench/aps_realism.py [--pipeline --preset boxes_like --seed 3]
-Measured figures: docs/pipeline.md, "APS realism".
+Measured figures: docs/results/pipeline.md#the-simulated-aps-frames-against-real-ones, "APS realism".
 """
 import argparse
 import dataclasses
@@ -54,9 +54,9 @@ def main() -> None:
     parser.add_argument("--preset", default="boxes_like", choices=["boxes_like", "aerial_like"])
     parser.add_argument("--seed", type=int, default=3, help="the pipeline comparison's seed (default 3: validation)")
     parser.add_argument("--read-noise", type=float, default=0.01,
-                        help="read noise of the other frames (default 0.01: the model before 2026-11-27)")
+                        help="read noise of the other frames (default 0.01: the earlier, noisier model)")
     parser.add_argument("--shot-noise", type=float, default=0.003,
-                        help="shot-noise scale of the other frames (default 0.003: the model before 2026-11-27)")
+                        help="shot-noise scale of the other frames (default 0.003: the earlier, noisier model)")
     args = parser.parse_args()
     if REAL.is_dir():
         describe("real DAVIS240C, ECD slider_depth", (cv2.imread(str(f), cv2.IMREAD_GRAYSCALE)

@@ -7,7 +7,7 @@ the voxel grid. The large E2VID-style network runs with random weights (none are
 them. FireNet runs in each precision (float32; bfloat16; int8, what the default precision "auto" picks on an x86
 CPU). Goal (issue 23): at least 100 frames/s on a 2-core CPU; measured on the idle machine (2026-11-27 evening),
 frames/s with one / two threads: float32 22-23 / 38-43, bfloat16 33-35 / 56-59, int8 57-61 / 92-107 (median 102 over
-six runs); since 2026-12-04 the voxel grid's normalisation takes 0.3 ms instead of 1.0 (docs/reconstruction.md, Speed).
+six runs); since 2026-12-04 the voxel grid's normalisation takes 0.3 ms instead of 1.0 (docs/results/reconstruction.md#speed, Speed).
 
 ``--variants`` also times FireNet's forward pass alone (state carried, on the same voxel grids) in the variants tried
 for issue 23, with each one's largest difference from the eager float32 network's images:
@@ -18,7 +18,7 @@ FireNetInference the reconstructor uses: channels-last, split GRU convolutions, 
 Measured 2026-11-27 on the idle 2-core AMD EPYC (AVX-512), ms per frame with 1 / 2 threads: eager 51.0 / 32.6,
 channels_last 45.5 / 26.4, fast 44.4 / 22.1, bf16 28.3 / 15.5 (max diff 3.1e-3), jit 49.9 / 27.3, compile 42.0 /
 25.4; the convolutions alone take 32-33 ms on one thread (1.62 G multiply-adds per frame): 100 frames/s on two cores
-is out of reach for this network in float32 (docs/reconstruction.md, Speed).
+is out of reach for this network in float32 (docs/results/reconstruction.md#speed, Speed).
 """
 from __future__ import annotations
 

@@ -13,7 +13,7 @@ temporal-consistency term (stage 3's recipe, `lambda_stretched=1`), backward, gr
 
 Measured 2026-12-03 on this 2-core CPU (one thread, while a two-job pipeline table shared the machine, so these are
 upper bounds): ssim_2d 6.75 s, nchw 4.91 s, shipped 4.20 s per step (batch 4, 48 x 48 crops, 40 windows). Run it on
-an idle machine for your own figures (docs/reconstruction.md, "Training speed").
+an idle machine for your own figures (docs/howto/train-reconstructor.md#how-long-each-step-takes, "Training speed").
 """
 from __future__ import annotations
 

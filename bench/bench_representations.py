@@ -4,7 +4,7 @@ Usage:  python bench/bench_representations.py [--events N] [--repeats R]
 
 Events are uniform over a 240x180 sensor and 0.1 s, seed 0. The figure is the best of R runs (the least disturbed by
 other processes). Measured on this 2-core CPU (2026-11-25, load 10 from other jobs), 1 M events: polarity frame
-88.2 M events/s, time surface 3.5, voxel grid 16.9, adaptive windows 2.7 (docs/reconstruction.md).
+88.2 M events/s, time surface 3.5, voxel grid 16.9, adaptive windows 2.7 (docs/results/reconstruction.md).
 """
 from __future__ import annotations
 

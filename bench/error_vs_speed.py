@@ -7,7 +7,7 @@ each source gains or loses. One thread, as ``run`` uses by default.
 
 Usage: python bench/error_vs_speed.py [--preset boxes_like] [--seed 0] [--stretch 10] [--aps-exposure S]
        [--speed FACTOR] [--out docs/figures/x.png]
-Measured figures: docs/pipeline.md, "Motion-compensated event frames", "A longer APS exposure" and "Faster motion".
+Measured figures: docs/results/pipeline.md#faster-motion, "Motion-compensated event frames", "A longer APS exposure" and "Faster motion".
 """
 import argparse
 import os

@@ -6,7 +6,7 @@ and counts as re-detected when the detector fires again within 2 px; then whethe
 that point. Averages over the pairs are printed.
 
 Usage: python bench/frontend_repeatability.py [--detectors sift superpoint orb] [--frames aps|events]
-Measured figures: docs/pipeline.md.
+Measured figures: docs/explanations/short-tracks.md.
 """
 import argparse
 import os

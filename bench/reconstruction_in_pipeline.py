@@ -5,7 +5,7 @@ Usage:  python bench/reconstruction_in_pipeline.py --methods firenet RUN/best.pt
         python bench/reconstruction_in_pipeline.py --methods firenet --precisions float32 int8 --jobs 2
 
 SSIM scores frames one at a time; a tracker needs a corner to look the same from one window to the next. A
-candidate network that scores higher SSIM can still give shorter tracks: stage 9 did (docs/reconstruction.md,
+candidate network that scores higher SSIM can still give shorter tracks: stage 9 did (docs/archive.md,
 "Stage 9"), so a reconstructor is shipped only if it also keeps the pipeline's track lengths here. For each
 validation stretch (simulation seeds 3 and 4 and any ``--extra-seeds``, never the test seeds 0-2 of Table 6) and
 each method, SIFT and KLT + FAST run on the method's event frames (`PipelineConfig(frames="events",

@@ -21,7 +21,7 @@ does); ``--simulate-from`` simulates only from that time on, so a stretch of a l
 Usage: python bench/track_accuracy.py [--preset aerial_like] [--duration 15] [--start 5] [--seconds 3]
        [--configs sift cnn klt sift_gap2 cnn_gap2] [--frames aps|mc-events] [--speed 2] [--aps-exposure 0.02]
        [--simulate-from 24]
-Measured figures: docs/pipeline.md.
+Measured figures: docs/explanations/short-tracks.md.
 """
 import argparse
 import os

@@ -174,7 +174,7 @@ class LearnedReconstructor(Reconstructor):
         self.net.to(self.device).eval()
         # the forward pass used: FireNetInference on CPU (same outputs within ~1e-6, ~1.2-1.5x faster), else the net;
         # precision="bfloat16": the net under autocast (1.35x the frames/s on 2 threads, 1.56x on one, on this AVX-512
-        # machine with native bfloat16; images a few 1e-3 off, the same SSIM within 0.001: docs/reconstruction.md);
+        # machine with native bfloat16; images a few 1e-3 off, the same SSIM within 0.001: docs/results/reconstruction.md);
         # "int8": FireNet with int8 convolutions (quantized.FireNetInt8; the checkpoint's stored calibration, else one
         # calibration per process, ~4 s); "auto": int8 where it runs (resolve_precision), else float32
         precision = resolve_precision(self.net, precision)

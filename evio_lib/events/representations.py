@@ -276,8 +276,8 @@ def adaptive_windows(events: np.ndarray, width: int, height: int, events_per_act
         height: sensor height H [px].
         events_per_active_pixel: the ratio that closes a window (> 1). The default 2.0 was chosen on the course's
             simulated evaluation stretches with an earlier network (bench/adaptive_windows.py): there it matched the
-            best fixed n of every stretch within 0.001 SSIM; with a later network it trailed the best fixed n by
-            0.013-0.029 (docs/reconstruction.md, "Adaptive windows against fixed n").
+            best fixed n of every stretch within 0.001 SSIM; with the network the library now uses it trails the
+            best fixed n by 0.006-0.093 (docs/results/reconstruction.md#adaptive-windows).
         min_fraction: smallest window, as a fraction n of H * W.
         max_fraction: largest window, as a fraction n of H * W.
     """

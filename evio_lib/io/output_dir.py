@@ -1,6 +1,6 @@
 """Output folders that are never overwritten by accident and never left half-written.
 
-Every command that writes a folder follows two rules (issue 17, docs/reliability.md):
+Every command that writes a folder follows two rules (issue 17, docs/reference/reliability.md):
 
 * :func:`check_output_dir`, called before any work starts, refuses an existing non-empty folder unless the user
   said ``--force``, a path that is a file, and a place where the folder cannot be created; and, with or without

@@ -80,7 +80,7 @@ class MsckfConfig:
             anchor camera's fitted bearing (α, β) and goes through the chi-square gate like any track (with
             ``chi2_gating`` off there is no gate, and the option does nothing). The nullspace projection
             (Eq. 50) removes the point's error to first order, so what remains constrains the rotation between
-            the cameras. Kept the CNN on course over the aerial terrain (docs/pipeline.md, "Tracks without
+            the cameras. Kept the CNN on course over the aerial terrain (docs/archive.md, "Tracks without
             parallax"). Off by default (the thesis's filter), here and in the pipeline (``PipelineConfig.far_points``):
             used always it cost SIFT and KLT accuracy (KLT in the room 0.29 -> 0.37 %).
         far_point_starvation: when far points are used [inf: always, with ``far_point_fallback``]. With a finite
@@ -90,7 +90,7 @@ class MsckfConfig:
             average (no far point), but over the rest of a run's first second, before tracks have ended, the
             filter counts as starving. A filter fed by enough tracks with parallax is then left as it was, and one
             that stops finding them (a distant scene, short tracks) gets the far points' rows. Measured at s = 2
-            (docs/pipeline.md): on the test seeds no divergence was left over the terrain, but the CNN, which uses
+            (docs/archive.md): on the test seeds no divergence was left over the terrain, but the CNN, which uses
             2.6-3.1 per image, starved in the room too and diverged on one.
         far_point_scene_depth: far points only in a distant scene [0 m: no test]. With d > 0, only while the median
             depth (in its anchor camera) of the points triangulated over the last second of image times is at
@@ -304,6 +304,25 @@ class MsckfConfig:
     def feature_noise_sigma(self) -> float:
         """Return the feature noise std in normalised image coordinates: pixel_noise_sigma / focal_length_px."""
         return self.pixel_noise_sigma / self.focal_length_px
+
+    def triangulation_settings(self) -> dict[str, Any]:
+        """Return the keyword arguments of ``triangulation.triangulate_inverse_depth`` that this config sets.
+
+        The checks ``Msckf`` runs on every track: iterations and step tolerance, the baseline ratio, the depth range
+        and the RMS reprojection residual (``triangulation_max_reprojection_px`` / ``focal_length_px``, normalised).
+
+        >>> settings = MsckfConfig().triangulation_settings()
+        >>> settings["max_iterations"], round(settings["max_rms_residual"], 4)
+        (10, 0.0251)
+        """
+        return dict(
+            max_iterations=self.triangulation_max_iterations,
+            step_tol=self.triangulation_tolerance,
+            min_baseline_ratio=self.triangulation_min_baseline_ratio,
+            min_depth=self.triangulation_min_depth,
+            max_depth=self.triangulation_max_depth,
+            max_rms_residual=self.triangulation_max_reprojection_px / self.focal_length_px,
+        )
 
     def continuous_noise_psd(self) -> NDArray[np.float64]:
         """Return diag(Q_IMU) (12,): [σ_g² x3, σ_wg² x3, σ_a² x3, σ_wa² x3] for n_IMU = [n_g, n_wg, n_a, n_wa].

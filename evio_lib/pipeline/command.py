@@ -31,7 +31,7 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--cnn-inference", choices=["auto", "fused", "bf16", "int8"], default=None,
                    help="the CNN's arithmetic (--features superpoint): auto (default: bf16 where the CPU has it, else "
                         "int8), fused (fp32), bf16, or int8 (about 1.7x faster than bf16 on one core, less accurate "
-                        "in the pipeline; docs/speed.md)")
+                        "in the pipeline; docs/results/speed.md)")
     p.add_argument("--tracker", choices=["descriptor", "klt"], default="descriptor",
                    help="descriptor: detect + match + two-point RANSAC (thesis); klt: optical flow (msckf_vio)")
     p.add_argument("--event-tracker", choices=["descriptor", "klt"], default=None,
@@ -44,8 +44,7 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                         "checkpoint file")
     p.add_argument("--reconstructor-precision", choices=PRECISIONS, default=PRECISIONS[0],
                    help="event frames: a network's arithmetic (default auto: int8 for FireNet on an x86 CPU, "
-                        "2.4-3x float32's frames per second with SSIM within 0.005, else float32; bfloat16 gave "
-                        "1.35x on two threads of a CPU with native bfloat16; docs/reconstruction.md)")
+                        "else float32; speed and quality of each: docs/results/reconstruction.md)")
     p.add_argument("--window-fraction", type=real(above=0.0), default=None,
                    help="event frames: n of N_e = n H W events per window (default: 0.7 boxes_like, 0.2 aerial_like, "
                         "0.5 otherwise; mc-events: 1.0 for every recording)")
@@ -99,11 +98,11 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--aps-blur-noise", type=real(above=0.0), default=None, metavar="C",
                    help="grow each APS frame's feature noise with its rotation blur: sigma = sqrt(PX^2 + (C |w| T "
                         "f)^2), the gyro rate |w| over the exposure T, focal length f (default: off; 0.5 measured in "
-                        "docs/pipeline.md; needs a recording that gives T: the presets)")
+                        "docs/archive.md; needs a recording that gives T: the presets)")
     p.add_argument("--track-gap", type=integer(minimum=0), default=0, metavar="FRAMES",
                    help="descriptor tracker: keep a lost track for FRAMES frames and continue it, with its id, when "
                         "the feature is matched again (default 0: a missed detection ends the track, as in the "
-                        "thesis; 2 measured best for SIFT, docs/pipeline.md; not with --tracker klt)")
+                        "thesis; 2 measured best for SIFT, docs/archive.md; not with --tracker klt)")
     p.add_argument("--extrinsics", type=Path, default=None,
                    help="a Kalibr YAML with T_cam_imu, overriding the recording's extrinsics")
     p.add_argument("--calib", type=Path, default=None,

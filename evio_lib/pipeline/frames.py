@@ -43,7 +43,7 @@ MC_MAX_WINDOW_S = 0.1
 #: mc-events: n of the windows' N_e = n H W, one value for every recording (the thesis's n per scene serves the
 #: reconstructed frames). Chosen on the validation seed (3) of both whole presets with KLT: n = 1.0 (windows of
 #: 0.01-0.1 s) gave 0.53 % of the distance on boxes_like and 0.82 % on aerial_like, against 0.78 % and 16 % with the
-#: thesis's 0.7 and 0.2 (windows of 1/60-0.1 s); docs/pipeline.md has the whole search.
+#: thesis's 0.7 and 0.2 (windows of 1/60-0.1 s); docs/archive.md has the whole search.
 MC_WINDOW_FRACTION = 1.0
 MC_MIN_EVENTS = 500
 #: The thesis's n (§4.1, Figs. 16/18): 0.7 for boxes_like, 0.2 for aerial_like.

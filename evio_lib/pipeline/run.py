@@ -70,7 +70,7 @@ INIT_MODES = ("auto", "groundtruth", "static")
 #: starves in a distant scene (median depth of its triangulated points at least FAR_POINT_SCENE_DEPTH); or always.
 FAR_POINT_MODES = ("off", "starved", "far-scene", "always")
 #: The starvation level of ``far_points='starved'``, features per image (``MsckfConfig.far_point_starvation``).
-#: Chosen on the validation seeds (docs/pipeline.md, "Tracks without parallax"): at 1.0 the CNN on motion-compensated
+#: Chosen on the validation seeds (docs/archive.md, the far-point rows): at 1.0 the CNN on motion-compensated
 #: event frames over the terrain stayed diverged (seed 3: 189 %), at 2.0 it reached 23 %; SIFT and KLT, which lose
 #: with far points always, used 0-3 candidates per run at both levels (they use 3.6-4.7 features per image) and kept
 #: their results on 7 of 10 runs. On the test seeds the CNN, which uses 2.6-3.1 per image, starved at this level in
@@ -86,7 +86,7 @@ MIN_PERCENT_DISTANCE_M = 0.5
 #: its feature noise when event_pixel_noise_px is not given. Its tracks are about twice as far from their points
 #: (bench/track_accuracy.py) and come at two to four times the APS rate with errors that persist from frame to
 #: frame, so at equal sigma they outvote the APS tracks. Chosen on the validation seeds 3-5 of boxes_like with
-#: motion-compensated event frames (docs/pipeline.md, "Weighting the two streams"); 'aps+events' (FireNet frames)
+#: motion-compensated event frames (docs/results/pipeline.md, "Weighting the two streams"); 'aps+events' (FireNet frames)
 #: gets the same factor, unmeasured.
 FUSED_EVENT_NOISE_FACTOR = 3.0
 #: 'auto' initialisation: fastest ground-truth speed (m/s) over the still window for which the start counts as still.
@@ -125,7 +125,7 @@ class PipelineConfig:
         reconstructor_precision: event frames only: a network's arithmetic, 'auto' (default: int8 for FireNet on
             an x86 CPU where Numba's kernels load, else float32), 'float32', 'bfloat16' (1.35x FireNet's frames per
             second on two threads of a CPU with native bfloat16, the same SSIM within 0.001) or 'int8' (FireNet
-            only: int8 convolutions, 2.4-3x float32's frames per second, SSIM within 0.005; docs/reconstruction.md);
+            only: int8 convolutions, 2.4-3x float32's frames per second, SSIM within 0.005; docs/results/reconstruction.md#int8-and-float32);
             direct and high_pass ignore it.
         window_fraction: event frames only: n of N_e = n H W; None: the thesis's n for the preset (0.7 / 0.2) for
             reconstructed frames, 1.0 for every recording for motion-compensated ones (``MC_WINDOW_FRACTION``).
@@ -149,7 +149,7 @@ class PipelineConfig:
         aps_blur_noise: c, to grow each APS frame's feature noise with its rotation blur:
             σ = sqrt(pixel_noise_px² + (c |ω| T f)²), with |ω| the bias-corrected gyro rate over the frame's exposure
             T and f the focal length (:func:`blurred_pixel_noise`); None (default): σ fixed. Needs a recording that
-            records T (the simulated presets). Off by default: measured on validation seeds (docs/pipeline.md,
+            records T (the simulated presets). Off by default: measured on validation seeds (docs/archive.md,
             "APS noise that grows with the blur") it helps where the APS frames smear and can hurt elsewhere.
         max_duration: seconds of the recording processed from the start (None: all).
         seed: seed of the front-end's RANSAC.
@@ -163,12 +163,12 @@ class PipelineConfig:
             it triangulates lie at least ``FAR_POINT_SCENE_DEPTH`` away) or 'always'; True and False mean 'always'
             and 'off'. None of the three is the default: 'always' costs SIFT and KLT accuracy in the room,
             'starved' made the CNN diverge there on a test seed, and 'far-scene' left the CNN's mean over fresh
-            terrain seeds slightly worse (docs/pipeline.md, "Tracks without parallax").
+            terrain seeds slightly worse (docs/archive.md, the far-point rows).
         track_gap: frames a descriptor track may miss and still continue with its id
             (``FrontendConfig.max_gap_frames`` and ``MsckfConfig.max_track_gap``; 0: a missed detection ends the
             track, the thesis's tracker and the default). KLT never searches for a lost patch: with KLT on every
             stream the gap must be 0, and with ``event_tracker`` 'klt' it applies to the APS stream only (front-end
-            and filter). Measured on the validation seeds 3-5 of both whole presets (docs/pipeline.md): 2 gives SIFT
+            and filter). Measured on the validation seeds 3-5 of both whole presets (docs/archive.md): 2 gives SIFT
             on APS frames tracks of 4.3-4.9 frames on boxes_like instead of 2.9-3.4 and a lower second-half RMSE on
             all six recordings, but it is not the default: the CNN diverged with it on one of them, and the gentle
             start of a recording gets worse.
@@ -550,7 +550,7 @@ def msckf_config_for(config: PipelineConfig, data: LoadedDataset) -> MsckfConfig
     ``max_camera_states`` x the number of streams (80 for two). The streams fill it in proportion to their frame
     rates: in boxes_like (APS 24 frames/s, motion-compensated event frames about 50/s on average, 86/s at the
     violent end) 80 clones span about 1.1 s (0.7 s at the violent end) against the APS-only run's 1.7 s; with 40
-    they spanned about a third of that, and the APS tracks lost their parallax (docs/pipeline.md, "Weighting the
+    they spanned about a third of that, and the APS tracks lost their parallax (docs/results/pipeline.md, "Weighting the
     two streams")."""
     cam = data.sequence.camera
     gravity = data.sequence.metadata.get("gravity_G")  # Sequence.metadata is always a dict

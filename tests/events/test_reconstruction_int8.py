@@ -208,7 +208,7 @@ def test_the_shipped_checkpoint_stores_the_int8_calibration_of_its_own_weights(f
     loaded = int8_forward(firenet, uncapped).ranges.ranges
     assert loaded["gru2_rh"] == (-GATE_INPUT_CAP, GATE_INPUT_CAP) and loaded["res1_a"] == (-40.0, 35.0)
     # The stored bounds are not compared with a fresh calibration: the calibration voxels come from the simulator,
-    # whose events depend on the OpenCV release and on the CPU's SIMD paths (docs/reliability.md, section 3: fresh
+    # whose events depend on the OpenCV release and on the CPU's SIMD paths (docs/reference/reliability.md, section 3: fresh
     # bounds of the same weights differed by up to 70 % between OpenCV 4.14 and 5.1 on one machine). What matters is
     # what the stored ranges do on sequences they were not calibrated on: int8 images near float32's and following
     # their structure (measured as above: 0.004 / 0.005 / 0.98), where ranges that do not fit the network (every

@@ -297,7 +297,7 @@ def test_far_points_reach_the_filter_and_the_label(boxes_aps):
     """far_points: 'starved' sets the filter's far_point_fallback with the starvation level, 'far-scene' with the
     scene depth too, 'always' with neither (inf, 0 m), 'off' (the default) clears it; True / False are read as
     'always' / 'off'; the label names the three that are not the default. A run fed by tracks with parallax, as in the room, starves nowhere and uses no far point
-    with 'starved', where 'always' does and stays on course (numbers over the whole presets: docs/pipeline.md,
+    with 'starved', where 'always' does and stays on course (numbers over the whole presets: docs/archive.md,
     "Tracks without parallax")."""
     starved, always, off, far_scene = (msckf_config_for(PipelineConfig(features="sift", far_points=mode), boxes_aps)
                                        for mode in ("starved", "always", "off", "far-scene"))

@@ -175,7 +175,7 @@ class AutocastForward(nn.Module):
 
     Convolutions run in bfloat16 (8 bits of mantissa), which oneDNN computes natively on CPUs with AVX512-BF16 (the
     forward pass alone: 25.8 against 44.5 ms on one thread here, 14.3 against 22.7 ms on two). The images differ from
-    float32's by a few 1e-3, at the same SSIM within 0.001 (docs/reconstruction.md: ``bench/bench_reconstruction.py``
+    float32's by a few 1e-3, at the same SSIM within 0.001 (docs/results/reconstruction.md: ``bench/bench_reconstruction.py``
     and ``bench/reconstruction_quality.py --precision``). CPUs without native bfloat16 emulate it, slowly.
     """
 
@@ -196,7 +196,7 @@ def resolve_precision(net: nn.Module, precision: str = "auto") -> str:
     :func:`evio_lib.events.reconstruction.quantized.int8_unavailable`), else ``"float32"`` (a GPU, an ARM CPU, the
     E2VID-style network, no numba).
 
-    Why int8 by default (docs/reconstruction.md, "Speed"): on this 2-core CPU it gives 2.4-3x float32's frames per
+    Why int8 by default (docs/results/reconstruction.md, "Speed"): on this 2-core CPU it gives 2.4-3x float32's frames per
     second (about 100 frames/s at 240 x 180 on two threads), its images differ from float32's by about 0.004 on
     average, its SSIM is within 0.005 of float32's on every validation and test stretch, and over eight validation
     stretches of the pipeline its frames gave tracks as long (x0.996, x1.015) and RMSEs within one standard error."""

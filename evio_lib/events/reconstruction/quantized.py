@@ -28,7 +28,7 @@ range [lo, hi] (s = (hi - lo) / 255, z = round(-lo / s)):
   (seeds 3-7), where caps of 3-12 all gave 0.003-0.006 (6 is the saturation argument's, not the best of them).
 
 Measured on the validation stretches (``bench/reconstruction_quality.py --split val --precision int8``) and for speed
-(``bench/bench_reconstruction.py``): docs/reconstruction.md. PyTorch marks its quantised tensors as deprecated (a
+(``bench/bench_reconstruction.py``): docs/results/reconstruction.md. PyTorch marks its quantised tensors as deprecated (a
 ``UserWarning``); the project pins torch, and the warning is silenced inside this module only.
 """
 from __future__ import annotations
