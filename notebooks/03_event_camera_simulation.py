@@ -46,15 +46,15 @@ fig = plot_event_pixel_schematic(contrast=0.2)
 plt.show()
 
 # %%
-import os
 import tempfile
-import time
 from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
+from IPython.display import Markdown, display
 from scipy.optimize import brentq
 
+from evio_lib.course import fast_mode
 from evio_lib.events.array import concatenate_events, event_count_image, events_between
 from evio_lib.events.simulate import EventCameraParams, EventSimulator, log_intensity, simulate_events
 from evio_lib.evaluation.plots_sim import (
@@ -62,23 +62,20 @@ from evio_lib.evaluation.plots_sim import (
     plot_event_cloud,
     plot_event_rates,
     plot_image_row,
+    plot_image_table,
     plot_imu_vs_truth,
     plot_pixel_events,
     plot_sample_intervals,
 )
 from evio_lib.geometry.camera import PinholeRadtan
 from evio_lib.io.ecd import read_ecd, write_ecd
-from evio_lib.sim.aps import aps_exposure
 from evio_lib.sim.imu import GRAVITY_G
-from evio_lib.sim.jobs import map_in_workers
-from evio_lib.sim.presets import SimulationConfig, simulate_sequence_cached, simulation_cache_path
+from evio_lib.sim.presets import SimulationConfig, simulate_sequence_cached
 from evio_lib.sim.scene import Scene, TexturedPlane, scene_from_preset
 from evio_lib.sim.textures import load_texture, rescale_contrast
 from evio_lib.sim.trajectory import trajectory_from_preset
 
-FAST = os.environ.get("EVIO_FAST", "0") == "1"  # CI sets EVIO_FAST=1: short, half-resolution recordings
-rng = np.random.default_rng(3)
-notebook_start = time.perf_counter()
+FAST = fast_mode()
 
 # %% [markdown]
 # ## 1. The principle: one pixel, log intensity, contrast threshold
@@ -168,7 +165,8 @@ def tiny_render(t):
     return tiny_scene.render_intensity(tiny_camera, *tiny_pose(t))
 
 
-fig = plot_image_row([tiny_render(0.0), tiny_render(T_TINY)], ["I(t = 0 s)", f"I(t = {T_TINY:g} s)"], width_in=3.5)
+fig = plot_image_row([tiny_render(0.0), tiny_render(T_TINY)], ["I(t = 0 s)", f"I(t = {T_TINY:g} s)"], width_in=3.5,
+                     vrange=(0.0, 1.0), colorbar=True, colorbar_label="intensity I (0 black, 1 white)")
 plt.show()
 
 # %% [markdown]
@@ -260,7 +258,7 @@ print(f"{len(tiny_events)} events; residual per pixel in [{residual.min():.3f}, 
 assert np.all(residual < tiny_sim.thresholds_pos) and np.all(residual > -tiny_sim.thresholds_neg)
 fig = plot_image_row([dL, event_count_image(tiny_events, W, H, signed=True) * 0.2, residual],
                      ["L(1 s) - L(0)", "0.2 x (N_ON - N_OFF)", "residual"], cmaps="bwr", symmetric=True,
-                     colorbar=True, width_in=3.5)
+                     colorbar=True, width_in=3.5, vrange="shared", colorbar_label="log-intensity change [log units]")
 plt.show()
 
 # %% [markdown]
@@ -347,8 +345,7 @@ assert abs(fine - finer) / finer < 0.02  # converged: halving lambda changes the
 # thesis Eq. 31, which removes the biases as $\boldsymbol\omega = \boldsymbol\omega_m - \mathbf b_g$,
 # $\mathbf a = \mathbf a_m - \mathbf b_a$; the noise terms are the simulator's) and ground
 # truth — all from one trajectory, so the sensors agree exactly. The boxes motion grows from gentle to violent over
-# the preset's length; here we squeeze the whole preset into the recording. Fast mode uses half the DAVIS
-# resolution and short recordings.
+# the preset's length; here we squeeze the whole preset into the recording.
 
 # %%
 camera = PinholeRadtan.davis240c().scaled(0.5) if FAST else PinholeRadtan.davis240c()
@@ -356,13 +353,20 @@ boxes_cfg = SimulationConfig(preset="boxes_like", duration=2.0 if FAST else 10.0
                              trajectory_duration=2.0 if FAST else 10.0, camera=camera, seed=0)
 aerial_cfg = SimulationConfig(preset="aerial_like", start_time=14.5 if FAST else 12.0, duration=1.0 if FAST else 12.0,
                               trajectory_duration=40.0, camera=camera, seed=0)
-print(boxes_cfg.events)
-print(boxes_cfg.aps)
+ev_cfg, aps_cfg = boxes_cfg.events, boxes_cfg.aps
+display(Markdown(
+    f"The camera: {camera.width} x {camera.height} pixels, focal length {camera.fx:.0f} px. Its event pixels: "
+    f"thresholds C = {ev_cfg.contrast_pos:g} with a mismatch of {ev_cfg.contrast_sigma:g} (standard deviation), "
+    f"a refractory period of {ev_cfg.refractory_s * 1e3:g} ms. Its APS frames: {aps_cfg.exposure_s * 1e3:g} ms "
+    f"exposure, read noise {aps_cfg.read_noise_sigma:g} (in units of full scale), stored as 8-bit values "
+    f"255 V^{aps_cfg.gamma:.3f} of the linear intensity V (a gamma curve, 1/2.2). The recordings: "
+    f"{boxes_cfg.duration:g} s of the room, {aerial_cfg.duration:g} s of the flight."))
 
 # %% [markdown]
 # First, what the two worlds look like: one render at the start of each recording, with its depth map (the
 # renderer also returns the 3-D point behind every pixel, used later for tests where the true 3-D point behind each
-# feature is known).
+# feature is known). Both depth maps share one logarithmic colour scale: the room's walls are metres away, the ground
+# hundreds of metres below the aircraft.
 
 # %%
 scenes = {"boxes_like": scene_from_preset("boxes_like"), "aerial_like": scene_from_preset("aerial_like")}
@@ -371,47 +375,40 @@ for cfg in (boxes_cfg, aerial_cfg):
     start = trajectory_from_preset(cfg.preset, duration=cfg.motion_duration(), seed=cfg.seed).evaluate([cfg.start_time])
     R_CtoG, p_CinG = cfg.extrinsics.camera_pose(start.R_ItoG, start.p_IinG)
     view = scenes[cfg.preset].render(camera, R_CtoG[0], p_CinG[0])
-    views += [view.intensity, view.depth]
-fig = plot_image_row(views, ["boxes_like: intensity", "depth [m]", "aerial_like: intensity", "depth [m]"],
-                     cmaps=["gray", "viridis", "gray", "viridis"], colorbar=True, width_in=3.2)
+    views.append([view.intensity, view.depth])
+fig = plot_image_table(views, ["boxes_like", "aerial_like"], ["intensity", "depth"],
+                       ["intensity I (0 black, 1 white)", "depth along the optical axis [m] (log scale)"],
+                       cmaps=["gray", "viridis"], vranges=[(0.0, 1.0), None], log_scale=[False, True])
 plt.show()
 
 # %% [markdown]
-# Simulating takes a while (minutes in full mode), so `simulate_sequence_cached` stores
-# each recording in the project's cache folder (`data/cache/sequences/`, or `$EVIO_CACHE_DIR`), under a name that
-# hashes every field of its config, and reads it back on the next run; `simulate_sequence` alone always simulates.
-# The two recordings are independent: in full mode, when they are not cached yet, `map_in_workers` simulates them
-# side by side, one worker process each (a recording does not depend on the processes that made it).
+# Now the two recordings; each summary lists what a recording holds.
 
 # %%
-t_sim = time.perf_counter()
-cached_before = {cfg.preset: simulation_cache_path(cfg).is_file() for cfg in (boxes_cfg, aerial_cfg)}
-side_by_side = not FAST and not all(cached_before.values())
-boxes, aerial = map_in_workers(simulate_sequence_cached, [dict(config=cfg, jobs=1 if side_by_side else None)
-                                                          for cfg in (boxes_cfg, aerial_cfg)],
-                               jobs=None if side_by_side else 1)
-print(f"both recordings: {time.perf_counter() - t_sim:.1f} s wall")
-for cfg, seq in ((boxes_cfg, boxes), (aerial_cfg, aerial)):
-    timings = ", ".join(f"{k} {v:.1f}" for k, v in seq.metadata["timings"].items())
-    how = "read from" if cached_before[cfg.preset] else "simulated and stored in"
-    print(f"{seq.name}: {how} {simulation_cache_path(cfg)} ({timings})")
-    print(seq.summary())
+boxes, aerial = (simulate_sequence_cached(cfg) for cfg in (boxes_cfg, aerial_cfg))
+print(boxes.summary())
+print(aerial.summary())
 
 # %% [markdown]
 # ### Frames versus events in fast motion
 #
-# An APS frame integrates light over its exposure (10 ms here), so everything that moves during it is smeared.
-# Events carry microsecond timestamps, so an image made of events can cover as short a time as we like. We build an
-# **event frame** from a fixed number of events, $N_e = n\,H\,W$ (here $n = 0.3$), the ones nearest to the frame's
-# middle. The thesis sizes its windows by the same rule (§4.1, Eq. 87), but feeds them to a reconstruction network;
-# here we only count the events per pixel (lesson 04 reconstructs). In fast motion the $N_e$ events span a few
-# milliseconds, in calm motion about a tenth of a second, so the rotation moves the image by a comparable number of
-# pixels during either window (printed below: $f\,|\boldsymbol\omega|$ times the window).
+# An APS frame integrates light over its exposure $T$ (10 ms here), so everything that moves during it is smeared:
+# a rotation at angular speed $|\boldsymbol\omega|$ sweeps the image by about $f\,|\boldsymbol\omega|\,T$ pixels
+# during the exposure ($f$ the focal length in pixels; translation adds a little). Events carry microsecond
+# timestamps, so an image made of events can cover as short a time as we like. We build an **event frame** from a
+# fixed number of events, $N_e = n\,H\,W$ (here $n = 0.3$), the ones nearest to the frame's middle. The thesis sizes
+# its windows by the same rule (§4.1, Eq. 87), but feeds them to a reconstruction network; here we only count the
+# events per pixel (lesson 04 reconstructs). The faster the motion, the faster the events come, so the window
+# $\Delta t$ of an event frame shrinks, and with it its sweep $f\,|\boldsymbol\omega|\,\Delta t$.
 #
-# We take the frame of the boxes recording whose exposure saw the fastest rotation, its event frame, and an
-# instantaneous render (what an ideal camera with zero exposure would see). As a sharpness measure we use the
-# normalised gradient energy $S(f) = \overline{|\nabla f|^2} / \operatorname{var}(f)$ — roughly one over the squared
-# width of the image's features, so blur lowers it, whatever the image's brightness scale.
+# To see how much detail a frame loses, we compare it with an instantaneous render of the same moment (what an ideal
+# camera with zero exposure would see), with a sharpness measure, the normalised gradient energy
+# $S(f) = \overline{|\nabla f|^2} / \operatorname{var}(f)$: roughly one over the squared width of the image's
+# features, so blur lowers it, whatever the image's brightness scale. $S$ also depends on what the camera looks at,
+# so only the ratio $S(\text{APS frame}) / S(\text{render})$ of one moment says what the exposure lost (the frame is
+# first decoded back to linear intensity, $V = (\text{frame}/255)^{2.2}$). An event frame is a sparse edge map
+# whose $S$ is high even when nothing moves fast, so for events we compare the sweep. We take two frames of the
+# boxes recording: the one whose exposure saw the slowest rotation and the one that saw the fastest.
 
 # %%
 def sharpness(image):
@@ -441,48 +438,48 @@ def boxes_camera_poses(times):
 
 
 w_frames = np.linalg.norm(boxes_traj.evaluate(boxes.frame_times).w_I, axis=1)
-i_fast = int(np.argmax(w_frames))
-t_fast = boxes.frame_times[i_fast]
-event_frame, span = event_frame_at(boxes.events, t_fast)
-R_fast, p_fast = boxes_camera_poses(t_fast)
-instant = scenes["boxes_like"].render_intensity(camera, R_fast[0], p_fast[0])
-aps = boxes.frames[i_fast]
-s_aps, s_events, s_instant = sharpness(aps), sharpness(event_frame), sharpness(instant)
-fig = plot_image_row(
-    [aps, event_frame, instant],
-    [f"APS frame, 10 ms exposure (S = {s_aps:.2f})", f"{N_E} events = {span * 1e3:.1f} ms (S = {s_events:.2f})",
-     f"instantaneous render (S = {s_instant:.2f})"], cmaps=["gray", "gray_r", "gray"], width_in=3.8)
+cases, images = {}, []
+for label, i in (("calmest", int(np.argmin(w_frames))), ("fastest", int(np.argmax(w_frames)))):
+    t_i = boxes.frame_times[i]
+    R_i, p_i = boxes_camera_poses(t_i)
+    render = scenes["boxes_like"].render_intensity(camera, R_i[0], p_i[0])
+    aps = (boxes.frames[i] / 255.0) ** (1.0 / aps_cfg.gamma)  # decoded to linear intensity V
+    frame_i, span_i = event_frame_at(boxes.events, t_i)
+    cases[label] = dict(t=t_i, w=w_frames[i], blur_px=camera.fx * w_frames[i] * aps_cfg.exposure_s,
+                        kept=sharpness(aps) / sharpness(render), span_ms=span_i * 1e3,
+                        sweep_px=camera.fx * w_frames[i] * span_i, s_events=sharpness(frame_i))
+    images.append([aps, render, frame_i])
+calm, quick = cases["calmest"], cases["fastest"]
+counts_lit = np.concatenate([row[2][row[2] > 0] for row in images])
+events_max = float(np.percentile(counts_lit, 99))  # one range for both event frames; a few busy pixels would set it
+fig = plot_image_table(images, [f"{k}: t = {c['t']:.2f} s, |w| = {c['w']:.2f} rad/s" for k, c in cases.items()],
+                       [f"APS frame ({aps_cfg.exposure_s * 1e3:g} ms exposure)", "instantaneous render",
+                        f"event frame ({N_E} events)"],
+                       ["intensity V (0 black, 1 white)", "intensity I (0 black, 1 white)", "events per pixel"],
+                       cmaps=["gray", "gray", "gray_r"], vranges=[(0.0, 1.0), (0.0, 1.0), (0.0, events_max)])
 plt.show()
-print(f"t = {t_fast:.3f} s, |w| = {w_frames[i_fast]:.2f} rad/s")
-assert s_events > s_aps  # the event frame is sharper than the blurred frame
-
-# %% [markdown]
-# A word of caution about $S$: an event frame is a sparse edge map, so its $S$ is high even when nothing moves fast.
-# The fair question is how much detail each sensor **loses** with speed. For the APS frame we can isolate the blur:
-# `aps_exposure` returns the noise-free mean of the sub-renders over the exposure, which we compare with the
-# instantaneous render, for the calmest and the fastest frame of the recording.
+rows = [("angular speed \\|w\\| [rad/s]", "w", "{:.2f}"),
+        ("APS: image sweep during the exposure, f \\|w\\| T [px]", "blur_px", "{:.1f}"),
+        ("APS: S(frame) / S(render)", "kept", "{:.0%}"), ("events: window Δt [ms]", "span_ms", "{:.1f}"),
+        ("events: image sweep during the window, f \\|w\\| Δt [px]", "sweep_px", "{:.1f}"),
+        ("events: S(event frame) [1/px²]", "s_events", "{:.2f}")]
+display(Markdown("| | calmest frame | fastest frame |\n|---|---|---|\n" + "\n".join(
+    f"| {name} | {fmt.format(calm[key])} | {fmt.format(quick[key])} |" for name, key, fmt in rows)))
+assert quick["kept"] < calm["kept"] - 0.1  # motion blur removes detail, more so in fast motion
+assert quick["blur_px"] > 2 * quick["sweep_px"]  # in fast motion the exposure smears more than the event window
+assert quick["span_ms"] < 5 and calm["span_ms"] > 50  # a few ms of events in fast motion, ~0.1 s in calm
+assert 1 / 3 < quick["sweep_px"] / calm["sweep_px"] < 3  # ... over which the image moves comparably
+assert quick["s_events"] > 0.7 * calm["s_events"]  # the event frame stays nearly as sharp
 
 # %%
-i_slow = int(np.argmin(w_frames))
-kept, s_event_frames, spans, s_aps_frames, sweep_px = {}, {}, {}, {}, {}
-for label, i in (("calmest", i_slow), ("fastest", i_fast)):
-    t_i = boxes.frame_times[i]
-    blurred = aps_exposure(scenes["boxes_like"], camera, boxes_camera_poses, t_i, boxes_cfg.aps)
-    R_i, p_i = boxes_camera_poses(t_i)
-    kept[label] = sharpness(blurred) / sharpness(scenes["boxes_like"].render_intensity(camera, R_i[0], p_i[0]))
-    frame_i, span_i = event_frame_at(boxes.events, t_i)
-    s_event_frames[label] = sharpness(frame_i)
-    spans[label] = span_i
-    s_aps_frames[label] = sharpness(boxes.frames[i])
-    sweep_px[label] = camera.fx * w_frames[i] * span_i  # image motion from rotation during the event window
-    print(f"{label} frame (|w| = {w_frames[i]:.2f} rad/s): the exposure keeps {kept[label]:.0%} of the render's S "
-          f"(APS frame S = {s_aps_frames[label]:.2f}); event frame: S = {s_event_frames[label]:.2f} from "
-          f"{span_i * 1e3:.1f} ms of events, over which the rotation moves the image by ~{sweep_px[label]:.1f} px")
-assert kept["fastest"] < kept["calmest"] - 0.1  # motion blur removes detail, more so in fast motion
-assert s_event_frames["fastest"] > 0.7 * s_event_frames["calmest"]  # the event frame stays about as sharp
-assert spans["fastest"] < 0.005 and spans["calmest"] > 0.05  # a few ms of events in fast motion, ~0.1 s in calm
-assert 1 / 3 < sweep_px["fastest"] / sweep_px["calmest"] < 3  # ... over which the image moves comparably
-assert s_event_frames["calmest"] > 3 * s_aps_frames["calmest"]  # an edge map's S is high even in calm motion
+display(Markdown(
+    f"In the calmest frame the image moves {calm['blur_px']:.1f} px during the exposure, and the APS frame has "
+    f"{calm['kept']:.0%} of the render's sharpness $S$ (its noise adds a little gradient energy). In the fastest it "
+    f"moves {quick['blur_px']:.1f} px, and the frame has {quick['kept']:.0%}: the blur is visible in the left column. The {N_E} events nearest to that "
+    f"frame span only {quick['span_ms']:.1f} ms, over which the image moves {quick['sweep_px']:.1f} px; in calm "
+    f"motion they span {calm['span_ms']:.0f} ms and a sweep of {calm['sweep_px']:.1f} px. So the event frame loses "
+    f"less with speed (its $S$ is {quick['s_events'] / calm['s_events']:.0%} of the calm one's) than the APS "
+    f"frame, whose share of the render's $S$ falls from {calm['kept']:.0%} to {quick['kept']:.0%}."))
 
 # %% [markdown]
 # ### Events in space-time
@@ -490,9 +487,7 @@ assert s_event_frames["calmest"] > 3 * s_aps_frames["calmest"]  # an edge map's 
 # Plotted over $(x, y, t)$, events are not a sequence of images but surfaces: each moving edge sweeps a sheet
 # through space-time, ON events on one side of a bright edge, OFF events on the other. Here: 100 ms of the events
 # in a square patch in the middle of the image, at 20 % of the boxes recording (calm motion; the sheets are the
-# mortar lines of the brick wall sliding through the patch). The sheets need the full lesson's resolution and
-# recording: fast mode's patch, at half the resolution and 2 s of motion, holds only a few hundred scattered events
-# (the count is in the title).
+# mortar lines of the brick wall sliding through the patch; the number of events is in the title).
 
 # %%
 t_cloud = boxes_cfg.start_time + 0.2 * boxes_cfg.duration
@@ -534,9 +529,9 @@ assert np.allclose(gyro_noise.std(axis=0), sigma_expected, rtol=0.15)
 # ### Event rate over time: the two regimes
 #
 # An event camera's data rate follows the motion and the texture. In the room, with textured surfaces 1-4 m
-# away, the rate climbs with the shaking. From 250 m up, 20 m/s of flight moves the image by only
-# $f v / h \approx 200 \cdot 20 / 250 = 16$ px/s (plus the slow turbulence rotations), over fields with few strong
-# edges: far fewer events. We count events in 20 ms bins and plot them with the camera's angular speed, and
+# away, the rate climbs with the shaking. From 250 m up, 20 m/s of flight moves the image of a DAVIS240C (focal
+# length about 200 px) by only $f v / h \approx 200 \cdot 20 / 250 = 16$ px/s (plus the slow turbulence
+# rotations), over fields with few strong edges: far fewer events. We count events in 20 ms bins and plot them with the camera's angular speed, and
 # quote events per pixel and second to compare cameras of any resolution.
 
 # %%
@@ -555,28 +550,22 @@ quarter = len(b_rate) // 4
 first, last = b_rate[:quarter].mean(), b_rate[-quarter:].mean()
 aerial_per_px = rates["aerial_like"][1].mean() / n_pixels
 boxes_per_px = b_rate.mean() / n_pixels
-print(f"boxes_like: {first / 1e6:.2f} Mev/s in the first quarter, {last / 1e6:.2f} Mev/s in the last "
-      f"({last / first:.1f}x); mean {boxes_per_px:.1f} events/pixel/s")
-print(f"aerial_like: mean {rates['aerial_like'][1].mean() / 1e6:.3f} Mev/s = {aerial_per_px:.1f} events/pixel/s "
-      f"({boxes_per_px / aerial_per_px:.0f}x sparser than the room)")
 w_at_bins = np.interp(b_t, *motion["boxes_like"])  # the camera's angular speed at the rate bins
 rate_vs_motion = np.corrcoef(b_rate, w_at_bins)[0, 1]
 t_a, w_a = motion["aerial_like"]
-print(f"boxes_like: correlation of the event rate with the angular speed {rate_vs_motion:.2f}")
-print(f"aerial_like: rotation moves the image by {camera.fx * w_a.min():.0f}-{camera.fx * w_a.max():.0f} px/s, "
-      f"20 m/s of flight at 250 m by {camera.fx * 20 / 250:.0f} px/s")
+flight_px_s = camera.fx * 20 / 250  # image speed of 20 m/s of flight at 250 m
 assert last > 3 * first  # more motion, more events
 assert rate_vs_motion > 0.7  # the rate follows the angular speed
-assert (5 < boxes_per_px / aerial_per_px < 15) if FAST else (2 < boxes_per_px / aerial_per_px < 5)  # ~9x / ~3x
-assert camera.fx * w_a.max() >= camera.fx * 20 / 250  # at times rotation moves the image as fast as the flight
-
-# %% [markdown]
-# In the room the rate follows the angular speed closely (the printed correlation) and grows several-fold from the
-# gentle first quarter to the violent last one. The flight produces several times fewer events per pixel and second
-# than the room: about 3x at the DAVIS resolution of the full lesson, about 9x in fast mode (half the resolution and a
-# shorter, different stretch of the flight). At 250 m, 20 m/s of translation moves the image by only ~16 px/s (~8 px/s
-# at half resolution), so there the aircraft's slow rotations — turbulence and banking, printed in px/s — at times
-# move the image as fast as its speed does, or faster.
+assert (5 < boxes_per_px / aerial_per_px < 15) if FAST else (2 < boxes_per_px / aerial_per_px < 5)
+assert camera.fx * w_a.max() >= flight_px_s  # at times rotation moves the image as fast as the flight
+display(Markdown(
+    f"In the room the rate follows the angular speed closely (correlation {rate_vs_motion:.2f}) and grows from "
+    f"{first / 1e6:.2f} million events per second in the gentle first quarter to {last / 1e6:.2f} million in the "
+    f"violent last one ({last / first:.1f} times). The flight produces {aerial_per_px:.1f} events per pixel and second "
+    f"against the room's {boxes_per_px:.1f}, {boxes_per_px / aerial_per_px:.1f} times fewer. There 20 m/s of "
+    f"translation at 250 m moves the image by only {flight_px_s:.0f} px/s, while the aircraft's slow rotations "
+    f"(turbulence and banking) move it by {camera.fx * w_a.min():.0f}-{camera.fx * w_a.max():.0f} px/s: at times "
+    "the rotations move the image faster than the flight does."))
 
 # %% [markdown]
 # ## 5. Files: the Event-Camera-Dataset layout
@@ -602,7 +591,6 @@ assert np.array_equal(back.imu.accel, clip.imu.accel) and np.array_equal(back.im
 assert np.array_equal(back.groundtruth.p_BinG, clip.groundtruth.p_BinG)
 assert np.allclose(back.R_CtoI, clip.R_CtoI) and back.camera == clip.camera
 print(f"read back {len(back.events)} events, {len(back.frames)} frames, {len(back.imu)} IMU samples: identical")
-print(f"whole notebook so far: {time.perf_counter() - notebook_start:.0f} s")
 
 # %% [markdown]
 # ## Summary
@@ -613,10 +601,11 @@ print(f"whole notebook so far: {time.perf_counter() - notebook_start:.0f} s")
 #   mismatch, a refractory period and Poisson noise; per pixel, $N_{\text{ON}}C_+ - N_{\text{OFF}}C_-$ tracks the
 #   log-intensity change to within one threshold.
 # * Adaptive sampling renders as often as the fastest pixel needs; the event count converges as the bound tightens.
-# * In fast motion the APS frame blurs while a few milliseconds of events stay sharp. The event rate follows the
-#   motion (room) and is several times lower per pixel over sparse, distant terrain (aerial: about 3x in the full
-#   lesson, 9x in fast mode; section 4), as in the thesis, where the sparse Camp Atterbury scene "resulted in a much
-#   lower rate of events compared to that of the Boxes dataset" (§4.1).
+# * In fast motion the APS frame blurs: the image moves several pixels during its exposure and the frame keeps a
+#   smaller share of the scene's detail, while an event frame of a fixed number of events spans a few milliseconds
+#   and loses less of its sharpness (section 4). The event rate follows the motion (room) and is several
+#   times lower per pixel over sparse, distant terrain, as in the thesis, where the sparse Camp Atterbury scene
+#   "resulted in a much lower rate of events compared to that of the Boxes dataset" (§4.1).
 # * IMU, frames, events and ground truth come from one trajectory; the recording round-trips through the ECD layout.
 #
 # ## What comes next
@@ -643,8 +632,8 @@ print(f"whole notebook so far: {time.perf_counter() - notebook_start:.0f} s")
 # 3. Build the event frame of the fast moment from 1, 3, 10 and 30 ms of events and compute its sharpness $S$.
 #    Which window length gives the sharpest frame, and why does a too-long window blur like an APS frame?
 #
-#    *Hint:* select the events with $|t - t_{fast}| <$ half the window and reuse `sharpness`; beware that a very
-#    sparse frame scores a high $S$ too.
+#    *Hint:* with `t_fast = cases['fastest']['t']`, select the events with $|t - t_{fast}| <$ half the window and
+#    reuse `sharpness`; beware that a very sparse frame scores a high $S$ too.
 # 4. Simulate `aerial_like` with `background_rate_hz = 0.1` and compare signal and noise events per second. At what
 #    noise rate is every second event noise? (Thesis §4.1 found the aerial event frames noisy.)
 #

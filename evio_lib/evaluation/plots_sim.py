@@ -19,6 +19,7 @@ __all__ = [
     "event_rate",
     "plot_pixel_events",
     "plot_image_row",
+    "plot_image_table",
     "plot_sample_intervals",
     "plot_event_cloud",
     "plot_imu_vs_truth",
@@ -115,9 +116,33 @@ def plot_pixel_events(t: ArrayLike, log_intensity: ArrayLike, events: np.ndarray
     return fig
 
 
+def _value_range(images: Sequence[np.ndarray], symmetric: bool = False) -> tuple[float, float]:
+    """Return (vmin, vmax) over the finite values of all ``images`` (centred on 0 when ``symmetric``)."""
+    finite = [im[np.isfinite(im)] if np.issubdtype(im.dtype, np.floating) else im.ravel() for im in images]
+    finite = [f for f in finite if f.size]
+    vmin, vmax = (min(float(f.min()) for f in finite), max(float(f.max()) for f in finite)) if finite else (0.0, 1.0)
+    if symmetric:
+        vmax = max(abs(vmin), abs(vmax), 1e-12)
+        vmin = -vmax
+    return vmin, vmax
+
+
+def _per_image(value, n: int, name: str, is_single) -> list:
+    """Return ``value`` repeated n times when ``is_single(value)``, else as a list of length n (ValueError if not)."""
+    values = [value] * n if is_single(value) else list(value)
+    if len(values) != n:
+        raise ValueError(f"{name} must be one value or one per image ({n}); got {len(values)}")
+    return values
+
+
+def _is_range(value) -> bool:
+    return value is None or (len(value) == 2 and all(np.isscalar(v) for v in value))
+
+
 def plot_image_row(images: Sequence[ArrayLike], titles: Sequence[str], cmaps: Sequence[str] | str = "gray",
-                   symmetric: Sequence[bool] | bool = False, colorbar: bool = False, width_in: float = 4.0
-                   ) -> "Figure":
+                   symmetric: Sequence[bool] | bool = False, colorbar: bool = False, width_in: float = 4.0,
+                   vrange: tuple[float, float] | str | Sequence[tuple[float, float] | None] | None = None,
+                   colorbar_label: str | Sequence[str] = "") -> "Figure":
     """Return a figure showing ``images`` side by side, each with its title.
 
     Args:
@@ -127,11 +152,17 @@ def plot_image_row(images: Sequence[ArrayLike], titles: Sequence[str], cmaps: Se
         symmetric: per image (or for all): centre the colour range on 0 (signed event images).
         colorbar: add a colour bar to every panel.
         width_in: width of each panel in inches.
+        vrange: the colour range: None (each image its own min..max), ``"shared"`` (one min..max over all images,
+            for images of one quantity), one (vmin, vmax) for all, or one (vmin, vmax) or None per image.
+        colorbar_label: the colour bars' label (the quantity and its unit), one for all or one per image.
 
     >>> import matplotlib; matplotlib.use("Agg")
     >>> fig = plot_image_row([np.zeros((4, 5)), np.eye(4)], ["a", "b"], cmaps=["gray", "bwr"], symmetric=[False, True])
     >>> len(fig.axes)
     2
+    >>> fig = plot_image_row([np.zeros((4, 4)), 2 * np.eye(4)], ["a", "b"], vrange="shared", colorbar=True)
+    >>> [ax.images[0].get_clim() for ax in fig.axes[:2]]
+    [(0.0, 2.0), (0.0, 2.0)]
     """
     import matplotlib.pyplot as plt
 
@@ -143,26 +174,97 @@ def plot_image_row(images: Sequence[ArrayLike], titles: Sequence[str], cmaps: Se
     for i, im in enumerate(images):
         if im.ndim != 2:
             raise ValueError(f"images[{i}] must have shape (H, W); got {im.shape}")
-    cmaps = [cmaps] * n if isinstance(cmaps, str) else list(cmaps)
-    symmetric = [symmetric] * n if isinstance(symmetric, (bool, np.bool_)) else list(symmetric)
-    if len(cmaps) != n or len(symmetric) != n:
-        raise ValueError(f"cmaps and symmetric must be one value or one per image ({n}); got {len(cmaps)} and "
-                         f"{len(symmetric)}")
+    cmaps = _per_image(cmaps, n, "cmaps", lambda v: isinstance(v, str))
+    symmetric = _per_image(symmetric, n, "symmetric", lambda v: isinstance(v, (bool, np.bool_)))
+    labels = _per_image(colorbar_label, n, "colorbar_label", lambda v: isinstance(v, str))
+    if isinstance(vrange, str):
+        if vrange != "shared":
+            raise ValueError(f"vrange must be None, 'shared', (vmin, vmax) or one per image; got {vrange!r}")
+        ranges = [_value_range(images, symmetric=any(symmetric))] * n
+    else:
+        ranges = _per_image(vrange, n, "vrange", _is_range)
     aspect = images[0].shape[0] / images[0].shape[1]
     fig, axes = plt.subplots(1, n, figsize=(width_in * n, width_in * aspect + 0.6), squeeze=False)
-    for ax, im, title, cmap, sym in zip(axes[0], images, titles, cmaps, symmetric):
-        finite = im[np.isfinite(im)] if np.issubdtype(im.dtype, np.floating) else im
-        vmin, vmax = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 1.0)
-        if sym:
-            vmax = max(abs(vmin), abs(vmax), 1e-12)
-            vmin = -vmax
+    for ax, im, title, cmap, sym, value_range, label in zip(axes[0], images, titles, cmaps, symmetric, ranges,
+                                                             labels):
+        vmin, vmax = _value_range([im], sym) if value_range is None else value_range
         handle = ax.imshow(im, cmap=cmap, vmin=vmin, vmax=vmax, interpolation="nearest")
         ax.set_title(title, fontsize=9)
         ax.set_xticks([])
         ax.set_yticks([])
         if colorbar:
-            fig.colorbar(handle, ax=ax, fraction=0.035, pad=0.02)
+            fig.colorbar(handle, ax=ax, fraction=0.035, pad=0.02).set_label(label, fontsize=8)
     fig.tight_layout()
+    return fig
+
+
+def plot_image_table(rows: Sequence[Sequence[ArrayLike]], row_labels: Sequence[str], column_titles: Sequence[str],
+                     colorbar_labels: Sequence[str], cmaps: Sequence[str] | str = "gray",
+                     vranges: Sequence[tuple[float, float] | None] | None = None,
+                     log_scale: Sequence[bool] | bool = False, width_in: float = 3.4) -> "Figure":
+    """Return a grid of images, one row per case and one column per quantity, each column on one colour range.
+
+    Every column shows one quantity (e.g. an APS frame, a render, an event-count image) for every row, with one
+    colour bar under the column, so that the rows can be compared by eye.
+
+    Args:
+        rows: R rows of C (H, W) arrays each.
+        row_labels: R labels, written left of each row.
+        column_titles: C titles, above the top row.
+        colorbar_labels: C colour-bar labels (the quantity and its unit).
+        cmaps: one colour map for all columns or one per column.
+        vranges: per column (vmin, vmax), or None for the min..max over the column (positive values only when the
+            column is on a log scale); None for all columns.
+        log_scale: per column (or for all): a logarithmic colour scale (for values spanning decades, e.g. depth).
+        width_in: width of each panel in inches.
+
+    >>> import matplotlib; matplotlib.use("Agg")
+    >>> fig = plot_image_table([[np.zeros((4, 5)), np.ones((4, 5))], [np.eye(4, 5), 3 * np.ones((4, 5))]],
+    ...                        ["calm", "fast"], ["a", "b"], ["a [1]", "b [1]"])
+    >>> fig.axes[1].images[0].get_clim(), fig.axes[3].images[0].get_clim()
+    ((1.0, 3.0), (1.0, 3.0))
+    """
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import LogNorm, Normalize
+
+    grid = [[np.asarray(im) for im in row] for row in rows]
+    n_rows = len(grid)
+    n_cols = len(grid[0]) if n_rows else 0
+    if n_rows == 0 or n_cols == 0 or any(len(row) != n_cols for row in grid):
+        raise ValueError(f"rows must be a non-empty list of equally long, non-empty lists of images; got row lengths "
+                         f"{[len(row) for row in grid]}")
+    for r, row in enumerate(grid):
+        for c, im in enumerate(row):
+            if im.ndim != 2:
+                raise ValueError(f"rows[{r}][{c}] must have shape (H, W); got {im.shape}")
+    if len(row_labels) != n_rows or len(column_titles) != n_cols or len(colorbar_labels) != n_cols:
+        raise ValueError(f"need {n_rows} row_labels and {n_cols} column_titles and colorbar_labels; got "
+                         f"{len(row_labels)}, {len(column_titles)} and {len(colorbar_labels)}")
+    cmaps = _per_image(cmaps, n_cols, "cmaps", lambda v: isinstance(v, str))
+    logs = _per_image(log_scale, n_cols, "log_scale", lambda v: isinstance(v, (bool, np.bool_)))
+    ranges = [None] * n_cols if vranges is None else _per_image(vranges, n_cols, "vranges", lambda v: False)
+    aspect = grid[0][0].shape[0] / grid[0][0].shape[1]
+    fig, axes = plt.subplots(n_rows, n_cols, figsize=(width_in * n_cols, (width_in * aspect + 0.3) * n_rows + 0.9),
+                             squeeze=False)
+    for c in range(n_cols):
+        column = [grid[r][c] for r in range(n_rows)]
+        if ranges[c] is not None:
+            vmin, vmax = ranges[c]
+        elif logs[c]:
+            positive = [im[im > 0] for im in column]
+            vmin, vmax = _value_range([p for p in positive if p.size] or [np.ones(1)])
+        else:
+            vmin, vmax = _value_range(column)
+        norm = LogNorm(vmin, vmax) if logs[c] else Normalize(vmin, vmax)
+        for r in range(n_rows):
+            handle = axes[r, c].imshow(grid[r][c], cmap=cmaps[c], norm=norm, interpolation="nearest")
+            axes[r, c].set_xticks([])
+            axes[r, c].set_yticks([])
+        axes[0, c].set_title(column_titles[c], fontsize=9)
+        fig.colorbar(handle, ax=list(axes[:, c]), orientation="horizontal", fraction=0.05, pad=0.03,
+                     aspect=25).set_label(colorbar_labels[c], fontsize=8)
+    for r in range(n_rows):
+        axes[r, 0].set_ylabel(row_labels[r], fontsize=9)
     return fig
 
 
@@ -238,7 +340,8 @@ def plot_event_cloud(events: np.ndarray, max_points: int = 20000, title: str = "
     ax.set_zlabel("y [px]")
     ax.invert_zaxis()
     ax.view_init(elev=15, azim=-60)
-    ax.set_title(f"{title} ({events.size} events, every {stride}. shown)", fontsize=10)
+    shown = "all shown" if stride == 1 else f"every {stride}th shown"
+    ax.set_title(f"{title} ({events.size} events, {shown})", fontsize=10)
     return fig
 
 
@@ -281,23 +384,28 @@ def plot_imu_vs_truth(t: ArrayLike, gyro: ArrayLike, gyro_true: ArrayLike, accel
 
 def plot_event_rates(rates: Mapping[str, tuple[ArrayLike, ArrayLike]],
                      motion: Mapping[str, tuple[ArrayLike, ArrayLike]] | None = None,
-                     motion_label: str = "angular speed |w| [rad/s]") -> "Figure":
+                     motion_label: str = "angular speed |w| [rad/s]", shared_axes: bool = True) -> "Figure":
     """Return a figure with one panel per sequence: its event rate over time, and optionally a motion measure.
 
     Args:
         rates: name -> (bin centres [s], events per second), e.g. from :func:`event_rate`.
         motion: optional name -> (times [s], values) drawn on a second axis of the same panel.
         motion_label: label of that second axis.
+        shared_axes: every panel on the same rate axis (and the same motion axis), so that the sequences can be
+            compared by eye.
 
     >>> import matplotlib; matplotlib.use("Agg")
-    >>> len(plot_event_rates({"a": ([0.0, 1.0], [10.0, 20.0])}, {"a": ([0.0, 1.0], [0.1, 0.2])}).axes)
-    2
+    >>> fig = plot_event_rates({"a": ([0.0, 1.0], [10.0, 20.0]), "b": ([0.0, 1.0], [1e6, 2e6])},
+    ...                        {"a": ([0.0, 1.0], [0.1, 0.2]), "b": ([0.0, 1.0], [1.0, 2.0])})
+    >>> len(fig.axes), fig.axes[0].get_ylim() == fig.axes[1].get_ylim()
+    (4, True)
     """
     import matplotlib.pyplot as plt
 
     if not rates:
         raise ValueError("rates must hold at least one (name -> (times, rate)) entry; got none")
-    fig, axes = plt.subplots(len(rates), 1, figsize=(9, 2.8 * len(rates)), squeeze=False)
+    fig, axes = plt.subplots(len(rates), 1, figsize=(9, 2.8 * len(rates)), squeeze=False, sharey=shared_axes)
+    motion_axes = []
     for ax, (name, (t, rate)) in zip(axes[:, 0], rates.items()):
         ax.plot(np.asarray(t), np.asarray(rate) / 1e6, color="k", lw=1.2, label="event rate (left axis)")
         ax.set_ylabel("events [Mev/s]")
@@ -307,6 +415,9 @@ def plot_event_rates(rates: Mapping[str, tuple[ArrayLike, ArrayLike]],
         if motion is not None and name in motion:
             tm, value = motion[name]
             ax2 = ax.twinx()
+            if shared_axes and motion_axes:
+                ax2.sharey(motion_axes[0])
+            motion_axes.append(ax2)
             ax2.plot(np.asarray(tm), np.asarray(value), color="tab:orange", lw=1.0,
                      label=f"{motion_label.split(' [')[0]} (right axis)")
             ax2.set_ylabel(motion_label, color="tab:orange")

@@ -12,6 +12,7 @@ from evio_lib.evaluation.plots_sim import (  # noqa: E402
     plot_event_cloud,
     plot_event_rates,
     plot_image_row,
+    plot_image_table,
     plot_imu_vs_truth,
     plot_pixel_events,
     plot_sample_intervals,
@@ -80,11 +81,50 @@ def test_image_row_symmetric_range(rng: np.random.Generator) -> None:
         plot_image_row([np.zeros(3)], ["a"])
 
 
+def test_image_row_shares_one_colour_range_and_labels_its_colour_bars(rng: np.random.Generator) -> None:
+    small, large = rng.uniform(-0.1, 0.1, (30, 40)), rng.uniform(-2.0, 3.0, (30, 40))
+    fig = plot_image_row([small, large], ["residual", "change"], cmaps="bwr", symmetric=True, colorbar=True,
+                         vrange="shared", colorbar_label="change [log units]")
+    _render(fig)
+    assert fig.axes[0].images[0].get_clim() == fig.axes[1].images[0].get_clim() == (-large.max(), large.max())
+    assert [ax.get_ylabel() for ax in fig.axes[2:]] == ["change [log units]"] * 2
+    fig = plot_image_row([small, large], ["a", "b"], vrange=[(0.0, 1.0), None])
+    assert fig.axes[0].images[0].get_clim() == (0.0, 1.0) and fig.axes[1].images[0].get_clim() == (large.min(),
+                                                                                                   large.max())
+    with pytest.raises(ValueError, match="vrange must be"):
+        plot_image_row([small], ["a"], vrange="own")
+    with pytest.raises(ValueError, match="one per image"):
+        plot_image_row([small, large], ["a", "b"], vrange=[(0.0, 1.0)])
+
+
+def test_image_table_one_range_per_column(rng: np.random.Generator) -> None:
+    calm = [rng.uniform(0, 1, (18, 24)), rng.integers(0, 3, (18, 24)), rng.uniform(1.0, 4.0, (18, 24))]
+    fast = [rng.uniform(0, 1, (18, 24)), rng.integers(0, 9, (18, 24)), rng.uniform(200.0, 260.0, (18, 24))]
+    fig = plot_image_table([calm, fast], ["calm", "fast"], ["frame", "events", "depth"],
+                           ["intensity", "events per pixel", "depth [m]"], cmaps=["gray", "gray_r", "viridis"],
+                           vranges=[(0.0, 1.0), None, None], log_scale=[False, False, True])
+    _render(fig)
+    panels = np.array(fig.axes[:6]).reshape(2, 3)
+    for c in range(3):
+        assert panels[0, c].images[0].get_clim() == panels[1, c].images[0].get_clim()
+    assert panels[0, 0].images[0].get_clim() == (0.0, 1.0)
+    assert panels[0, 1].images[0].get_clim() == (0.0, float(max(calm[1].max(), fast[1].max())))
+    assert panels[0, 2].images[0].norm.__class__.__name__ == "LogNorm"
+    assert [ax.get_xlabel() for ax in fig.axes[6:]] == ["intensity", "events per pixel", "depth [m]"]
+    assert [panels[r, 0].get_ylabel() for r in range(2)] == ["calm", "fast"]
+    with pytest.raises(ValueError, match="equally long"):
+        plot_image_table([calm, fast[:2]], ["a", "b"], ["x", "y", "z"], ["x", "y", "z"])
+    with pytest.raises(ValueError, match="row_labels"):
+        plot_image_table([calm], ["a", "b"], ["x", "y", "z"], ["x", "y", "z"])
+
+
 def test_event_cloud_thins_deterministically(events: np.ndarray) -> None:
     fig = plot_event_cloud(events, max_points=1000)
     _render(fig)
     drawn = fig.axes[0].collections[0]
     assert len(drawn.get_offsets()) == 1000  # every 5th of 5000
+    assert fig.axes[0].get_title().endswith("(5000 events, every 5th shown)")
+    assert plot_event_cloud(events[:10]).axes[0].get_title().endswith("(10 events, all shown)")
     with pytest.raises(ValueError, match="at least one event"):
         plot_event_cloud(empty_events())
     with pytest.raises(ValueError, match="max_points"):
@@ -103,6 +143,12 @@ def test_imu_rates_and_sampling_figures(rng: np.random.Generator, events: np.nda
     fig = plot_event_rates({"a": (centres, rate), "b": (centres, 2 * rate)}, {"a": (t, truth[:, 0])})
     _render(fig)
     assert len(fig.axes) == 3  # two panels + one twin axis
+    assert fig.axes[0].get_ylim() == fig.axes[1].get_ylim()  # one rate axis for both sequences
+    fig = plot_event_rates({"a": (centres, rate), "b": (centres, 2 * rate)},
+                           {"a": (t, truth[:, 0]), "b": (t, 5 * truth[:, 0])})
+    assert fig.axes[2].get_ylim() == fig.axes[3].get_ylim()  # ... and one motion axis
+    fig = plot_event_rates({"a": (centres, rate), "b": (centres, 2 * rate)}, shared_axes=False)
+    assert fig.axes[0].get_ylim() != fig.axes[1].get_ylim()
     with pytest.raises(ValueError, match="at least one"):
         plot_event_rates({})
     fig = plot_sample_intervals(np.cumsum(rng.uniform(1e-3, 1e-2, 50)), t, truth[:, 0])
