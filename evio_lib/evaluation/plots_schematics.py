@@ -8,6 +8,9 @@ One function per figure, each returning the matplotlib Figure:
   (FireNet: encoder, ConvGRU cells whose state is carried from window to window, decoder) -> frame.
 - :func:`plot_superpoint_schematic` (notebook 06): the shared VGG-style encoder down to 1/8 resolution and the
   detector and descriptor heads (thesis §3.2.4, Fig. 12).
+- :func:`plot_homographic_adaptation_schematic` (notebook 07): an image, N random homographies, the detector on
+  every view, the responses mapped back and averaged into labels (thesis §3.2.5.2); and the descriptor loss on a
+  warped pair: corresponding and other cells, the two hinge terms and their margins (Eqs. 10-12).
 - :func:`plot_msckf_schematic` (notebook 10): the MSCKF state vector (IMU state + N camera clones, thesis Eqs. 21,
   25-26) and the life of a feature track (observed, lost or pruned, triangulated, nullspace-projected update,
   clones marginalised; §3.3.6-3.3.7).
@@ -16,7 +19,9 @@ One function per figure, each returning the matplotlib Figure:
 
 The sizes written in the boxes are those of the library (`evio_lib.features.network`,
 `evio_lib.events.reconstruction.nets`, `evio_lib.msckf.state`); nothing here is computed from data, except the
-one-pixel curve of :func:`plot_event_pixel_schematic`, whose events follow the thesis's rule exactly.
+one-pixel curve of :func:`plot_event_pixel_schematic`, whose events follow the thesis's rule exactly, and the
+panels of :func:`plot_homographic_adaptation_schematic`, computed on a made-up scene by the library's own
+homographic adaptation (:func:`homographic_adaptation_schematic_data` returns them).
 Matplotlib is imported when a figure is made.
 """
 from __future__ import annotations
@@ -33,6 +38,8 @@ __all__ = [
     "plot_event_pixel_schematic",
     "plot_reconstruction_schematic",
     "plot_superpoint_schematic",
+    "homographic_adaptation_schematic_data",
+    "plot_homographic_adaptation_schematic",
     "plot_msckf_schematic",
     "plot_pipeline_schematic",
 ]
@@ -506,4 +513,280 @@ def plot_pipeline_schematic() -> "Figure":
     _arrow(ax, _right(truth), (15.6, 0.7), "", connection="arc3,rad=0.08", colour="0.45")
     ax.text(8.0, 0.18, "compared with the ground truth", fontsize=8, color="0.35")
     fig.tight_layout()
+    return fig
+
+
+def _schematic_drawing(shape: tuple[int, int] = (96, 128)) -> np.ndarray:
+    """Return a made-up grayscale scene in [0, 1] with sharp corners (a square, a triangle, an L, a small grid)."""
+    import cv2
+
+    height, width = shape
+    yy, xx = np.mgrid[0:height, 0:width].astype(np.float32)
+    image = (0.75 + 0.1 * xx / width - 0.05 * yy / height).astype(np.float32)  # a gentle background gradient
+    scale = np.array([width / 128.0, height / 96.0])
+    shapes = [
+        ([[14, 14], [44, 14], [44, 42], [14, 42]], 0.15),  # square
+        ([[62, 70], [96, 52], [90, 86]], 0.3),  # triangle
+        ([[58, 12], [112, 12], [112, 22], [70, 22], [70, 40], [58, 40]], 0.1),  # an L
+    ]
+    for corners, value in shapes:
+        cv2.fillPoly(image, [np.round(np.asarray(corners) * scale).astype(np.int32)], float(value))
+    for row in range(2):  # a 2 x 3 checkerboard
+        for col in range(3):
+            if (row + col) % 2 == 0:
+                x0, y0 = (16 + 10 * col) * scale[0], (58 + 10 * row) * scale[1]
+                cv2.rectangle(image, (int(x0), int(y0)), (int(x0 + 10 * scale[0]) - 1, int(y0 + 10 * scale[1]) - 1),
+                              0.05, -1)
+    return cv2.GaussianBlur(image, (3, 3), 0.7)
+
+
+def _similarity_homography(shape: tuple[int, int], angle_deg: float, scale: float, shift: Sequence[float] = (0, 0),
+                           perspective: Sequence[float] = (0.0, 0.0)) -> np.ndarray:
+    """Return a homography that rotates by ``angle_deg`` and scales about the image centre, shifts and tilts."""
+    height, width = shape
+    cx, cy = (width - 1) / 2.0, (height - 1) / 2.0
+    a = np.deg2rad(angle_deg)
+    to_centre = np.array([[1.0, 0.0, -cx], [0.0, 1.0, -cy], [0.0, 0.0, 1.0]])
+    rotate = np.array([[scale * np.cos(a), -scale * np.sin(a), 0.0], [scale * np.sin(a), scale * np.cos(a), 0.0],
+                       [perspective[0] / width, perspective[1] / height, 1.0]])
+    back = np.array([[1.0, 0.0, cx + shift[0]], [0.0, 1.0, cy + shift[1]], [0.0, 0.0, 1.0]])
+    H = back @ rotate @ to_centre
+    return H / H[2, 2]
+
+
+def _harris_response(batch: np.ndarray) -> np.ndarray:
+    """(B, H, W) images -> (B, H, W) positive Harris responses: the stand-in detector f of the schematic."""
+    import cv2
+
+    return np.stack([np.maximum(cv2.cornerHarris(np.ascontiguousarray(img, np.float32), 5, 3, 0.04), 0.0)
+                     for img in batch])  # loop: a few images
+
+
+def homographic_adaptation_schematic_data(n_homographies: int = 16, seed: int = 0) -> dict[str, np.ndarray]:
+    """Return the numbers drawn by :func:`plot_homographic_adaptation_schematic` (all computed, nothing typed).
+
+    Keys: ``image`` (96, 128) made-up scene; ``homographies`` (N, 3, 3), [0] the identity, [1:4] the three views
+    drawn; ``views``, ``responses``, ``back`` (3, 96, 128): the drawn views H_i I, the detector on them and the
+    response mapped back to the image's frame (NaN where view i did not see the pixel); ``heatmap``, ``counts``:
+    the aggregate over all N views by :func:`evio_lib.features.training.adaptation.homographic_adaptation`;
+    ``labels`` (K, 2): its maxima (above a tenth of its peak, NMS 4 px); ``scale``: the peak of f on the image,
+    by which every response is divided; ``pair_homography``, ``cell`` (row, col), ``positives`` (P, 2) (row, col)
+    cells of image 2 within 8 px of the warped centre (Eq. 10) and ``warped_centre`` (2,) for the descriptor panel.
+
+    >>> data = homographic_adaptation_schematic_data(n_homographies=4)
+    >>> data["heatmap"].shape, data["homographies"].shape, bool(np.allclose(data["homographies"][0], np.eye(3)))
+    ((96, 128), (4, 3, 3), True)
+    """
+    import cv2
+
+    from evio_lib.features.training.adaptation import heatmap_to_keypoints, homographic_adaptation
+    from evio_lib.features.training.augment import HOMOGRAPHIC_ADAPTATION
+    from evio_lib.geometry.homography import valid_mask, warp_image, warp_points
+
+    if isinstance(n_homographies, bool) or not isinstance(n_homographies, (int, np.integer)) or n_homographies < 4:
+        raise ValueError(f"n_homographies must be an integer >= 4 (the identity and the three views drawn); "
+                         f"got {n_homographies!r}")
+    image = _schematic_drawing()
+    shape = image.shape
+    drawn = [_similarity_homography(shape, 25.0, 0.9, (4, -3), (0.25, 0.0)),
+             _similarity_homography(shape, -30.0, 1.15, (-5, 4), (0.0, 0.3)),
+             _similarity_homography(shape, 8.0, 0.8, (6, 5), (-0.3, 0.15))]
+    rng = np.random.default_rng(seed)
+    others = [_similarity_homography(shape, rng.uniform(-35, 35), rng.uniform(0.8, 1.2), rng.uniform(-6, 6, 2),
+                                     rng.uniform(-0.3, 0.3, 2)) for _ in range(n_homographies - 4)]
+    homographies = np.stack([np.eye(3)] + drawn + others)
+    scale = float(_harris_response(image[None])[0].max())
+
+    def detector(batch: np.ndarray) -> np.ndarray:
+        return _harris_response(batch) / scale
+
+    margin = 5  # the detector's 5 x 5 window answers to a view's border up to 5 px inside it: left out (c_i = 0)
+    result = homographic_adaptation(image, detector, rng=seed, homographies=homographies,
+                                    config=HOMOGRAPHIC_ADAPTATION.replace(valid_border_margin=margin))
+    views = np.stack([warp_image(image, H) for H in drawn])
+    responses = detector(views)
+    back = []
+    for H, response in zip(drawn, responses):  # the library's mapping back, for the three views drawn
+        seen = warp_image(valid_mask(shape, H, erode=margin).astype(np.float32), np.linalg.inv(H),
+                          interpolation=cv2.INTER_NEAREST) > 0.5
+        mapped = cv2.warpPerspective(response, np.linalg.inv(H), (shape[1], shape[0]), flags=cv2.INTER_LINEAR,
+                                     borderMode=cv2.BORDER_REPLICATE)
+        back.append(np.where(seen, mapped, np.nan))
+    labels, _ = heatmap_to_keypoints(result.heatmap, 0.1 * float(result.heatmap.max()), nms_radius=4, border=4)
+
+    pair_homography = _similarity_homography(shape, 12.0, 1.1, (5, -2), (0.15, 0.1))
+    cell = (5, 6)  # (row, col) of the cell of image 1 whose correspondences are drawn
+    centre = np.array([[8 * cell[1] + 3.5, 8 * cell[0] + 3.5]])
+    warped_centre = warp_points(pair_homography, centre)[0]
+    rows, cols = np.mgrid[0:shape[0] // 8, 0:shape[1] // 8]
+    centres = np.stack([8 * cols.ravel() + 3.5, 8 * rows.ravel() + 3.5], axis=1)
+    near = np.linalg.norm(centres - warped_centre, axis=1) < 8.0  # Eq. 10: s = 1 within 8 px
+    positives = np.stack([rows.ravel()[near], cols.ravel()[near]], axis=1)
+    return dict(image=image, homographies=homographies, views=views, responses=responses, back=np.stack(back),
+                heatmap=result.heatmap, counts=result.counts, labels=labels, scale=np.float64(scale),
+                pair_homography=pair_homography, cell=np.array(cell), positives=positives,
+                warped_centre=warped_centre)
+
+
+def plot_homographic_adaptation_schematic(n_homographies: int = 16, margins: tuple[float, float] = (1.0, 0.2),
+                                          lambda_d: float = 62.5) -> "Figure":
+    """Return homographic adaptation (top) and the descriptor loss on a warped pair (bottom), drawn on a made-up scene.
+
+    Top (thesis §3.2.5.2): an image without labels, N random homographies H_i (three views drawn), the detector f on
+    each view, each response mapped back by H_i⁻¹ (only where the view saw the pixel, c_i = 1), and the mean over the
+    views that saw each pixel: the aggregate, whose maxima become the labels. The detector drawn is a Harris
+    response (a stand-in for MagicPoint), every response divided by its peak on the image, on one colour range.
+    Bottom (Eqs. 10-12): one cell of image 1, its centre warped by the pair's H into image 2, the cells of image 2
+    whose centres lie within 8 px (s = 1: corresponding) and all others (s = 0); and the two hinge terms of the
+    descriptor loss against the cosine d·d′ of two unit descriptors, with the margins m_p and m_n.
+
+    Args:
+        n_homographies: N, the views averaged (the identity and the three drawn among them), >= 4.
+        margins: (m_p, m_n), the positive and negative margins of the hinge (SuperPoint: 1 and 0.2).
+        lambda_d: the weight of the positive term (the configs' 62.5 at 120 x 160); the curve is drawn divided by it.
+
+    >>> import matplotlib; matplotlib.use("Agg")
+    >>> fig = plot_homographic_adaptation_schematic(n_homographies=4)
+    >>> any("H_i" in t.get_text() for t in fig.texts)
+    True
+    """
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Circle, ConnectionPatch, Rectangle
+
+    m_p, m_n = (float(m) for m in margins)
+    if not (np.isfinite(m_p) and np.isfinite(m_n) and -1.0 <= m_n < m_p):
+        raise ValueError(f"margins must be (m_p, m_n) with -1 <= m_n < m_p; got {margins!r}")
+    if not (np.isfinite(lambda_d) and lambda_d > 0):
+        raise ValueError(f"lambda_d must be a positive number; got {lambda_d!r}")
+    data = homographic_adaptation_schematic_data(n_homographies)
+    image = data["image"]
+    height, width = image.shape
+    fig_w, fig_h = 13.6, 9.4
+    fig = plt.figure(figsize=(fig_w, fig_h))
+
+    def axes_at(left: float, bottom: float, w: float, h: float) -> "Axes":  # inches -> figure fraction
+        return fig.add_axes((left / fig_w, bottom / fig_h, w / fig_w, h / fig_h))
+
+    def image_axes(left: float, bottom: float, w: float) -> "Axes":
+        ax = axes_at(left, bottom, w, w * height / width)
+        ax.set_xticks([])
+        ax.set_yticks([])
+        return ax
+
+    def link(ax_a: "Axes", ax_b: "Axes", text: str = "", ya: float = 0.5, yb: float = 0.5, **text_options) -> None:
+        arrow = ConnectionPatch((1.02, ya), (-0.02, yb), "axes fraction", "axes fraction", axesA=ax_a, axesB=ax_b,
+                                arrowstyle="-|>", color="0.2", lw=1.2, mutation_scale=12)
+        fig.add_artist(arrow)
+        if text:
+            x_a, y_a = fig.transFigure.inverted().transform(ax_a.transAxes.transform((1.02, ya)))
+            x_b, y_b = fig.transFigure.inverted().transform(ax_b.transAxes.transform((-0.02, yb)))
+            options = dict(ha="center", va="bottom", fontsize=8, color="0.2")
+            options.update(text_options)
+            fig.text(0.5 * (x_a + x_b), 0.5 * (y_a + y_b) + 0.008, text, **options)
+
+    cmap = plt.get_cmap("magma").with_extremes(bad="0.85")  # grey: pixels a view did not see
+    response_range = dict(vmin=0.0, vmax=1.0, cmap=cmap)
+
+    # --- top: homographic adaptation ---------------------------------------------------------------------------
+    fig.text(0.5, 0.985, f"homographic adaptation (thesis §3.2.5.2): a label from N = {n_homographies} random warps "
+             "of an image without labels", ha="center", va="top", fontsize=11)
+    big, small, top_base = 2.0, 1.4, 4.55
+    small_h = small * height / width
+    ax_image = image_axes(0.25, top_base + 1.05, big)
+    ax_image.imshow(image, cmap="gray", vmin=0, vmax=1)
+    ax_image.set_title("image I (no labels)", fontsize=9)
+    grid_left = 0.25 + big + 0.75
+    column_titles = ["view H_i I", "detector f(H_i I)", "back in I's frame\nH_i⁻¹ f(H_i I)"]
+    grid_axes = []
+    for i in range(3):
+        bottom = top_base + 2 * (small_h + 0.32) - i * (small_h + 0.32)
+        row = []
+        for j, (panel, kind) in enumerate(((data["views"][i], "gray"), (data["responses"][i], "response"),
+                                           (data["back"][i], "response"))):
+            ax = image_axes(grid_left + j * (small + 0.45), bottom, small)
+            if kind == "gray":
+                ax.imshow(panel, cmap="gray", vmin=0, vmax=1)
+            else:
+                shown = ax.imshow(panel, **response_range)
+            if i == 0:
+                ax.set_title(column_titles[j], fontsize=8.5)
+            row.append(ax)
+        for a, b in zip(row[:-1], row[1:]):
+            link(a, b)
+        grid_axes.append(row)
+    for i, row in enumerate(grid_axes):
+        link(ax_image, row[0], f"H_{i + 1}", yb=0.5, ya=0.85 - 0.35 * i, fontsize=9)
+    fig.text((0.25 + big / 2) / fig_w, (top_base + 0.95) / fig_h, "warp by N random\nhomographies H_i",
+             ha="center", va="top", fontsize=8.5)
+    fig.text((grid_left + 1.5 * small + 0.45) / fig_w, (top_base - 0.18) / fig_h,
+             f"… and {n_homographies - 4} more random views, plus the image itself (H_0 = identity); grey: pixels "
+             "the view did not see (c_i = 0)", ha="center", va="top", fontsize=8, color="0.3")
+    agg_left = grid_left + 3 * small + 2 * 0.45 + 0.7
+    ax_agg = image_axes(agg_left, top_base + 1.05, big)
+    heat = np.where(data["counts"] > 0, data["heatmap"], np.nan)
+    shown = ax_agg.imshow(heat, **response_range)
+    ax_agg.set_title("aggregate F(I): mean over\nthe views that saw each pixel", fontsize=9)
+    for row in grid_axes:
+        link(row[-1], ax_agg, yb=0.5)
+    colour_axes = axes_at(agg_left, top_base + 0.55, big, 0.12)
+    bar = fig.colorbar(shown, cax=colour_axes, orientation="horizontal")
+    bar.set_label("detector response (÷ its peak on I)", fontsize=8)
+    bar.ax.tick_params(labelsize=7)
+    ax_labels = image_axes(agg_left + big + 0.65, top_base + 1.05, big)
+    ax_labels.imshow(image, cmap="gray", vmin=0, vmax=1)
+    labels = data["labels"]
+    ax_labels.scatter(labels[:, 0], labels[:, 1], s=40, facecolors="none", edgecolors="red", linewidths=1.3)
+    ax_labels.set_title(f"labels: the {len(labels)} maxima of F(I)", fontsize=9)
+    link(ax_agg, ax_labels, "threshold\n+ NMS")
+
+    # --- bottom: the descriptor loss on a warped pair ------------------------------------------------------------
+    fig.text(0.5, 3.9 / fig_h, "the descriptor loss on a warped pair (Eqs. 10-12): one descriptor per 8 x 8 cell",
+             ha="center", va="bottom", fontsize=11)
+    pair_w, pair_base = 3.3, 0.75
+    ax_1 = image_axes(0.25, pair_base, pair_w)
+    ax_2 = image_axes(0.25 + pair_w + 0.9, pair_base, pair_w)
+    from evio_lib.geometry.homography import warp_image
+
+    warped = warp_image(image, data["pair_homography"])
+    r, c = (int(v) for v in data["cell"])
+    for ax, shown_image, title in ((ax_1, image, "image 1: cell (h, w), centre p_hw"),
+                                   (ax_2, warped, "image 2 = image 1 warped by H")):
+        ax.imshow(shown_image, cmap="gray", vmin=0, vmax=1)
+        for x in np.arange(8, width, 8) - 0.5:
+            ax.axvline(x, color="tab:blue", lw=0.4, alpha=0.6)
+        for y in np.arange(8, height, 8) - 0.5:
+            ax.axhline(y, color="tab:blue", lw=0.4, alpha=0.6)
+        ax.set_title(title, fontsize=9)
+    ax_1.add_patch(Rectangle((8 * c - 0.5, 8 * r - 0.5), 8, 8, facecolor="gold", alpha=0.6, edgecolor="k"))
+    ax_1.plot(8 * c + 3.5, 8 * r + 3.5, "k+", ms=8)
+    for pr, pc in data["positives"]:
+        ax_2.add_patch(Rectangle((8 * pc - 0.5, 8 * pr - 0.5), 8, 8, facecolor="lime", alpha=0.55, edgecolor="k",
+                                 lw=0.6))
+    wx, wy = data["warped_centre"]
+    ax_2.add_patch(Circle((wx, wy), 8.0, fill=False, edgecolor="gold", lw=1.5))
+    ax_2.plot(wx, wy, "k+", ms=8)
+    fig.add_artist(ConnectionPatch((8 * c + 3.5, 8 * r + 3.5), (wx, wy), "data", "data", axesA=ax_1, axesB=ax_2,
+                                   arrowstyle="-|>", color="gold", lw=1.4, mutation_scale=12))
+    ax_2.text(0.02, -0.04, f"green: the {len(data['positives'])} cells whose centre lies within 8 px of H p_hw "
+              "\n(s = 1, corresponding); every other cell: s = 0", transform=ax_2.transAxes, ha="left", va="top",
+              fontsize=8)
+    ax_1.text(0.5, -0.04, "every cell of image 1 is paired with every cell of image 2", transform=ax_1.transAxes,
+              ha="center", va="top", fontsize=8)
+    ax_hinge = axes_at(0.25 + 2 * pair_w + 2.3, pair_base + 0.05, 3.7, 2.45)
+    cosine = np.linspace(-1.0, 1.0, 401)
+    ax_hinge.plot(cosine, np.maximum(0.0, m_p - cosine), color="tab:green", lw=2,
+                  label="s = 1: λ_d max(0, m_p − d·d′), drawn ÷ λ_d")
+    ax_hinge.plot(cosine, np.maximum(0.0, cosine - m_n), color="tab:red", lw=2,
+                  label="s = 0: max(0, d·d′ − m_n)")
+    ax_hinge.axvline(m_p, color="tab:green", ls=":", lw=1)
+    ax_hinge.axvline(m_n, color="tab:red", ls=":", lw=1)
+    ax_hinge.text(m_p, 1.3, f"m_p = {m_p:g} ", ha="right", va="bottom", fontsize=8, color="tab:green")
+    ax_hinge.text(m_n, 0.55, f"m_n = {m_n:g} ", ha="right", va="bottom", fontsize=8, color="tab:red")
+    ax_hinge.set_ylim(0, 2.05)
+    ax_hinge.set_xlim(-1, 1)
+    ax_hinge.set_xlabel("d·d′: cosine of the two cells' unit descriptors")
+    ax_hinge.set_ylabel(f"loss of one cell pair\n(positive term ÷ λ_d = {lambda_d:g})")
+    ax_hinge.set_title("hinge terms: pull corresponding cells to d·d′ ≥ m_p,\npush the others below m_n",
+                       fontsize=9)
+    ax_hinge.legend(fontsize=7.5, loc="upper right")
     return fig

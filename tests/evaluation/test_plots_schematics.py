@@ -9,6 +9,8 @@ from matplotlib.figure import Figure  # noqa: E402
 
 from evio_lib.evaluation.plots_schematics import (  # noqa: E402
     _pixel_events,
+    homographic_adaptation_schematic_data,
+    plot_homographic_adaptation_schematic,
     plot_event_pixel_schematic,
     plot_msckf_schematic,
     plot_pipeline_schematic,
@@ -90,6 +92,54 @@ def test_superpoint_schematic_matches_the_network() -> None:
     text = _texts(plot_superpoint_schematic(config["encoder_channels"], config["head_channels"],
                                             config["descriptor_dim"]))
     assert f"conv3x3\n{config['head_channels']}" in text and f"H x W x {config['descriptor_dim']}" in text
+
+
+def test_homographic_adaptation_schematic_names_every_step() -> None:
+    fig = plot_homographic_adaptation_schematic(n_homographies=6)
+    assert isinstance(fig, Figure)
+    _drawn(fig)
+    text = _texts(fig) + "\n" + "\n".join(t.get_text() for t in fig.texts)
+    for label in ("image I (no labels)", "H_1", "H_3", "view H_i I", "detector f(H_i I)", "H_i⁻¹ f(H_i I)",
+                  "aggregate F(I)", "threshold\n+ NMS", "maxima of F(I)", "N = 6", "2 more random views",
+                  "detector response (÷ its peak on I)", "(c_i = 0)", "image 2 = image 1 warped by H", "s = 1",
+                  "s = 0", "m_p = 1", "m_n = 0.2", "d·d′: cosine of the two cells' unit descriptors",
+                  "loss of one cell pair\n(positive term ÷ λ_d = 62.5)"):
+        assert label in text, label
+
+
+def test_homographic_adaptation_schematic_draws_the_library_computation() -> None:
+    import torch
+
+    from evio_lib.features.training.adaptation import homographic_adaptation
+    from evio_lib.features.training.augment import HOMOGRAPHIC_ADAPTATION
+    from evio_lib.features.training.losses import cell_correspondences
+    from evio_lib.evaluation.plots_schematics import _harris_response
+
+    data = homographic_adaptation_schematic_data(n_homographies=6)
+    Hs = data["homographies"]
+    assert Hs.shape == (6, 3, 3) and np.allclose(Hs[0], np.eye(3))
+    again = homographic_adaptation(data["image"], lambda b: _harris_response(b) / data["scale"], rng=0,
+                                   homographies=Hs, config=HOMOGRAPHIC_ADAPTATION.replace(valid_border_margin=5))
+    np.testing.assert_array_equal(again.heatmap, data["heatmap"])
+    assert data["heatmap"].max() <= 1.0 + 1e-6 and len(data["labels"]) > 10  # the corners of the drawing
+    # the drawn views' responses mapped back agree with the aggregate's inputs: 0 <= back, NaN only off the view
+    assert np.all(np.nan_to_num(data["back"]) >= 0) and np.isnan(data["back"]).any()
+    # the green cells are the row of Eq. 10's S for the drawn cell
+    rows, cols = data["image"].shape[0] // 8, data["image"].shape[1] // 8
+    S = cell_correspondences(torch.as_tensor(data["pair_homography"]), (rows, cols))[0].numpy()
+    r, c = data["cell"]
+    expected = np.argwhere(S[r * cols + c].reshape(rows, cols) > 0)
+    np.testing.assert_array_equal(np.sort(expected, axis=0), np.sort(data["positives"], axis=0))
+    assert 1 <= len(data["positives"]) <= 5
+
+
+def test_homographic_adaptation_schematic_rejects_bad_arguments() -> None:
+    with pytest.raises(ValueError, match="n_homographies must be an integer >= 4"):
+        plot_homographic_adaptation_schematic(n_homographies=3)
+    with pytest.raises(ValueError, match="margins must be"):
+        plot_homographic_adaptation_schematic(margins=(0.2, 1.0))
+    with pytest.raises(ValueError, match="lambda_d must be a positive"):
+        plot_homographic_adaptation_schematic(lambda_d=0.0)
 
 
 def test_msckf_schematic_shows_the_state_order_and_the_track_life() -> None:
