@@ -15,7 +15,9 @@
 # and an accelerometer, lesson 02's source of metric scale) and a perfect ground truth: lesson 04
 # turns events into image frames, lesson 08 tests detectors on event frames, and lessons 09-12 build and check the
 # filter on the simulator's trajectories, IMU signals and ground truth. Real recordings with all three are rare (and
-# none ship with the course), so the course simulates them. This lesson opens the simulator up:
+# none come with the course), so the course simulates them. This lesson opens the simulator up, following the thesis
+# the course reproduces (Friedel 2020, *Event-based visual-inertial odometry using smart features*) where it
+# describes event cameras (§2.2.1) and its two datasets (§3.4):
 #
 # 1. **the principle**: a pixel of an event camera reports a change of its *log* intensity by a fixed contrast
 #    step, asynchronously (thesis §2.2.1, Fig. 4) — we reproduce Fig. 4 for a single pixel;

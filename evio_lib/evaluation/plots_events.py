@@ -49,19 +49,29 @@ def plot_representations(polarity: np.ndarray, surface: np.ndarray, voxels: np.n
     return fig
 
 
-def plot_image_grid(images: Mapping[str, np.ndarray], columns: int = 4, size: float = 3.0, title: str = "") -> plt.Figure:
-    """Return a figure of gray images in [0, 1] (or uint8), one panel per entry, its key as the panel title."""
+def plot_image_grid(images: Mapping[str, np.ndarray], columns: int = 4, size: float = 3.0, title: str = "",
+                    colorbar_label: str = "intensity (0 black, 1 white)") -> plt.Figure:
+    """Return a figure of gray images in [0, 1] (uint8 images are shown as value / 255), one panel per entry, its key
+    as the panel title, all on one colour range with one colour bar labelled ``colorbar_label`` (none if empty)."""
     names = list(images)
     rows = int(np.ceil(len(names) / columns))
-    fig, axes = plt.subplots(rows, columns, figsize=(size * columns, 0.8 * size * rows), squeeze=False)
+    first = np.asarray(images[names[0]]) if names else np.zeros((3, 4))
+    aspect = first.shape[0] / first.shape[1]                      # every panel's height over its width
+    height = rows * (size * aspect + 0.4) + (0.4 if title else 0) + (0.7 if colorbar_label else 0)
+    fig, axes = plt.subplots(rows, columns, figsize=(size * columns, height), squeeze=False)
     for ax in axes.ravel():
         ax.set_axis_off()
+    shown = None
     for ax, name in zip(axes.ravel(), names):
         image = np.asarray(images[name])
-        ax.imshow(image, cmap="gray", vmin=0, vmax=255 if image.dtype == np.uint8 else 1)
+        image = image / 255.0 if image.dtype == np.uint8 else image
+        shown = ax.imshow(image, cmap="gray", vmin=0, vmax=1)
         ax.set_title(name, fontsize=9)
     fig.suptitle(title)
     fig.tight_layout()
+    if colorbar_label and shown is not None:
+        fig.colorbar(shown, ax=list(axes.ravel()), orientation="horizontal", fraction=0.04, pad=0.02,
+                     aspect=40).set_label(colorbar_label, fontsize=8)
     return fig
 
 
@@ -143,22 +153,23 @@ def plot_training_history(history: Sequence[Mapping[str, float]]) -> plt.Figure:
 def plot_training_sequences(sequences: Sequence[Mapping[str, np.ndarray]], metas: Sequence[Mapping[str, float]],
                             windows: Sequence[int] = (0, 10, 39), size: float = 1.9) -> plt.Figure:
     """Return one row per training sequence: its sharp frames at ``windows`` and the polarity sum of the last one's
-    voxel grid (red ON, blue OFF), the row labelled with the sequence's contrast threshold, window rule, n and speed.
+    voxel grid (red ON, blue OFF, one colour range for all rows), the row labelled with the sequence's contrast threshold, window rule, n and speed.
 
     ``sequences`` and ``metas`` are what :func:`evio_lib.events.reconstruction.training_set.make_sequence` returns.
     """
     columns = len(windows) + 1
-    fig, axes = plt.subplots(len(sequences), columns, figsize=(size * columns, size * len(sequences)), squeeze=False)
-    for row, (arrays, meta) in zip(axes, zip(sequences, metas)):
-        last = min(windows[-1], arrays["frames"].shape[0] - 1)
+    fig, axes = plt.subplots(len(sequences), columns, figsize=(size * columns, size * len(sequences) + 0.8),
+                             squeeze=False)
+    lasts = [min(windows[-1], arrays["frames"].shape[0] - 1) for arrays in sequences]
+    polarities = [arrays["voxels"][last].astype(np.float32).sum(axis=0) for arrays, last in zip(sequences, lasts)]
+    lit = np.concatenate([np.abs(p[p != 0]) for p in polarities])
+    limit = max(float(np.percentile(lit, 95)) if lit.size else 0.0, 1e-6)   # one range; hot pixels would set it
+    for row, arrays, meta, last, polarity in zip(axes, sequences, metas, lasts, polarities):
         for ax, k in zip(row, windows):
             k = min(k, arrays["frames"].shape[0] - 1)
-            ax.imshow(arrays["frames"][k].astype(np.float32), cmap="gray", vmin=0, vmax=1)
+            frame_handle = ax.imshow(arrays["frames"][k].astype(np.float32), cmap="gray", vmin=0, vmax=1)
             ax.set_title(f"truth, window {k}", fontsize=8)
-        polarity = arrays["voxels"][last].astype(np.float32).sum(axis=0)
-        lit = np.abs(polarity[polarity != 0])
-        limit = max(float(np.percentile(lit, 95)) if lit.size else 0.0, 1e-6)   # hot pixels would set the scale
-        row[-1].imshow(polarity, cmap="bwr_r", vmin=-limit, vmax=limit)
+        event_handle = row[-1].imshow(polarity, cmap="bwr", vmin=-limit, vmax=limit)
         row[-1].set_title(f"events, window {last}", fontsize=8)
         rule = f"n = {meta['fraction']:.2f}" if meta["rule"] == "count" else f"time windows (n ~ {meta['fraction']:.2f})"
         row[0].set_ylabel(f"C = {meta['contrast_pos']:.2f}\n{rule}\nspeed {meta['speed']:.1f}", fontsize=8)
@@ -166,4 +177,8 @@ def plot_training_sequences(sequences: Sequence[Mapping[str, np.ndarray]], metas
             ax.set_xticks([])
             ax.set_yticks([])
     fig.tight_layout()
+    fig.colorbar(frame_handle, ax=list(axes[:, :-1].ravel()), orientation="horizontal", fraction=0.04, pad=0.03,
+                 aspect=40).set_label("sharp intensity (0 black, 1 white)", fontsize=8)
+    fig.colorbar(event_handle, ax=list(axes[:, -1]), orientation="horizontal", fraction=0.04, pad=0.03,
+                 aspect=10).set_label("voxel sum (red: ON)", fontsize=8)
     return fig

@@ -20,8 +20,12 @@ def test_figures_have_their_panels():
     assert colour_bars[0] == "ON - OFF events per pixel" and all(colour_bars)
     assert [t.get_text() for t in fig.axes[0].get_legend().get_texts()] == ["ON (p = +1): brighter",
                                                                             "OFF (p = -1): darker"]
-    fig2 = plot_image_grid({"a": rng.uniform(size=(6, 8)), "b": np.zeros((6, 8), np.uint8)}, columns=2)
-    assert [ax.get_title() for ax in fig2.axes] == ["a", "b"]
+    fig2 = plot_image_grid({"a": rng.uniform(size=(6, 8)), "b": np.full((6, 8), 255, np.uint8)}, columns=2)
+    assert [ax.get_title() for ax in fig2.axes[:2]] == ["a", "b"]
+    assert [ax.images[0].get_clim() for ax in fig2.axes[:2]] == [(0.0, 1.0)] * 2      # one colour range
+    assert fig2.axes[1].images[0].get_array().max() == 1.0                            # uint8 shown as value / 255
+    assert fig2.axes[2].get_xlabel() == "intensity (0 black, 1 white)"                # the shared colour bar
+    assert len(plot_image_grid({"a": np.zeros((6, 8))}, colorbar_label="").axes) == 4  # no colour bar
     fig3 = plot_ssim_vs_fraction([0.1, 0.2], {"x": [0.3, 0.4]}, marks={"x": 0.2})
     assert fig3.axes[0].get_xscale() == "log"
     assert [t.get_text() for t in fig3.axes[0].get_legend().get_texts()] == ["x: measured", "x: thesis's n = 0.2"]
@@ -53,8 +57,11 @@ def test_training_sequences_figure_labels_each_row_with_its_sensor():
               "voxels": rng.normal(0, 1, (40, 5, 16, 16)).astype(np.float16)}
     metas = [{"contrast_pos": 0.18, "rule": "count", "fraction": 0.3, "speed": 1.0},
              {"contrast_pos": 1.2, "rule": "time", "fraction": 0.05, "speed": 3.0}]
-    fig = plot_training_sequences([arrays, arrays], metas)
-    axes = np.array(fig.axes).reshape(2, 4)
+    arrays2 = dict(arrays, voxels=(3 * arrays["voxels"]).astype(np.float16))
+    fig = plot_training_sequences([arrays, arrays2], metas)
+    axes = np.array(fig.axes[:8]).reshape(2, 4)
     assert axes[0, 0].get_ylabel().startswith("C = 0.18") and "n = 0.30" in axes[0, 0].get_ylabel()
     assert "time windows" in axes[1, 0].get_ylabel() and axes[1, 3].get_title() == "events, window 39"
+    assert axes[0, 3].images[0].get_clim() == axes[1, 3].images[0].get_clim()     # one range for every row's events
+    assert [ax.get_xlabel() for ax in fig.axes[8:]] == ["sharp intensity (0 black, 1 white)", "voxel sum (red: ON)"]
     plt.close(fig)
