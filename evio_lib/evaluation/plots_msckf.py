@@ -1,5 +1,7 @@
 """Figures for the MSCKF lessons (notebooks 09-12): error growth, Monte-Carlo errors against 3-sigma bounds, covariance,
-triangulation error against the number of views, NEES against its chi-square band, a filter run against the truth.
+triangulation error against the number of views, NEES against its chi-square band, a filter run against the truth,
+the singular values of observability matrices, and two schematics: the update of one feature seen from several
+camera clones (notebook 11) and the four unobservable directions of visual-inertial odometry (notebook 12).
 
 Plotting only (plus :func:`correlation_matrix`, the normalised covariance the structure plot shows); the filter lives
 in :mod:`evio_lib.msckf`. Matplotlib is imported when a figure is made.
@@ -12,6 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
 __all__ = [
@@ -23,6 +26,9 @@ __all__ = [
     "plot_nees",
     "plot_consistency",
     "plot_trajectory_errors",
+    "plot_observability_spectrum",
+    "plot_feature_update_schematic",
+    "plot_unobservable_directions_schematic",
 ]
 
 _IMU_BLOCKS = ("δθ", "δb_g", "δv", "δb_a", "δp")  # error-state order of thesis Eq. 22 (evio_lib.msckf.state)
@@ -233,7 +239,7 @@ def plot_covariance_structure(P: ArrayLike, correlation: bool = True, title: str
 
 
 def plot_triangulation_error(view_counts: ArrayLike, median_error: ArrayLike, noise_levels_px: ArrayLike,
-                             title: str = "") -> "Figure":
+                             title: str = "", standard_error: ArrayLike | None = None) -> "Figure":
     """Return the median triangulation error [cm] against the number of views, one line per pixel-noise level.
 
     Args:
@@ -241,6 +247,8 @@ def plot_triangulation_error(view_counts: ArrayLike, median_error: ArrayLike, no
         median_error: (L, V) median position error of the triangulated feature [m], row l for noise level l.
         noise_levels_px: (L,) standard deviation of the pixel noise of each row [px] (the legend).
         title: figure title.
+        standard_error: optional (L, V) standard errors of the medians [m] (e.g. from a bootstrap), drawn as
+            ±2 standard-error bars: two medians whose bars overlap are not ranked by this Monte-Carlo.
 
     Reference: thesis §3.3.7 (Eqs. 68-71, Gauss-Newton triangulation in inverse depth).
 
@@ -261,9 +269,19 @@ def plot_triangulation_error(view_counts: ArrayLike, median_error: ArrayLike, no
     if errors.shape != (noise.size, views.size):
         raise ValueError(f"median_error must have shape (L, V) = ({noise.size}, {views.size}), one row per noise "
                          f"level and one column per view count; got {errors.shape}")
+    bars = None
+    if standard_error is not None:
+        bars = np.asarray(standard_error, dtype=np.float64)
+        if bars.shape != errors.shape or np.any(bars < 0) or not np.all(np.isfinite(bars)):
+            raise ValueError(f"standard_error must hold finite values >= 0 of shape (L, V) = {errors.shape}; got "
+                             f"shape {bars.shape}")
     fig, ax = plt.subplots(figsize=(6, 3.5))
-    for noise_px, row in zip(noise, errors):
-        ax.plot(views, 100 * row, "o-", label=f"{noise_px:g} px noise")  # m -> cm
+    for k, (noise_px, row) in enumerate(zip(noise, errors)):
+        ax.plot(views, 100 * row, "o-", color=f"C{k}", label=f"{noise_px:g} px noise")  # m -> cm
+        if bars is not None:
+            ax.errorbar(views, 100 * row, yerr=200 * bars[k], fmt="none", ecolor=f"C{k}", capsize=3, lw=1.0)
+    if bars is not None:
+        ax.plot([], [], color="0.3", marker="|", ls="none", ms=10, label="±2 standard errors of the median")
     ax.set(xlabel="number of views (same time span)", ylabel="median position error [cm]", title=title)
     ax.legend()
     fig.tight_layout()
@@ -434,5 +452,263 @@ def plot_trajectory_errors(t: ArrayLike, p_gt: ArrayLike, estimates: Mapping[str
         axes[1, j].set(xlabel="t [s]", ylabel=f"error {name} [cm]")
     axes[0, 0].legend(fontsize=8)
     axes[1, 0].legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def plot_observability_spectrum(singular_values: Mapping[str, ArrayLike], n_unobservable: int = 4,
+                                title: str = "") -> "Figure":
+    """Return the singular values of observability matrices, smallest first, each divided by its largest (log scale).
+
+    Args:
+        singular_values: label -> (n,) singular values of one observability matrix (any order, >= 0), e.g. the
+            15 of the IMU error state built with different linearisation points.
+        n_unobservable: the number of directions the true system cannot observe (4 for visual-inertial odometry:
+            global position and yaw); a dotted line separates them from the rest.
+        title: figure title.
+
+    A direction is unobservable when its singular value is zero; numerically, when it lies many orders of magnitude
+    below the others (round-off is about 1e-16 of the largest). One marker style per matrix.
+
+    >>> import matplotlib; matplotlib.use("Agg")
+    >>> fig = plot_observability_spectrum({"ideal": [1e-16, 1e-15, 1e-16, 1e-15, 0.1, 1.0]}, n_unobservable=4)
+    >>> [float(x) for x in fig.axes[0].lines[0].get_ydata()][:2]
+    [1e-16, 1e-16]
+    """
+    import matplotlib.pyplot as plt
+
+    if not isinstance(singular_values, Mapping) or not singular_values:
+        raise ValueError(f"singular_values must be a non-empty mapping label -> (n,) array; "
+                         f"got {type(singular_values).__name__}")
+    if isinstance(n_unobservable, bool) or not isinstance(n_unobservable, (int, np.integer)) or n_unobservable < 0:
+        raise ValueError(f"n_unobservable must be an integer >= 0; got {n_unobservable!r}")
+    spectra = {}
+    for label, value in singular_values.items():
+        sv = np.asarray(value, dtype=np.float64)
+        if sv.ndim != 1 or sv.size == 0 or np.any(sv < 0) or not np.all(np.isfinite(sv)) or sv.max() <= 0:
+            raise ValueError(f"singular_values[{label!r}] must be a (n,) array of finite values >= 0, not all zero; "
+                             f"got shape {sv.shape}")
+        spectra[label] = np.sort(sv) / sv.max()
+    floor = 1e-17
+    fig, ax = plt.subplots(figsize=(7, 3.8))
+    markers = ("o", "s", "^", "D", "v")
+    for k, (label, sv) in enumerate(spectra.items()):
+        index = np.arange(1, sv.size + 1)
+        ax.semilogy(index, np.maximum(sv, floor), marker=markers[k % len(markers)], ls="-", lw=0.8,
+                    color=f"C{k}", label=label, alpha=0.85)
+    if n_unobservable:
+        ax.axvline(n_unobservable + 0.5, color="0.3", ls=":", lw=1.0,
+                   label=f"{n_unobservable} unobservable directions | the rest")
+    size = max(sv.size for sv in spectra.values())
+    ax.set_xticks(np.arange(1, size + 1))
+    ax.set(xlabel="singular value index (smallest first)", ylabel="singular value / largest (dimensionless)",
+           title=title or "singular values of the observability matrix")
+    ax.grid(True, which="major", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+# --------------------------------------------------------------------------------------------------- schematics
+_SCHEMATIC_STATE = "#d9f0d3"  # the palette of evio_lib.evaluation.plots_schematics: a state
+_SCHEMATIC_SENSOR = "#dbe9f6"  # sensor data
+
+
+def _blank(ax: "Axes", width: float, height: float, title: str) -> None:
+    """Make ``ax`` a drawing board of width x height units with a title and no axes."""
+    ax.set_xlim(0.0, width)
+    ax.set_ylim(0.0, height)
+    ax.set_aspect("equal")
+    ax.set_axis_off()
+    ax.set_title(title, fontsize=10)
+
+
+def _camera_glyph(ax: "Axes", x: float, y: float, towards: Sequence[float], size: float = 0.32,
+                  colour: str = _SCHEMATIC_SENSOR) -> None:
+    """Draw a small camera (a triangle, apex at the centre, opening towards the point ``towards``)."""
+    from matplotlib.patches import Polygon
+
+    d = np.asarray(towards, dtype=np.float64) - (x, y)
+    d /= max(np.linalg.norm(d), 1e-9)
+    n = np.array([-d[1], d[0]])
+    apex = np.array([x, y])
+    base = apex + size * d
+    ax.add_patch(Polygon([apex, base + 0.6 * size * n, base - 0.6 * size * n], closed=True, facecolor=colour,
+                         edgecolor="0.25", lw=1.0, zorder=3))
+
+
+def plot_feature_update_schematic(num_clones: int = 5) -> "Figure":
+    """Return the MSCKF update of one feature in three panels (thesis §3.3.6-3.3.7, Eqs. 41-58).
+
+    (a) A feature seen from several camera clones of the sliding window; its position is not in the state and is
+    triangulated from the clones' poses. (b) In one image, the measured point z_i, the prediction ẑ_i from the
+    triangulated feature and the clone's pose, the residual r_i = z_i - ẑ_i and its noise ellipse Σ_i (stretched
+    by the lens's undistortion); whitening by W_i = L_i^-1 (Σ_i = L_i L_i^T) makes the noise a unit circle.
+    (c) The stacked whitened residual r (2M rows) split in the residual space: the part an error of the feature
+    can explain (the column space of H_f, 3 dimensions, dropped) and the part orthogonal to it, r_o = A^T r with
+    A^T H_f = 0 (2M - 3 rows, kept: it depends on the clones' errors only).
+
+    Args:
+        num_clones: camera clones observing the feature in panel (a), >= 2.
+
+    >>> import matplotlib; matplotlib.use("Agg")
+    >>> fig = plot_feature_update_schematic()
+    >>> [ax.get_title().split(")")[0] for ax in fig.axes]
+    ['(a', '(b', '(c']
+    """
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Ellipse, FancyArrowPatch, Rectangle
+
+    if isinstance(num_clones, bool) or not isinstance(num_clones, (int, np.integer)) or num_clones < 2:
+        raise ValueError(f"num_clones must be an integer >= 2; got {num_clones!r}")
+    fig, axes = plt.subplots(1, 3, figsize=(14.5, 4.8), gridspec_kw={"width_ratios": [1.0, 1.15, 1.0]})
+
+    # (a) one feature, several clones
+    ax = axes[0]
+    _blank(ax, 5.0, 5.0, "(a) one feature, seen from M camera clones")
+    feature = np.array([2.6, 4.1])
+    s = np.linspace(0.0, 1.0, int(num_clones))
+    path = np.column_stack([0.5 + 3.8 * s, 0.9 + 0.9 * np.sin(np.pi * s) - 0.3 * s])
+    ax.plot(path[:, 0], path[:, 1], color="0.6", lw=1.0, ls="-")
+    for i, (x, y) in enumerate(path):
+        ax.plot([x, feature[0]], [y, feature[1]], color="goldenrod", lw=1.0, ls="--", zorder=1)
+        _camera_glyph(ax, x, y, feature)
+        ax.text(x, y - 0.28, f"C{i + 1}", ha="center", va="top", fontsize=8)
+    ax.plot(*feature, marker="*", ms=16, color="goldenrod", zorder=4)
+    ax.text(feature[0] + 0.2, feature[1] + 0.05, "feature p_f\n(not in the state)", fontsize=8, va="bottom")
+    ax.text(2.5, 0.05, "clone poses (q_GtoCi, p_CiinG) are in the state;\np_f is triangulated from them",
+            ha="center", va="bottom", fontsize=8, color="0.25")
+
+    # (b) the residual in one image, and whitening
+    ax = axes[1]
+    _blank(ax, 6.0, 5.0, "(b) residual in image i, whitened per observation")
+    ax.add_patch(Rectangle((0.2, 1.0), 3.0, 3.0, facecolor="white", edgecolor="0.3", lw=1.0))
+    ax.text(1.7, 4.1, "image i (normalised coordinates)", ha="center", va="bottom", fontsize=8)
+    z, z_hat = np.array([2.05, 2.75]), np.array([1.35, 2.1])
+    ax.add_patch(Ellipse(z, 1.3, 0.55, angle=35.0, facecolor="C0", alpha=0.18, edgecolor="C0"))
+    ax.plot(*z, "o", color="C0", ms=6)
+    ax.text(z[0] + 0.12, z[1] + 0.1, "z_i measured", fontsize=8, color="C0")
+    ax.plot(*z_hat, "x", color="C3", ms=8, mew=2)
+    ax.text(z_hat[0] - 0.1, z_hat[1] - 0.2, "ẑ_i = h(clone i, p_f)", fontsize=8, color="C3", ha="center", va="top")
+    ax.add_patch(FancyArrowPatch(tuple(z_hat), tuple(z), arrowstyle="-|>", mutation_scale=12, color="k", lw=1.3))
+    ax.text(1.45, 2.55, "r_i", fontsize=9)
+    ax.text(z[0] - 0.3, 1.25, "noise Σ_i\n(stretched by\nundistortion)", fontsize=7.5, color="C0", ha="center")
+    ax.add_patch(FancyArrowPatch((3.35, 2.5), (4.35, 2.5), arrowstyle="-|>", mutation_scale=14, color="0.2"))
+    ax.text(3.85, 2.65, "W_i = L_i⁻¹", ha="center", va="bottom", fontsize=8.5)
+    ax.text(3.85, 2.3, "Σ_i = L_i L_iᵀ", ha="center", va="top", fontsize=7.5, color="0.3")
+    ax.add_patch(Ellipse((5.15, 2.5), 0.8, 0.8, facecolor="C0", alpha=0.18, edgecolor="C0"))
+    ax.plot(5.15, 2.5, "o", color="C0", ms=5)
+    ax.text(5.15, 1.9, "W_i r_i: unit noise,\nthe same for every row", ha="center", va="top", fontsize=7.5)
+    ax.text(3.0, 0.25, "rows 2i, 2i+1 of r, H_x and H_f are multiplied by W_i", ha="center", fontsize=8,
+            color="0.25")
+
+    # (c) the nullspace projection
+    ax = axes[2]
+    _blank(ax, 5.0, 5.0, "(c) project out the feature: r_o = Aᵀ r")
+    origin = np.array([0.6, 1.0])
+    direction = np.array([0.95, 0.32])
+    direction /= np.linalg.norm(direction)
+    ax.plot(*np.column_stack([origin - 0.4 * direction, origin + 4.3 * direction]), color="0.45", lw=2.0)
+    ax.text(*(origin + 4.0 * direction + [-0.3, -0.35]), "span H_f: what an\nerror of p_f explains", fontsize=8,
+            color="0.35", ha="center", va="top")
+    r_end = origin + np.array([2.6, 3.0])
+    along = origin + np.dot(r_end - origin, direction) * direction
+    ax.add_patch(FancyArrowPatch(tuple(origin), tuple(r_end), arrowstyle="-|>", mutation_scale=13, color="k",
+                                 lw=1.4))
+    ax.text(*(0.5 * (origin + r_end) + [-0.35, 0.1]), "r (whitened,\n2M rows)", fontsize=8, ha="center")
+    ax.add_patch(FancyArrowPatch(tuple(origin), tuple(along), arrowstyle="-|>", mutation_scale=12, color="C3",
+                                 lw=1.6, linestyle="--", zorder=3))
+    ax.text(*(0.5 * (origin + along) + [0.25, -0.3]), "dropped", fontsize=8, color="C3", ha="center", va="top")
+    ax.add_patch(FancyArrowPatch(tuple(along), tuple(r_end), arrowstyle="-|>", mutation_scale=13, color="C2",
+                                 lw=2.0))
+    ax.text(*(0.5 * (along + r_end) + [0.15, 0.0]), "r_o = Aᵀ r\nkept: 2M − 3 rows,\nclones' errors only",
+            fontsize=8, color="C2", va="center")
+    ax.text(2.5, 0.05, "Aᵀ H_f = 0, Aᵀ A = I: the feature's error drops out,\nthe whitened noise stays unit",
+            ha="center", va="bottom", fontsize=8, color="0.25")
+    fig.tight_layout()
+    return fig
+
+
+def plot_unobservable_directions_schematic() -> "Figure":
+    """Return the four unobservable directions of visual-inertial odometry, and an observable one (thesis §3.3.8).
+
+    (a) Shifting the whole world (trajectory and landmarks) by any vector changes no image and no IMU sample: the
+    global position (3 directions) is unobservable. (b) Turning the whole world about the gravity axis (yaw) keeps
+    gravity where it was: no sensor tells, 1 direction. (c) Tilting it (roll or pitch) turns gravity relative to the
+    body, which the accelerometer feels: observable. Together: the 4 columns of N (Eq. 80), and 15 - 4 = 11
+    observable directions of the IMU error state.
+
+    >>> import matplotlib; matplotlib.use("Agg")
+    >>> fig = plot_unobservable_directions_schematic()
+    >>> [ax.get_title().split(")")[0] for ax in fig.axes]
+    ['(a', '(b', '(c']
+    """
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Arc, FancyArrowPatch
+
+    fig, axes = plt.subplots(1, 3, figsize=(14.5, 4.8))
+    s = np.linspace(0.0, 1.0, 60)
+    path = np.column_stack([0.5 + 2.2 * s, 1.9 + 0.45 * np.sin(2.2 * np.pi * s) + 0.4 * s])
+    landmarks = np.array([[0.8, 3.6], [1.7, 3.95], [2.6, 3.5], [3.0, 2.7]])
+    poses = path[[0, 30, 59]]
+    centre = np.array([1.7, 2.8])
+
+    def world(ax, offset=(0.0, 0.0), angle=0.0, colour="k", style="-"):
+        c, sn = np.cos(angle), np.sin(angle)
+        R = np.array([[c, -sn], [sn, c]])
+        move = lambda pts: (pts - centre) @ R.T + centre + offset  # noqa: E731
+        p = move(path)
+        ax.plot(p[:, 0], p[:, 1], color=colour, ls=style, lw=1.4)
+        lm = move(landmarks)
+        ax.plot(lm[:, 0], lm[:, 1], "s", color=colour, ms=6, mfc="none" if style != "-" else colour)
+        for q in move(poses):
+            ax.plot([q[0], lm[1, 0]], [q[1], lm[1, 1]], color=colour, lw=0.6, ls=":", alpha=0.7)
+            ax.plot(*q, "o", color=colour, ms=4)
+
+    # (a) translation
+    ax = axes[0]
+    _blank(ax, 5.5, 5.0, "(a) shift everything: unobservable (3)")
+    world(ax)
+    shift = np.array([1.9, -0.55])
+    world(ax, offset=shift, colour="C0", style="--")
+    ax.add_patch(FancyArrowPatch(tuple(landmarks[3]), tuple(landmarks[3] + shift), arrowstyle="-|>",
+                                 mutation_scale=14, color="C0", lw=1.5))
+    ax.text(*(landmarks[3] + 0.5 * shift + [0.1, 0.12]), "δp", color="C0", fontsize=10)
+    ax.text(2.75, 0.2, "trajectory (line, dots: camera poses) and landmarks\n(squares) moved together: the same "
+            "images and\nIMU samples. Global position δp (x, y, z)", ha="center", fontsize=8)
+
+    # (b) yaw about gravity, seen from above
+    ax = axes[1]
+    _blank(ax, 5.5, 5.0, "(b) turn everything about gravity: unobservable (1)")
+    yaw = np.radians(35.0)
+    world(ax)
+    world(ax, angle=yaw, colour="C0", style="--")
+    ax.add_patch(Arc(tuple(centre), 3.0, 3.0, theta1=-20.0, theta2=-20.0 + np.degrees(yaw), color="C0", lw=1.5))
+    ax.plot(*centre, "o", ms=12, mfc="white", mec="0.2")
+    ax.plot(*centre, ".", ms=5, color="0.2")
+    ax.text(centre[0] + 1.0, centre[1] - 1.0, "yaw ψ", color="C0", fontsize=10)
+    ax.text(centre[0] - 0.25, centre[1] - 0.25, "g", ha="right", va="top", fontsize=9)
+    ax.text(2.75, 0.2, "seen from above, gravity out of the page: turned\nabout g, gravity is unchanged; the same "
+            "images and\nIMU samples. Yaw ψ about g", ha="center", fontsize=8)
+
+    # (c) tilt: observable
+    ax = axes[2]
+    _blank(ax, 5.5, 5.0, "(c) tilt (roll, pitch): observable")
+    for angle, colour, style, label in ((0.0, "k", "-", "level"), (np.radians(25.0), "C3", "--", "tilted")):
+        c, sn = np.cos(angle), np.sin(angle)
+        body = np.array([[-0.7, -0.25], [0.7, -0.25], [0.7, 0.25], [-0.7, 0.25], [-0.7, -0.25]])
+        mid = np.array([1.6, 2.8]) if angle == 0 else np.array([3.9, 2.8])
+        pts = body @ np.array([[c, -sn], [sn, c]]).T + mid
+        ax.plot(pts[:, 0], pts[:, 1], color=colour, ls=style, lw=1.5)
+        up = np.array([-sn, c])
+        ax.add_patch(FancyArrowPatch(tuple(mid), tuple(mid + 0.9 * up), arrowstyle="-|>", mutation_scale=11,
+                                     color=colour, lw=1.2))
+        ax.text(*(mid + 1.05 * up), "body z", color=colour, fontsize=8.5, ha="center")
+        ax.add_patch(FancyArrowPatch(tuple(mid - [0.0, 0.4]), tuple(mid - [0.0, 1.5]), arrowstyle="-|>",
+                                     mutation_scale=13, color="0.2", lw=1.5))
+        ax.text(mid[0] + 0.1, mid[1] - 1.2, "g", fontsize=10)
+        ax.text(mid[0], mid[1] - 1.75, label, ha="center", va="top", fontsize=8, color=colour)
+    ax.text(2.75, 0.2, "side view: tilted, the body feels gravity at\nanother angle (the accelerometer measures "
+            "it):\nroll and pitch are observable", ha="center", fontsize=8)
     fig.tight_layout()
     return fig

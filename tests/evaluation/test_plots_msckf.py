@@ -11,10 +11,13 @@ from evio_lib.evaluation.plots_msckf import (  # noqa: E402
     plot_consistency,
     plot_covariance_structure,
     plot_error_growth,
+    plot_feature_update_schematic,
     plot_monte_carlo_bounds,
     plot_nees,
+    plot_observability_spectrum,
     plot_trajectory_errors,
     plot_triangulation_error,
+    plot_unobservable_directions_schematic,
 )
 
 
@@ -250,3 +253,51 @@ def test_power_law_guides_have_distinct_line_styles():
                             guides=[(2, 0.4, "t^2"), (3, 0.4, "t^3")])
     styles = [line.get_linestyle() for line in fig.axes[0].lines[1:]]
     assert styles == ["--", ":"] and [t.get_text() for t in fig.axes[0].get_legend().get_texts()] == ["a", "t^2", "t^3"]
+
+
+def test_plot_triangulation_error_draws_two_standard_error_bars():
+    views = [2, 5]
+    median_error = np.array([[0.5, 0.4]])
+    fig = plot_triangulation_error(views, median_error, [1.0], standard_error=[[0.01, 0.02]])
+    ax = fig.axes[0]
+    bars = ax.containers[0].lines[2][0].get_segments()  # the vertical bar of each point
+    np.testing.assert_allclose([seg[:, 1] for seg in bars], [[48.0, 52.0], [36.0, 44.0]])  # ±2 SE in cm
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert labels == ["1 px noise", "±2 standard errors of the median"]
+    with pytest.raises(ValueError, match=r"standard_error must hold finite values >= 0 of shape \(L, V\)"):
+        plot_triangulation_error(views, median_error, [1.0], standard_error=[[0.01]])
+    _render(fig)
+
+
+def test_plot_observability_spectrum_sorts_and_normalises_each_matrix():
+    rng = np.random.default_rng(0)
+    O = rng.standard_normal((40, 6)) @ np.diag([1.0, 1.0, 0.0, 2.0, 5.0, 0.5])  # one unobservable direction
+    sv = np.linalg.svd(O, compute_uv=False)
+    fig = plot_observability_spectrum({"O": sv, "scaled": 10 * sv}, n_unobservable=1)
+    ax = fig.axes[0]
+    assert ax.get_yscale() == "log" and ax.get_xlabel() == "singular value index (smallest first)"
+    first, second = ax.lines[0].get_ydata(), ax.lines[1].get_ydata()
+    np.testing.assert_allclose(first[1:], np.sort(sv)[1:] / sv.max())  # sorted, relative to the largest
+    np.testing.assert_allclose(first, second)  # the scale of O does not matter
+    assert first[0] < 1e-14 < first[1]  # the zero singular value, at the floor of the log axis
+    assert ax.lines[2].get_xdata()[0] == 1.5  # the separator after the unobservable directions
+    with pytest.raises(ValueError, match=r"singular_values\['bad'\] must be a \(n,\) array of finite values >= 0"):
+        plot_observability_spectrum({"bad": [-1.0, 1.0]})
+    with pytest.raises(ValueError, match=r"singular_values must be a non-empty mapping"):
+        plot_observability_spectrum({})
+    _render(fig)
+
+
+def test_schematics_draw_their_panels():
+    update = plot_feature_update_schematic(num_clones=4)
+    assert [ax.get_title()[:3] for ax in update.axes] == ["(a)", "(b)", "(c)"]
+    texts = " ".join(t.get_text() for ax in update.axes for t in ax.texts)
+    assert "C4" in texts and "C5" not in texts  # one glyph per clone
+    assert "W_i = L_i⁻¹" in texts and "r_o = Aᵀ r" in texts
+    with pytest.raises(ValueError, match=r"num_clones must be an integer >= 2"):
+        plot_feature_update_schematic(num_clones=1)
+    directions = plot_unobservable_directions_schematic()
+    titles = [ax.get_title() for ax in directions.axes]
+    assert "unobservable (3)" in titles[0] and "unobservable (1)" in titles[1] and "observable" in titles[2]
+    for fig in (update, directions):
+        _render(fig)
