@@ -129,3 +129,26 @@ def test_oc_update_mode_is_a_validated_config_field_that_the_filter_follows():
     state = FilterState.initial(imu, np.eye(3), np.zeros(3), config.initial_imu_covariance())
     assert Msckf(config, state).oc_update == "eq86"
     assert Msckf(config, state, oc_update="projected").oc_update == "projected"  # an explicit argument wins
+
+
+def test_triangulation_settings_are_the_filters_and_drive_triangulate_inverse_depth():
+    """The keyword arguments Msckf passes to the triangulation; an RMS residual above the configured pixels fails."""
+    from evio_lib.msckf.filter import Msckf
+    from evio_lib.msckf.initialization import initial_state_from_truth
+    from evio_lib.msckf.triangulation import triangulate_inverse_depth
+
+    cfg = MsckfConfig(triangulation_max_reprojection_px=2.0, focal_length_px=200.0, triangulation_max_iterations=7)
+    settings = cfg.triangulation_settings()
+    assert settings == dict(max_iterations=7, step_tol=cfg.triangulation_tolerance,
+                            min_baseline_ratio=cfg.triangulation_min_baseline_ratio,
+                            min_depth=cfg.triangulation_min_depth, max_depth=cfg.triangulation_max_depth,
+                            max_rms_residual=0.01)
+    s0 = initial_state_from_truth(0.0, np.eye(3), np.zeros(3), np.zeros(3), np.eye(3), np.zeros(3), cfg)
+    assert Msckf(cfg, s0)._tri_settings == settings  # the filter's own settings
+    R = np.stack([np.eye(3)] * 3)
+    p = np.array([[0.0, 0.0, 0.0], [0.5, 0.0, 0.0], [1.0, 0.1, 0.0]])
+    point = np.array([0.3, -0.2, 4.0])
+    obs = (point - p)[:, :2] / (point - p)[:, 2:]
+    assert triangulate_inverse_depth(R, p, obs, **settings).success
+    noisy = obs + np.array([[0.0, 0.0], [0.03, 0.0], [-0.03, 0.02]])  # a few pixels at f = 200 px: RMS > 2 px
+    assert triangulate_inverse_depth(R, p, noisy, **settings).reason == "large_residual"
