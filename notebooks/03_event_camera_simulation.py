@@ -26,8 +26,9 @@
 # 3. **adaptive sampling**: how often the scene must be rendered so that the result does not depend on it;
 # 4. **the two presets** of the course — a textured room with boxes and hand-held motion that grows violent
 #    (like RPG `boxes_6dof`, thesis §3.4.1), and a downward camera on an aircraft over sparse terrain (like the Camp
-#    Atterbury flight, thesis §3.4.2): blurred frames versus sharp event frames, events in space-time, the IMU against ground
-#    truth, the event rate over time, and writing/reading a recording in the Event-Camera-Dataset (ECD) layout.
+#    Atterbury flight, thesis §3.4.2): blurred frames versus sharp event frames, events in space-time, the IMU
+#    against ground truth, the event rate over time, and writing/reading a recording in the Event-Camera-Dataset
+#    (ECD) layout.
 #
 # The code lives in `evio_lib.events.simulate` (event generation), `evio_lib.sim` (scenes, trajectories, IMU, APS
 # frames, whole recordings) and `evio_lib.io.ecd` (files). APS frames are the ordinary grayscale images that a DAVIS
@@ -477,7 +478,8 @@ assert quick["s_events"] > 0.7 * calm["s_events"]  # the event frame stays nearl
 display(Markdown(
     f"In the calmest frame the image moves {calm['blur_px']:.1f} px during the exposure, and the APS frame has "
     f"{calm['kept']:.0%} of the render's sharpness $S$ (its noise adds a little gradient energy). In the fastest it "
-    f"moves {quick['blur_px']:.1f} px, and the frame has {quick['kept']:.0%}: the blur is visible in the left column. The {N_E} events nearest to that "
+    f"moves {quick['blur_px']:.1f} px, and the frame has {quick['kept']:.0%}: the blur is visible in the left column. "
+    f"The {N_E} events nearest to that "
     f"frame span only {quick['span_ms']:.1f} ms, over which the image moves {quick['sweep_px']:.1f} px; in calm "
     f"motion they span {calm['span_ms']:.0f} ms and a sweep of {calm['sweep_px']:.1f} px. So the event frame loses "
     f"less with speed (its $S$ is {quick['s_events'] / calm['s_events']:.0%} of the calm one's) than the APS "
@@ -530,10 +532,10 @@ assert np.allclose(gyro_noise.std(axis=0), sigma_expected, rtol=0.15)
 # %% [markdown]
 # ### Event rate over time: the two regimes
 #
-# An event camera's data rate follows the motion and the texture. In the room, with textured surfaces 1-4 m
-# away, the rate climbs with the shaking. From 250 m up, 20 m/s of flight moves the image of a DAVIS240C (focal
-# length about 200 px) by only $f v / h \approx 200 \cdot 20 / 250 = 16$ px/s (plus the slow turbulence
-# rotations), over fields with few strong edges: far fewer events. We count events in 20 ms bins and plot them with the camera's angular speed, and
+# An event camera's data rate follows the motion and the texture. In the room, with textured surfaces 1-4 m away, the
+# rate climbs with the shaking. From 250 m up, 20 m/s of flight moves the image of a DAVIS240C (focal length about 200
+# px) by only $f v / h \approx 200 \cdot 20 / 250 = 16$ px/s (plus the slow turbulence rotations), over fields with
+# few strong edges: far fewer events. We count events in 20 ms bins and plot them with the camera's angular speed, and
 # quote events per pixel and second to compare cameras of any resolution.
 
 # %%

@@ -143,9 +143,10 @@ assert abs(adaptive_n["boxes_like_fast"] - adaptive_n["boxes_like_slow"]) < 0.2
 assert min(adaptive_n.values()) > 0.7       # large windows: section 6 comes back to this
 display(Markdown(
     f"The rule follows the event rate: at the violent end of the boxes motion its windows last "
-    f"{adaptive_ms['boxes_like_fast']:.1f} ms on average, against {adaptive_ms['boxes_like_slow']:.1f} ms at the gentle "
-    f"start. Counted in events, they stay about the same size (mean n = {adaptive_n['boxes_like_fast']:.2f} against "
-    f"{adaptive_n['boxes_like_slow']:.2f}): the ratio measures how far the edges moved per window, not how fast. Both "
+    f"{adaptive_ms['boxes_like_fast']:.1f} ms on average, against {adaptive_ms['boxes_like_slow']:.1f} ms at the "
+    f"gentle start. Counted in events, they stay about the same size (mean n = {adaptive_n['boxes_like_fast']:.2f} "
+    f"against {adaptive_n['boxes_like_slow']:.2f}): the ratio measures how far the edges moved per window, not how "
+    "fast. Both "
     "mean sizes are larger than either of the thesis's n (0.7 and 0.2); section 6 measures which fixed n scores best."))
 
 # %% [markdown]
@@ -190,9 +191,9 @@ plt.show()
 # with $t_{\text{prev}}$ the pixel's previous event. $\alpha = 2\pi f_c$ [rad/s] sets the cutoff frequency $f_c$:
 # whatever changes more slowly than $f_c$ (the unknown starting value, the drift of threshold mismatch and noise) is
 # forgotten with time constant $1/\alpha$, while edges that pass quickly go through. $\beta$ is an extra decay per
-# event, which the authors' implementation applies as we read it; $\alpha = \beta = 0$ is direct integration. The filter is linear, so a whole window $[T_{\text{prev}}, T]$ needs no loop: each step reaches $T$
-# decayed by the time left and by $\beta$ once for each of the $m_k$ later events at its pixel ($n_x$ events at pixel
-# $x$ in all),
+# event, which the authors' implementation applies as we read it; $\alpha = \beta = 0$ is direct integration. The
+# filter is linear, so a whole window $[T_{\text{prev}}, T]$ needs no loop: each step reaches $T$ decayed by the time
+# left and by $\beta$ once for each of the $m_k$ later events at its pixel ($n_x$ events at pixel $x$ in all),
 #
 # $$\hat L_x(T) = e^{-\alpha (T - T_{\text{prev}}) - \beta n_x}\, \hat L_x(T_{\text{prev}})
 #   + \sum_{k \text{ at } x} C p_k\, e^{-\alpha (T - t_k) - \beta m_k},$$
@@ -332,9 +333,9 @@ assert count_parameters(FireNet()) == 37777 and 10.6e6 < count_parameters(E2VIDR
 # The **update gate** $z \in (0, 1)$ decides, per pixel and channel, how much of the memory to replace: $z \to 0$
 # keeps it, $z \to 1$ overwrites it with the candidate $\tilde h$. The **reset gate** $r$ decides how much of the old
 # memory the candidate may look at. Below, the first cell of the course's trained network written out with `F.conv2d`
-# and its own weights, against the library's cell. Its input x is not the voxel grid itself but the output of FireNet's first
-# layer (`head`, a 3 x 3 convolution and ReLU from the 5 bins to 16 channels); the state h is the one the network
-# leaves after the window before, run from an empty state:
+# and its own weights, against the library's cell. Its input x is not the voxel grid itself but the output of
+# FireNet's first layer (`head`, a 3 x 3 convolution and ReLU from the 5 bins to 16 channels); the state h is the one
+# the network leaves after the window before, run from an empty state:
 
 # %%
 import torch
@@ -358,18 +359,17 @@ assert difference < 1e-5 and h_new.shape[1] == 16 and x.shape[1] == 16
 # %% [markdown]
 # E2VID's training code was never released; the project trains its FireNet itself, the way E2VID and its retrained
 # successor E2VID+ (Stoffregen et al. 2020) were trained: on many short simulated sequences, each with its own scene,
-# motion, sensor and noise.
-# `python -m evio_lib reconstruct-data --out SET` makes such a training set
+# motion, sensor and noise. `python -m evio_lib reconstruct-data --out SET` makes such a training set
 # (`evio_lib.events.reconstruction.training_set`): textured planes at random depths, some moving on their own;
 # photographs, farmland and procedural textures, some blurred; motion from slow to violent; a contrast threshold C per
 # sequence from E2VID's N(0.18, 0.03) or E2VID+'s wider U(0.2, 1.5), with per-pixel mismatch, a refractory period,
-# background and leak noise and hot pixels (pixels that fire at a high rate whatever the light); 40 windows per sequence, either of n H W events with n drawn between 0.05
-# and 1 or of equal duration, each with the sharp image at its end. A sequence with too few events for its 40 windows
-# of n H W is simulated again for longer (the same scene and motion, up to 30 s), so that large windows are trained on
-# as often as small ones. The sequences are only 64 x 64 pixels: the network is fully convolutional (every layer
-# slides the same small kernels over the image), so weights trained on small images run at 240 x 180 unchanged.
-# Three of its training sequences, made here from their seeds (sequence i of a set made with seed 0 and the default
-# settings):
+# background and leak noise and hot pixels (pixels that fire at a high rate whatever the light); 40 windows per
+# sequence, either of n H W events with n drawn between 0.05 and 1 or of equal duration, each with the sharp image at
+# its end. A sequence with too few events for its 40 windows of n H W is simulated again for longer (the same scene
+# and motion, up to 30 s), so that large windows are trained on as often as small ones. The sequences are only 64 x 64
+# pixels: the network is fully convolutional (every layer slides the same small kernels over the image), so weights
+# trained on small images run at 240 x 180 unchanged. Three of its training sequences, made here from their seeds
+# (sequence i of a set made with seed 0 and the default settings):
 
 # %%
 from evio_lib.evaluation.plots_events import plot_training_sequences
@@ -392,10 +392,11 @@ assert all(0.05 <= meta["contrast_pos"] <= 1.5 and 0.01 < meta["fraction"] <= 2 
 # to build an image up and to keep it over a long run. The loss per window is L1 + (1 - SSIM) (the SSIM of section 4,
 # written in torch so that it has gradients: `ssim_torch`) plus a temporal-consistency term that warps the previous
 # output with the true motion (the optical flow: where each pixel's scene point was in the previous window's view,
-# stored with the sequence) and penalises flicker, weighted by `lambda_tc` (a training setting, 1 by default). Random crops, flips and playing a sequence backwards (reversed
-# windows, negated polarities) vary the data. The set also holds validation sequences, with their own textures and
-# motions, that are never trained on: the weights with the highest SSIM on them are kept. (The stretches scored in
-# this lesson are a third kind, test data: the network was neither trained nor chosen on them.)
+# stored with the sequence) and penalises flicker, weighted by `lambda_tc` (a training setting, 1 by default). Random
+# crops, flips and playing a sequence backwards (reversed windows, negated polarities) vary the data. The set also
+# holds validation sequences, with their own textures and motions, that are never trained on: the weights with the
+# highest SSIM on them are kept. (The stretches scored in this lesson are a third kind, test data: the network was
+# neither trained nor chosen on them.)
 #
 # Events say how the log intensity *changed*, not what it was: a reconstruction's overall brightness and contrast are
 # guesses, and the benchmark of section 4 forgives them by stretching both images before it compares. A loss on the
@@ -448,7 +449,7 @@ display(Markdown("\n".join(
     + ["", "SSIM / MSE against the sharp truth; windows scored per stretch: "
        + ", ".join(f"{name} {scores[name, 'firenet']['frames']}" for name in stretches) + "."])))
 assert all(1 <= scores[name, "firenet"]["frames"] <= (4 if FAST else 12) for name in stretches)
-assert not FAST or scores["boxes_like_fast", "firenet"]["frames"] == 1   # the 0.1 s violent stretch: its last window only
+assert not FAST or scores["boxes_like_fast", "firenet"]["frames"] == 1   # 0.1 s violent stretch: its last window
 
 # %%
 classical = {name: max(scores[name, "direct"]["ssim"], scores[name, "high_pass"]["ssim"]) for name in stretches}
@@ -586,20 +587,19 @@ display(Markdown(
 # Mind the scale: one stretch per scene, a few scored windows, and part of the trend may be the start-up: every
 # stretch starts from an empty memory, and with smaller windows the network has seen more of them by the time scoring
 # begins (0.1 s in). The thesis's n were chosen by eye, on real recordings, for E2VID (its refs. 16 and 17); ours are
-# measured against a truth, on simulated ones, for a network trained on both kinds of windows. Drawn log-uniform
-# (log n uniform between its two bounds), half of the first set's count windows are below n = √(0.05 · 1) ≈ 0.22,
-# and all of the second set's: small windows are what it has seen most. One stretch per scene is not every scene, and another stretch may prefer larger
-# windows: what carries over is the method, measure n on your own scene. The adaptive rule of section 2 replaces the
-# per-scene n by one setting, r, but on the boxes it chose larger windows than any n this sweep scores best
-# (section 2 printed them; exercise 3 does the terrain).
+# measured against a truth, on simulated ones, for a network trained on both kinds of windows. Drawn log-uniform (log
+# n uniform between its two bounds), half of the first set's count windows are below n = √(0.05 · 1) ≈ 0.22, and all
+# of the second set's: small windows are what it has seen most. One stretch per scene is not every scene, and another
+# stretch may prefer larger windows: what carries over is the method, measure n on your own scene. The adaptive rule
+# of section 2 replaces the per-scene n by one setting, r, but on the boxes it chose larger windows than any n this
+# sweep scores best (section 2 printed them; exercise 3 does the terrain).
 
 # %% [markdown]
 # ## 7. Fast motion: blurred frames, sharper events
 #
 # At the violent end of the boxes motion the APS frames (lesson 03's camera integrates light over a 10 ms exposure)
-# smear every edge, while one event window of the same moment spans less time than the exposure (the cell prints
-# how long). The pictures show
-# the difference; the scores of section 5 say how much it matters on this simulator.
+# smear every edge, while one event window of the same moment spans less time than the exposure (the cell prints how
+# long). The pictures show the difference; the scores of section 5 say how much it matters on this simulator.
 
 # %%
 fast = stretches["boxes_like_fast"]
@@ -614,7 +614,8 @@ plot_image_grid({f"APS frame (blurred), t = {t_frame:.4f} s": fast.frames[k],
 plt.show()
 window_ms = 1e3 * (times[-1] - fast.events["t"][bounds[-1, 0]])
 print(f"the last window spans {window_ms:.1f} ms")
-ssim = {(name, m): scores[name, m]["ssim"] for name in ("boxes_like_slow", "boxes_like_fast") for m in ("APS", "firenet")}
+ssim = {(name, m): scores[name, m]["ssim"] for name in ("boxes_like_slow", "boxes_like_fast")
+        for m in ("APS", "firenet")}
 gap_slow = ssim["boxes_like_slow", "APS"] - ssim["boxes_like_slow", "firenet"]
 gap_fast = ssim["boxes_like_fast", "APS"] - ssim["boxes_like_fast", "firenet"]
 from evio_lib.sim.aps import ApsParams
@@ -676,8 +677,9 @@ else:
     display(Markdown(
         f"On the real slider the network's SSIM, {real['firenet']['ssim']:.3f}, is "
         f"{real['firenet']['ssim'] - max(real['direct']['ssim'], real['high_pass']['ssim']):.2f} above the better "
-        f"integrator's, on a sensor and a scene it never saw in training, and its MSE, {real['firenet']['mse']:.3f}, is "
-        f"below both integrators' ({real['direct']['mse']:.3f} and {real['high_pass']['mse']:.3f})."))
+        f"integrator's, on a sensor and a scene it never saw in training, and its MSE, "
+        f"{real['firenet']['mse']:.3f}, is below both integrators' ({real['direct']['mse']:.3f} and "
+        f"{real['high_pass']['mse']:.3f})."))
 
 # %% [markdown]
 # For orientation only (other frames, windows and normalisation): EVREAL reports SSIM on the ECD of 0.42 for E2VID

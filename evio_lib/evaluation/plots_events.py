@@ -153,7 +153,8 @@ def plot_training_history(history: Sequence[Mapping[str, float]]) -> plt.Figure:
 def plot_training_sequences(sequences: Sequence[Mapping[str, np.ndarray]], metas: Sequence[Mapping[str, float]],
                             windows: Sequence[int] = (0, 10, 39), size: float = 1.9) -> plt.Figure:
     """Return one row per training sequence: its sharp frames at ``windows`` and the polarity sum of the last one's
-    voxel grid (red ON, blue OFF, one colour range for all rows), the row labelled with the sequence's contrast threshold, window rule, n and speed.
+    voxel grid (red ON, blue OFF, one colour range for all rows), the row labelled with the sequence's contrast
+    threshold, window rule, n and speed.
 
     ``sequences`` and ``metas`` are what :func:`evio_lib.events.reconstruction.training_set.make_sequence` returns.
     """
@@ -171,7 +172,8 @@ def plot_training_sequences(sequences: Sequence[Mapping[str, np.ndarray]], metas
             ax.set_title(f"truth, window {k}", fontsize=8)
         event_handle = row[-1].imshow(polarity, cmap="bwr", vmin=-limit, vmax=limit)
         row[-1].set_title(f"events, window {last}", fontsize=8)
-        rule = f"n = {meta['fraction']:.2f}" if meta["rule"] == "count" else f"time windows (n ~ {meta['fraction']:.2f})"
+        rule = (f"n = {meta['fraction']:.2f}" if meta["rule"] == "count"
+                else f"time windows (n ~ {meta['fraction']:.2f})")
         row[0].set_ylabel(f"C = {meta['contrast_pos']:.2f}\n{rule}\nspeed {meta['speed']:.1f}", fontsize=8)
         for ax in row:
             ax.set_xticks([])
