@@ -76,11 +76,11 @@ def kernel_environment(fast: bool | None = None, environ: Mapping[str, str] | No
 class NotebookFailed(RuntimeError):
     """A cell of a lesson failed: the notebook's name, the cell, why, and where the partially executed notebook is.
 
-    ``str()`` is the one line the course command prints after ``error:``, e.g. ``notebook 13_evio_pipeline, cell 41:
-    AssertionError (line 28: assert contrast > 2); the partial notebook is at build/notebooks/13_evio_pipeline.ipynb``.
+    ``str()`` is the one line the course command prints after ``error:``, e.g. ``notebook 14_evio_pipeline, cell 41:
+    AssertionError (line 28: assert contrast > 2); the partial notebook is at build/notebooks/14_evio_pipeline.ipynb``.
 
     Attributes:
-        notebook: the notebook's name without suffix (``13_evio_pipeline``).
+        notebook: the notebook's name without suffix (``14_evio_pipeline``).
         cell: the failing cell's number as the notebook shows it beside the cell (``[41]``: code cells counted from 1
             in a fresh kernel); None when the failure came after the last cell.
         message: the exception's type and first line, and the line of the cell that raised it where known.

@@ -13,7 +13,7 @@
 #
 # The pipeline this course builds needs event data **together with** an IMU (inertial measurement unit: a gyroscope
 # and an accelerometer, lesson 02's source of metric scale) and a perfect ground truth: lesson 04
-# turns events into image frames, lesson 08 tests detectors on event frames, and lessons 09-12 build and check the
+# turns events into image frames, lesson 08 tests detectors on event frames, and lessons 09-13 build and check the
 # filter on the simulator's trajectories, IMU signals and ground truth. Real recordings with all three are rare (and
 # none come with the course), so the course simulates them. This lesson opens the simulator up, following the thesis
 # the course reproduces (Friedel 2020, *Event-based visual-inertial odometry using smart features*) where it

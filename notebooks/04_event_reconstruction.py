@@ -642,7 +642,7 @@ display(Markdown(
 # 0.437 m with SIFT, a classical feature detector of lesson 05, on event frames against 1.11 m on grayscale frames),
 # which its conclusions (Chapter V) put down to motion blur in the grayscale frames during the rapid second half; over
 # the sparse Camp Atterbury flight they lost (34.12 m against 8.96 m). On this simulator the blur of a 10 ms exposure
-# costs the APS frames some SSIM but not their lead; lesson 13 runs both kinds of frames through the whole pipeline.
+# costs the APS frames some SSIM but not their lead; lesson 14 runs both kinds of frames through the whole pipeline.
 
 # %% [markdown]
 # ## 8. Real events

@@ -19,7 +19,7 @@
 #
 # A visual odometry front end does not track every pixel. It picks a few hundred **features** — small image regions it
 # can find again in the next frame — measures where they moved, and feeds those measurements to the motion estimator
-# (lesson 02 and, later, the MSCKF, the filter of lessons 10-12). A **detector** decides where the features are
+# (lesson 02 and, later, the MSCKF, the filter of lessons 11-13). A **detector** decides where the features are
 # (keypoints: a position and a score each); a **descriptor** summarises the patch around each keypoint as a vector,
 # so that the same point can be recognised in another image by comparing vectors. The thesis this course follows
 # (Friedel 2020, *Event-based visual-inertial odometry using smart features*, §2.1.3) grades a detector by how

@@ -770,15 +770,15 @@ display(Markdown(text))
 # * **tracks**, not pairs: the same scene point found again in several consecutive images (a track needs at least
 #   three observations to be used), so the front end matches each image to the previous one and keeps the track ids;
 # * **parallax**: a point seen from nearly the same place has an unknown depth, so long tracks over a moving camera are
-#   worth more than many short ones (notebook 11 triangulates them);
+#   worth more than many short ones (notebook 12 triangulates them);
 # * **accuracy in pixels**: every observation enters the filter with an assumed noise $\sigma$ per axis (the line
 #   below prints it, and the mean distance $\sigma\sqrt{\pi/2}$ at which independent Gaussian errors of that
 #   $\sigma$ put a point from the truth). The localisation errors of section 10 are of that order, but section 10
 #   also showed that they do not average out over many points as independent errors would, which the filter
-#   assumes; notebook 11 shows what a wrong noise model does;
+#   assumes; notebook 12 shows what a wrong noise model does;
 # * **undistorted, normalised coordinates** $(X/Z, Y/Z)$ rather than pixels, each with its own noise covariance;
 # * **few outliers**: mutual nearest neighbours and RANSAC in the front end, a chi-square gate in the filter as the
-#   last line of defence (notebook 11 builds it);
+#   last line of defence (notebook 12 builds it);
 # * **speed**: the front end runs once per image, at the camera's rate (section 8).
 #
 # Between two images the filter does not need the camera at all: it integrates the IMU. Notebook 09 starts there.

@@ -131,7 +131,7 @@ assert np.allclose(quat_to_rot(quat_multiply(q0, p)), quat_to_rot(q0) @ quat_to_
 # %% [markdown]
 # ## 2. The IMU equations and one RK4 step by hand
 #
-# The nominal IMU state (the estimate itself, as opposed to the error state a filter tracks, lesson 10)
+# The nominal IMU state (the estimate itself, as opposed to the error state a filter tracks, lesson 11)
 # is $X_{IMU} = [\bar q_{GtoI}, \mathbf b_g, \mathbf v_{IinG}, \mathbf b_a, \mathbf p_{IinG}]$
 # (thesis Eq. 21). With bias-corrected measurements $\boldsymbol\omega = \boldsymbol\omega_m - \mathbf b_g$ and
 # $\mathbf a = \mathbf a_m - \mathbf b_a$ it moves as (thesis Eq. 31)

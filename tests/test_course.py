@@ -203,10 +203,10 @@ def test_failure_message_of_a_timeout_and_a_dead_kernel():
 
 def test_notebook_failed_names_the_lesson_the_cell_and_the_file(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    failed = course.NotebookFailed("13_evio_pipeline", 41, "AssertionError (line 3: assert a < b)",
-                                   tmp_path / "build" / "notebooks" / "13_evio_pipeline.ipynb")
-    assert str(failed) == ("notebook 13_evio_pipeline, cell 41: AssertionError (line 3: assert a < b); the partial "
-                           "notebook is at build/notebooks/13_evio_pipeline.ipynb")
+    failed = course.NotebookFailed("14_evio_pipeline", 41, "AssertionError (line 3: assert a < b)",
+                                   tmp_path / "build" / "notebooks" / "14_evio_pipeline.ipynb")
+    assert str(failed) == ("notebook 14_evio_pipeline, cell 41: AssertionError (line 3: assert a < b); the partial "
+                           "notebook is at build/notebooks/14_evio_pipeline.ipynb")
     elsewhere = course.NotebookFailed("01_x", None, "the kernel stopped (Kernel died)", "/elsewhere/01_x.ipynb")
     assert str(elsewhere).startswith("notebook 01_x, after its last cell: ") and str(elsewhere).endswith("/elsewhere/01_x.ipynb")
 

@@ -138,11 +138,11 @@ def test_the_scan_finds_timing_asserts_and_leaves_recording_times_alone():
 
 
 # ---------------------------------------------------------------------------------------------- beside a CPU hog
-BUSY_LESSON = "10_"  # the shortest lesson that times something (perf_counter), about 4 s in fast mode on an idle CPU
+BUSY_LESSON = "11_msckf"  # the shortest lesson that times something (perf_counter), about 4 s in fast mode on an idle CPU
 
 
 def test_a_lesson_that_prints_timings_passes_beside_busy_processes(tmp_path):
-    """Lesson 10 in fast mode while two processes spin on the cores (about 8 s on a loaded 2-core CPU)."""
+    """Lesson 11 in fast mode while two processes spin on the cores (about 8 s on a loaded 2-core CPU)."""
     source = next(p for p in course.notebook_sources() if p.name.startswith(BUSY_LESSON))
     assert "perf_counter" in source.read_text(encoding="utf-8")  # it prints wall-clock times
     notebook = course.build_notebooks([source], out_dir=tmp_path)[0]

@@ -1,7 +1,7 @@
-"""Figures for the MSCKF lessons (notebooks 09-12): error growth, Monte-Carlo errors against 3-sigma bounds, covariance,
+"""Figures for the MSCKF lessons (notebooks 09-13): error growth, Monte-Carlo errors against 3-sigma bounds, covariance,
 triangulation error against the number of views, NEES against its chi-square band, a filter run against the truth,
 the singular values of observability matrices, and two schematics: the update of one feature seen from several
-camera clones (notebook 11) and the four unobservable directions of visual-inertial odometry (notebook 12).
+camera clones (notebook 12) and the four unobservable directions of visual-inertial odometry (notebook 13).
 
 Plotting only (plus :func:`correlation_matrix`, the normalised covariance the structure plot shows); the filter lives
 in :mod:`evio_lib.msckf`. Matplotlib is imported when a figure is made.

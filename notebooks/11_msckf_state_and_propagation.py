@@ -9,7 +9,7 @@
 # ---
 
 # %% [markdown]
-# # 10 — The MSCKF state, its covariance and IMU propagation
+# # 11 — The MSCKF state, its covariance and IMU propagation
 #
 # Notebook 09 integrated the IMU's *nominal* state. A Kalman filter must also know how *uncertain* that state
 # is, and how the uncertainty grows between images. The Kalman filter itself (predict, update, NEES, an error-state
@@ -44,8 +44,8 @@ N_RUNS = 20 if FAST else 100  # Monte-Carlo runs
 print(f"section 4: {DURATION:g} s of IMU-only propagation, {N_RUNS} Monte-Carlo runs")
 
 # %% [markdown]
-# The filter of lessons 10-12 in one picture. Top: the state this lesson builds, an IMU state of 15 error states
-# followed by a window of camera clones, 6 each. Bottom: what lesson 11 does with a feature track, step by step —
+# The filter of lessons 11-13 in one picture. Top: the state this lesson builds, an IMU state of 15 error states
+# followed by a window of camera clones, 6 each. Bottom: what lesson 12 does with a feature track, step by step —
 # note that the feature's position is never part of the state.
 
 # %%
@@ -340,7 +340,7 @@ display(Markdown(
     f"from {attitude_deg[0]:.2f}° to {attitude_deg[-1]:.2f}° per axis, mostly from the gyroscope-bias uncertainty: "
     f"{noise.gyro_bias_init_sigma:g} rad/s over {DURATION:g} s is {bias_alone:.2f}°, while the gyroscope's white "
     f"noise alone gives {white_alone:.3f}°. Nothing in IMU-only propagation can stop this growth; bounding it is the "
-    f"job of the camera updates (notebook 11)."))
+    f"job of the camera updates (notebook 12)."))
 
 # %% [markdown]
 # ## 5. State augmentation and its Jacobian J
@@ -442,7 +442,7 @@ display(Markdown(
     f"δb_g and δθ, {strongest['b_a-v']:.2f} between δb_a and δv), although only {0.05 * (n_cams + 0.5):.3g} s have "
     "passed (Φ_θbg ≈ -I Δt, Φ_vba ≈ -R Δt): this calibrated IMU starts with a velocity known to "
     f"{100 * cfg.init_sigma_velocity:g} cm/s, so even a small bias error soon matters next to it. The camera updates "
-    "of notebook 11 use these correlations: an observed pose error is partly blamed on the biases, which is how the "
+    "of notebook 12 use these correlations: an observed pose error is partly blamed on the biases, which is how the "
     "MSCKF learns them."))
 
 # %% [markdown]
@@ -470,7 +470,7 @@ display(Markdown(
 #    *Hint:* propagate $P$ sample by sample with `transition_matrix` and either `discrete_noise_covariance` or
 #    `G @ diag(q) @ G.T * dt`; read it out at times that are IMU samples at both rates.
 # 2. Double the accelerometer noise density in the *simulator* only (keep the filter's config). What happens to the
-#    NEES curve, and why is an overconfident filter dangerous for the chi-square gating of notebook 11?
+#    NEES curve, and why is an overconfident filter dangerous for the chi-square gating of notebook 12?
 #
 #    *Hint:* `dataclasses.replace(noise, accel_noise_density=2 * noise.accel_noise_density)` in `synthesize_imu` only;
 #    also compare how much of the position variance the accelerometer's white noise makes.
@@ -492,4 +492,4 @@ display(Markdown(
 #    variance feed?
 #
 # Solutions, with the code to run (checked by `tests/test_solutions.py`):
-# [docs/solutions/10_msckf_state_and_propagation.md](../docs/solutions/10_msckf_state_and_propagation.md).
+# [docs/solutions/11_msckf_state_and_propagation.md](../docs/solutions/11_msckf_state_and_propagation.md).

@@ -9,9 +9,9 @@
 # ---
 
 # %% [markdown]
-# # 11 — Triangulation and the MSCKF update
+# # 12 — Triangulation and the MSCKF update
 #
-# Lesson 10 built the filter's state and let the IMU push it forward; the uncertainty only grew. This lesson closes
+# Lesson 11 built the filter's state and let the IMU push it forward; the uncertainty only grew. This lesson closes
 # the loop: a feature tracked over several images says where the cameras were *relative to each other*, and the
 # MSCKF turns that into a correction of the whole sliding window. It follows the thesis (Friedel 2020, §3.3.6-3.3.7,
 # Eqs. 41-79) and Mourikis & Roumeliotis (2007), who introduced the filter.
@@ -470,7 +470,7 @@ assert not chi_square_gate(H_o, outlier, P, 1.0)[0]
 # ($k = 1$), where $s = 0.76$ at 95 %. The library therefore gates every feature on its whole track (larger $k$:
 # $s = 0.97$ at 95 % for 20 observations, $k = 37$). The filter's default gate stays at 95 %
 # (`MsckfConfig.chi2_probability`, the gate of section 10); only the Monte-Carlo consistency experiment of
-# lesson 12 (`evio_lib.msckf.experiment`, `VioSimConfig.gate_probability`), whose simulated tracks hold no outliers,
+# lesson 13 (`evio_lib.msckf.experiment`, `VioSimConfig.gate_probability`), whose simulated tracks hold no outliers,
 # gates at 0.99 ($s = 0.99$ for $k = 37$). A Monte-Carlo check of the closed form, with its standard error:
 
 # %%
@@ -526,7 +526,7 @@ print("smallest eigenvalue of P+:", f"{np.linalg.eigvalsh(P_c).min():.2e}")
 #
 # Everything above, chained over a sequence of images, is the MSCKF. Per image:
 #
-# 1. **propagate** the state with the IMU samples to the image time (lesson 10);
+# 1. **propagate** the state with the IMU samples to the image time (lesson 11);
 # 2. **augment** the state with a clone of the camera pose;
 # 3. append the image's observations to their tracks, each with its whitening matrix $W_i$;
 # 4. **collect** the tracks that ended (not seen in this image) and are long enough to triangulate, and, when the
@@ -541,7 +541,7 @@ print("smallest eigenvalue of P+:", f"{np.linalg.eigvalsh(P_c).min():.2e}")
 # time, chosen by a keyframe rule (the second-latest state if it barely moved from the one before it, else the
 # oldest); the thesis prunes two states by the same kind of rule (§3.3.6.1) and gives no value of $N_{max}$. Every
 # feature is gated at 95 %. The library's default also constrains the filter's linearisation so that it cannot gain
-# information about directions no sensor observes (the observability-constrained EKF, lesson 12); it is switched off
+# information about directions no sensor observes (the observability-constrained EKF, lesson 13); it is switched off
 # here (`observability_constrained=False`), so this is the plain EKF that the loop below writes out.
 #
 # The data: the simulator's tracks with perfect data association, landmarks in the `boxes_like` room, ~60 tracks
@@ -683,7 +683,7 @@ display(Markdown(
     f"ended after fewer than {config.min_track_length} images; any other reason is a triangulation that failed one "
     f"of the checks of section 3. For a consistent filter about 99.7 % of the errors of each axis would lie inside "
     f"±3σ; the printed {100 * inside:.1f} % is a first hint only, because the errors of consecutive images are "
-    f"correlated: lesson 12 measures consistency over many runs."))
+    f"correlated: lesson 13 measures consistency over many runs."))
 
 # %% [markdown]
 # ### The same noise for every observation
@@ -767,4 +767,4 @@ display(Markdown(
 #    both windows on each seed.
 #
 # Solutions, with the code to run (checked by `tests/test_solutions.py`):
-# [docs/solutions/11_triangulation_and_update.md](../docs/solutions/11_triangulation_and_update.md).
+# [docs/solutions/12_triangulation_and_update.md](../docs/solutions/12_triangulation_and_update.md).

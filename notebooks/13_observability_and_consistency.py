@@ -9,7 +9,7 @@
 # ---
 
 # %% [markdown]
-# # 12 — Observability and consistency
+# # 13 — Observability and consistency
 #
 # A filter is **consistent** when the covariance it reports matches the errors it actually makes. An overconfident
 # filter trusts its estimate too much, gates away good measurements and cannot recover. Visual-inertial odometry
@@ -109,9 +109,9 @@ assert np.allclose(yaw_direction, -eps / np.linalg.norm(g) * N[:, 3], atol=1e-15
 # ## 2. The observability matrix, numerically
 #
 # Take the IMU error $\delta x_1$ (15 numbers) at the first of $K$ images. Propagation carries it to image $k$ as
-# $\Phi(t_k, t_1)\,\delta x_1$ (the product of the per-interval $\Phi$ of lesson 10), the camera clone made at image
-# $k$ has the error $J_k \Phi(t_k, t_1)\,\delta x_1$ (the augmentation Jacobian of lesson 10), and a feature seen by
-# the $K$ clones gives, after the nullspace projection of lesson 11, the residual
+# $\Phi(t_k, t_1)\,\delta x_1$ (the product of the per-interval $\Phi$ of lesson 11), the camera clone made at image
+# $k$ has the error $J_k \Phi(t_k, t_1)\,\delta x_1$ (the augmentation Jacobian of lesson 11), and a feature seen by
+# the $K$ clones gives, after the nullspace projection of lesson 12, the residual
 # $r_o = A^T H_C \,[J_k\Phi(t_k, t_1)]_k\,\delta x_1 + A^T n$. Stacking these rows over several features gives the
 # **observability matrix** $O$ of $\delta x_1$. A direction with $O\,\delta x_1 = 0$ changes no residual: no
 # measurement can see it. Its singular value decomposition counts such directions: their singular values are zero.
@@ -653,8 +653,8 @@ display(Markdown(verdict))
 # filter is overconfident, below it means it is pessimistic.
 #
 # Consistency needs more than the OC-EKF. Three things in this library's filter matter as much, and you have met
-# them: the gate's bias (lesson 11, section 8: the whole track is gated, and at 0.99 for these outlier-free
-# tracks), pruning the oldest third of a window of 40 (lesson 11, section 10), and a start the linearisation
+# them: the gate's bias (lesson 12, section 8: the whole track is gated, and at 0.99 for these outlier-free
+# tracks), pruning the oldest third of a window of 40 (lesson 12, section 10), and a start the linearisation
 # survives (section 6).
 #
 # **Which update-side constraint the library uses.** Eq. 86 changes every camera block by the smallest
@@ -715,7 +715,7 @@ display(Markdown(verdict))
 #    `nees_attitude` over the runs.
 #
 # Solutions, with the code to run (checked by `tests/test_solutions.py`):
-# [docs/solutions/12_observability_and_consistency.md](../docs/solutions/12_observability_and_consistency.md).
+# [docs/solutions/13_observability_and_consistency.md](../docs/solutions/13_observability_and_consistency.md).
 #
 # ## What you have built so far, and what the thesis found
 #
@@ -727,13 +727,13 @@ display(Markdown(verdict))
 #   integration and a recurrent network that reconstructs intensity images;
 # * **features** (05-08): classical detectors, a SuperPoint-style network trained from scratch on synthetic shapes
 #   and homographic adaptation, and the benchmark that compares them (repeatability, homography correctness);
-# * **the filter** (09-12): IMU kinematics and dead reckoning, the Kalman filter, the MSCKF's error state and covariance
+# * **the filter** (09-13): IMU kinematics and dead reckoning, the Kalman filter, the MSCKF's error state and covariance
 #   propagation,
 #   triangulation and the nullspace-projected, gated update, and the observability constraint that keeps the
 #   filter honest about what it cannot see.
 #
 # On simulated tracks with perfect data association the filter you built stays within centimetres of the truth (the
-# RMSE printed in section 6) where the IMU alone drifts by metres within seconds (lesson 11, section 10).
+# RMSE printed in section 6) where the IMU alone drifts by metres within seconds (lesson 12, section 10).
 #
 # **What the thesis found** (§4.4-4.5, Table 6). On the *Boxes* recording (69.8 m travelled) the IMU alone drifted by
 # kilometres without bias corrections (RMSE 5383 m) and 29 m with them; the MSCKF brought this to about 1 m RMSE on
