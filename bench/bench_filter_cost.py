@@ -5,7 +5,7 @@ call with the process CPU clock (one thread for torch, OpenCV and BLAS, so the c
 the run's summary and stage timings, then the mean filter milliseconds per frame in each stretch.
 
 Usage: python bench/bench_filter_cost.py [--seconds 60] [--stretch 5] [--features sift]
-Measured figures: docs/speed.md#the-filter.
+Measured figures: docs/results/speed.md#the-filter.
 """
 import argparse
 import time

@@ -9,7 +9,7 @@ the real-time factor = seconds of recording processed per wall-clock second (> 1
 thread for torch, OpenCV and BLAS (``--threads``), as a 2-core laptop running one job per core would.
 
 Usage: python bench/bench_pipeline.py [--preset boxes_like] [--duration 10] [--process 5] [--configs ...]
-Measured figures: docs/pipeline.md#speed (SIFT on APS frames, first 5 s: 1.28x real time on one core, 2026-11-27).
+Measured figures: docs/results/speed.md#the-pipeline.
 """
 import argparse
 import os

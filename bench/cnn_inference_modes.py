@@ -18,7 +18,7 @@ half-width distilled network with its teacher):
 Usage: python bench/cnn_inference_modes.py [--modes fused bf16 int8] [--weights NAME|PATH ...] [--n-images 20]
                                            [--pairs-per-image 2]
                                            [--pool val] [--stretches boxes_like:0:20 boxes_like:1:20 ...]
-Measured figures: docs/speed.md#the-cnns-inference-modes.
+Measured figures: docs/results/speed.md#the-cnns-inference-modes.
 """
 from __future__ import annotations
 

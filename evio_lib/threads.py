@@ -4,7 +4,7 @@ Why it matters here. The MSCKF multiplies small matrices (at most a few hundred 
 OpenBLAS starts one thread per core for each of them, and the threads spin while they wait for each other: on the
 2-core machine of this project, with one other busy process, the filter of the default ``run`` took 50 ms of CPU per
 frame with 2 BLAS threads against 7.6 ms with one (boxes_like, SIFT on APS frames, seconds 0-20;
-``docs/pipeline.md#speed``).
+``docs/results/speed.md#the-pipeline``).
 
 Environment variables such as ``OPENBLAS_NUM_THREADS`` only act if they are set before NumPy is first imported,
 which a command or a notebook cannot promise. threadpoolctl (the library scikit-learn and joblib use) changes the
