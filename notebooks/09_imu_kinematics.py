@@ -11,22 +11,23 @@
 # %% [markdown]
 # # 09 — IMU kinematics: quaternions, RK4 dead reckoning and what biases do
 #
-# Notebook 08 ended with what the filter asks of the front end: tracks of the same scene points over several images,
-# as undistorted coordinates with about a pixel of noise. Those tracks only *correct* the estimate. The MSCKF back-end
-# of the thesis this course follows (Friedel 2020, *Event-based visual-inertial odometry using smart features*, §3.3)
-# is an *IMU-driven* filter: between two images the state is carried forward by integrating the
+# The feature-evaluation lesson ended with what the filter asks of the front end: tracks of the same scene points over several images,
+# as undistorted coordinates with about a pixel of noise. Those tracks only *correct* the estimate. The back-end of
+# the thesis this course follows (Friedel 2020, *Event-based visual-inertial odometry using smart features*, §3.3),
+# the MSCKF (multi-state constraint Kalman filter), is an *IMU-driven* filter: between two images the state is carried forward by integrating the
 # gyroscope and the accelerometer, and the camera corrects it afterwards. This lesson is about that first half, with
 # no camera at all:
 #
 # 1. the **JPL quaternion** (the convention of NASA's Jet Propulsion Laboratory technical reports, Trawny &
 #    Roumeliotis) and its kinematics $\dot{\bar q} = \tfrac12\,\Omega(\omega)\,\bar q$ (thesis Eqs. 18-21, 31-32),
-# 2. a **hand-written RK4 step** of the IMU equations, checked against the library's integrator,
+# 2. a **hand-written RK4 step** (the classic fourth-order Runge-Kutta method) of the IMU equations, checked against
+#    the library's integrator,
 # 3. the **IMU measurement model**: angular rate, *specific force* (not acceleration!), gravity, biases and noise,
 # 4. **dead reckoning** over a simulated trajectory: how small the integration error is with perfect data,
 # 5. what **uncorrected biases** do (the experiment of the thesis's §4.4, Figs. 19-22): quadratic and cubic error
 #    growth,
-# 6. **static initialisation**: gravity direction and gyroscope bias from an IMU at rest (simulated, and on the
-#    real EuRoC recording when it is available).
+# 6. **static initialisation**: gravity direction and gyroscope bias from an IMU at rest (simulated, and on a real
+#    recording of the public EuRoC drone data set when it is available).
 #
 # Library pieces used: `evio_lib.geometry.rotation` (quaternions), `evio_lib.sim` (trajectories, IMU synthesis),
 # `evio_lib.msckf.propagation.integrate_imu` (the filter's nominal integrator) and
@@ -131,7 +132,7 @@ assert np.allclose(quat_to_rot(quat_multiply(q0, p)), quat_to_rot(q0) @ quat_to_
 # %% [markdown]
 # ## 2. The IMU equations and one RK4 step by hand
 #
-# The nominal IMU state (the estimate itself, as opposed to the error state a filter tracks, lesson 11)
+# The nominal IMU state (the estimate itself, as opposed to the error state a filter tracks, next lesson)
 # is $X_{IMU} = [\bar q_{GtoI}, \mathbf b_g, \mathbf v_{IinG}, \mathbf b_a, \mathbf p_{IinG}]$
 # (thesis Eq. 21). With bias-corrected measurements $\boldsymbol\omega = \boldsymbol\omega_m - \mathbf b_g$ and
 # $\mathbf a = \mathbf a_m - \mathbf b_a$ it moves as (thesis Eq. 31)
@@ -476,7 +477,8 @@ display(Markdown(
     f"The gyroscope bias error is {np.linalg.norm(b_g_init - b_g_rest) / (np.sqrt(3) * sigma_mean):.2f} times what "
     f"the averaging of $M = {n_rest}$ samples predicts, and the tilt error ({tilt:.3f}°) is almost entirely the "
     f"accelerometer bias seen as a tilt ({np.degrees(horizontal_ba / 9.81):.3f}°)."))
-#
+
+# %% [markdown]
 # **On the real EuRoC recording** (a public data set of micro-aerial-vehicle flights with an IMU and ground truth;
 # V1_01_easy: a micro aerial vehicle standing on the ground with its rotors
 # spinning for the first seconds), when the data folder is present next to the repository. The ground truth comes
