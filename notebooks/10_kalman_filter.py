@@ -14,8 +14,8 @@
 # Lesson 09 integrated the IMU and watched the errors grow. The back-end of the thesis this course follows
 # (Friedel 2020, *Event-based visual-inertial odometry using smart features*, §3.3) stops that growth with a
 # **Kalman filter**: it carries an estimate *and its uncertainty* forward in time, and corrects both whenever a
-# measurement arrives. The next lesson builds the thesis's filter, the MSCKF, whose error state has 15 + 6N numbers
-# for N camera poses. This one teaches the filter itself on problems small enough to see, in the style of R. Labbe's book *Kalman and
+# measurement arrives. The next lesson builds the thesis's filter, the MSCKF (multi-state constraint Kalman filter),
+# whose error state has 15 + 6N numbers for N camera poses. This one teaches the filter itself on problems small enough to see, in the style of R. Labbe's book *Kalman and
 # Bayesian Filters in Python* and with its library, `filterpy`:
 #
 # 1. the **predict/update cycle**, drawn,
@@ -71,7 +71,6 @@ from evio_lib.evaluation.plots_kalman import (  # noqa: E402
     plot_nees_nis,
     plot_track_1d,
 )
-from evio_lib.evaluation.plots_msckf import plot_nees  # noqa: E402
 from evio_lib.evaluation.trajectory_metrics import chi2_bounds, nees  # noqa: E402
 
 FAST = fast_mode()
@@ -388,14 +387,15 @@ display(Markdown(
     f"The outlier's NIS is {nis_seen[k_out]:.0f}, against a gate of {gate:.2f}. Without the gate the update believes "
     f"it and the position error jumps to {errors['no gate'][k_out]:.2f} m (from {errors['no gate'][k_out - 1]:.2f} m "
     f"one step before); the error then decays over the following steps as new measurements pull the estimate back. "
-    f"With the gate the update is skipped and the error stays at {errors['with the gate'][k_out]:.2f} m. The gate "
+    f"With the gate the update is skipped: the filter keeps its prediction, {errors['with the gate'][k_out]:.2f} m "
+    f"off at that step, and the next good measurements correct it as usual. The gate "
     f"has a price: at $p = 0.99$ it also rejects one good measurement in a hundred on average; in this run it "
     f"rejected {len(rejected) - 1 if len(rejected) > 1 else 'none'} of the {n_steps - 1} good ones."))
 
 # %% [markdown]
 # ## 5. A small error-state filter: attitude and gyroscope bias
 #
-# The MSCKF's state holds an attitude, a unit quaternion $\bar q_{GtoI}$ (lesson 09's JPL convention, scalar last).
+# The MSCKF's state holds an attitude, a unit quaternion $\bar q_{GtoI}$ (the JPL convention of the IMU lesson, scalar last).
 # Four numbers with one constraint: a covariance over all four would be singular. The remedy (thesis Eqs. 22-24) is
 # the **error-state** filter. It keeps the **nominal** state (the quaternion and the bias $\mathbf b_g$) outside the
 # Kalman filter and runs the filter on the small **error** between truth and estimate,
@@ -417,7 +417,7 @@ display(Markdown(
 #
 #   with the gyro's white noise $\mathbf n_g$ and the bias's random walk $\mathbf n_{wg}$, both given as spectral
 #   densities; $\Phi$ and $Q_d$ come from Van Loan's exponential, as in section 3.
-# * **Measurement.** The IMU only turns about its centre, so the accelerometer reads the specific force of lesson 09
+# * **Measurement.** The IMU only turns about its centre, so the accelerometer reads the specific force of the IMU lesson
 #   at rest, "up" seen in $I$: $\mathbf z = C(\bar q)\,\mathbf f_G + \mathbf n_a$, $\mathbf f_G = [0, 0, 9.81]$ m/s².
 #   To first order, $C(\delta\bar q)\approx I - [\delta\boldsymbol\theta\times]$ gives
 #   $\mathbf z \approx \hat{\mathbf z} + [\hat{\mathbf z}\times]\delta\boldsymbol\theta$, so $H = \begin{bmatrix}[\hat{\mathbf z}\times] & 0\end{bmatrix}$.
@@ -447,7 +447,7 @@ from evio_lib.msckf.error_state_attitude import (  # noqa: E402
 )
 from evio_lib.sim.imu import ImuNoiseParams  # noqa: E402
 
-noise = ImuNoiseParams()  # the course's IMU (an MPU-6150 class MEMS, lesson 09)
+noise = ImuNoiseParams()  # the course's IMU (an MPU-6150 class MEMS, as in the IMU lesson)
 imu_dt = 0.01  # a 100 Hz IMU
 Phi0, Qd0 = discretize(np.zeros(3), imu_dt, noise.gyro_noise_density, noise.gyro_random_walk)
 qw = noise.gyro_random_walk**2
@@ -477,7 +477,7 @@ assert np.linalg.matrix_rank(H_att) == 2
 # the results.
 #
 # **The run.** A simulated IMU turns about its own centre in a slow tumble about all three axes, with the course's
-# gyroscope noise and a bias drawn with the spread of lesson 09
+# gyroscope noise and a bias drawn with the spread of the IMU lesson's model
 # (`gyro_bias_init_sigma`). The filter predicts at 100 Hz and is corrected by the accelerometer at 10 Hz. Its
 # initial attitude error is drawn with σ = 0.02 rad (1.1°) per axis, and it starts from a zero bias with the bias
 # spread as its σ. The loop is written out here;
@@ -574,7 +574,9 @@ for r in range(N_RUNS_ATT):
     nis_runs.append(run_r.nis)
 att_nees, att_nis = np.mean(nees_runs, axis=0), np.mean(nis_runs, axis=0)
 band6, band3 = chi2_bounds(6, N_RUNS_ATT), chi2_bounds(3, N_RUNS_ATT)
-plot_nees(run_r.t, att_nees, band6, dof=6, n_runs=N_RUNS_ATT, title="error-state attitude filter: average NEES")
+fig = plot_nees_nis(run_r.t, {"error-state attitude filter": att_nees}, {"error-state attitude filter": att_nis},
+                    band6, band3, nees_dof=6, nis_dof=3, n_runs=N_RUNS_ATT,
+                    title="error-state attitude filter: NEES and NIS averaged over the runs")
 plt.show()
 in6, in3 = inside(att_nees, band6), inside(att_nis, band3)
 assert in6 >= 80 and in3 >= 80
@@ -624,7 +626,7 @@ display(Markdown(
 #
 #    *Hint:* collect `y[0] ** 2 / S[0, 0]` for every run and step with `Q_vl`, and count
 #    `(nis > chi2.ppf(p, 1)).mean()`.
-# 4. Let the IMU turn about the vertical only: `simulate_rotating_imu(60.0, 100.0, noise, rng,
+# 4. Let the IMU turn about the vertical only: `simulate_rotating_imu(30.0, 100.0, noise, rng,
 #    rate_amplitude=(0.0, 0.0, 1.0))`. Which bias component does the filter fail to learn, and what happens to the
 #    yaw σ?
 #
@@ -635,7 +637,8 @@ display(Markdown(
 #    now converge?
 #
 #    *Hint:* the measurement is `z = quat_to_rot(q_true) @ m_G + noise`; its $H$ has the same form as gravity's:
-#    `z_hat = quat_to_rot(kf.q_GtoI) @ m_G`, `H = np.zeros((3, 6)); H[:, :3] = skew(z_hat)`; update with
+#    `z_hat = quat_to_rot(kf.q_GtoI) @ m_G`, `H = np.zeros((3, 6)); H[:, :3] = skew(z_hat)` (`skew` from
+#    `evio_lib.geometry.rotation`); update with
 #    `dx, kf.P = kalman_update(kf.P, H, z - z_hat, 0.01**2)` (from `evio_lib.msckf.update`) and correct as
 #    `AttitudeFilter.update` does.
 #

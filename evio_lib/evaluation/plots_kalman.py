@@ -224,7 +224,7 @@ def plot_track_1d(t: ArrayLike, truth: ArrayLike, measurements: ArrayLike, estim
 
 def plot_nees_nis(t: ArrayLike, nees: Mapping[str, ArrayLike], nis: Mapping[str, ArrayLike],
                   nees_band: Sequence[float], nis_band: Sequence[float], nees_dof: int, nis_dof: int,
-                  n_runs: int) -> "Figure":
+                  n_runs: int, title: str = "") -> "Figure":
     """Return two panels, the average NEES and the average NIS against time, one curve per filter, with χ² bands.
 
     Args:
@@ -233,6 +233,7 @@ def plot_nees_nis(t: ArrayLike, nees: Mapping[str, ArrayLike], nis: Mapping[str,
         nees_band, nis_band: (lo, hi) 95 % interval of each average (``trajectory_metrics.chi2_bounds``).
         nees_dof, nis_dof: dimension of the state and of the measurement (the expected values).
         n_runs: Monte-Carlo runs in each average (for the labels).
+        title: figure title above both panels (none if empty).
 
     The NEES axis is logarithmic so that filters a factor of ten off stay on the figure.
 
@@ -260,9 +261,15 @@ def plot_nees_nis(t: ArrayLike, nees: Mapping[str, ArrayLike], nis: Mapping[str,
         ax.set_title(f"{name}: {'estimation error (needs the truth)' if name == 'NEES' else 'innovation'}",
                      fontsize=10)
     axes[0].set_yscale("log")
+    from matplotlib.ticker import LogFormatter
+
+    axes[0].yaxis.set_major_formatter(LogFormatter())  # plain numbers (5, 6, 7), not 5 x 10^0
+    axes[0].yaxis.set_minor_formatter(LogFormatter(labelOnlyBase=False, minor_thresholds=(2, 0.5)))
     handles, labels = axes[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", ncol=3, fontsize=8, frameon=False)
-    fig.tight_layout(rect=(0.0, 0.07 + 0.035 * ((len(labels) - 1) // 3), 1.0, 1.0))
+    if title:
+        fig.suptitle(title, fontsize=11)
+    fig.tight_layout(rect=(0.0, 0.07 + 0.035 * ((len(labels) - 1) // 3), 1.0, 0.95 if title else 1.0))
     return fig
 
 

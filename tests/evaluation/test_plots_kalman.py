@@ -73,6 +73,14 @@ def test_nees_nis_figure_has_one_curve_per_filter_and_the_bands():
     assert "95 % χ² interval (50 runs)" in [text.get_text() for text in fig.legends[0].get_texts()]
     assert left.get_ylabel() == "average NEES (dimensionless)" and left.get_xlabel() == "time [s]"
     fig.canvas.draw()
+    assert fig._suptitle is None  # no title unless asked for
+    titled = plot_nees_nis(t, nees, nis, (1.6, 2.5), (0.7, 1.3), 2, 1, 50, title="two filters")
+    assert titled._suptitle.get_text() == "two filters"
+    titled.canvas.draw()
+    tick_text = [label.get_text() for label in titled.axes[0].get_yticklabels(minor=True)
+                 + titled.axes[0].get_yticklabels()]
+    assert not any("times" in text or "^" in text for text in tick_text)  # plain numbers on the log axis
+    assert titled._suptitle.get_window_extent().y0 >= max(ax.title.get_window_extent().y1 for ax in titled.axes) - 1
     with pytest.raises(ValueError, match="the same labels"):
         plot_nees_nis(t, nees, {"right Q": nis["right Q"]}, (1.6, 2.5), (0.7, 1.3), 2, 1, 50)
     with pytest.raises(ValueError, match="nees_band must satisfy 0 <= lo < hi"):
