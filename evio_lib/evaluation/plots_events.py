@@ -154,7 +154,7 @@ def plot_training_sequences(sequences: Sequence[Mapping[str, np.ndarray]], metas
                             windows: Sequence[int] = (0, 10, 39), size: float = 1.9) -> plt.Figure:
     """Return one row per training sequence: its sharp frames at ``windows`` and the polarity sum of the last one's
     voxel grid (red ON, blue OFF, one colour range for all rows), the row labelled with the sequence's contrast
-    threshold, window rule, n and speed.
+    threshold, window rule, n and speed (view widths per second, "views/s").
 
     ``sequences`` and ``metas`` are what :func:`evio_lib.events.reconstruction.training_set.make_sequence` returns.
     """
@@ -174,7 +174,7 @@ def plot_training_sequences(sequences: Sequence[Mapping[str, np.ndarray]], metas
         row[-1].set_title(f"events, window {last}", fontsize=8)
         rule = (f"n = {meta['fraction']:.2f}" if meta["rule"] == "count"
                 else f"time windows (n ~ {meta['fraction']:.2f})")
-        row[0].set_ylabel(f"C = {meta['contrast_pos']:.2f}\n{rule}\nspeed {meta['speed']:.1f}", fontsize=8)
+        row[0].set_ylabel(f"C = {meta['contrast_pos']:.2f}\n{rule}\nspeed {meta['speed']:.1f} views/s", fontsize=8)
         for ax in row:
             ax.set_xticks([])
             ax.set_yticks([])

@@ -306,7 +306,8 @@ def plot_sample_intervals(sample_times: ArrayLike, speed_t: ArrayLike | None = N
 
 
 def plot_event_cloud(events: np.ndarray, max_points: int = 20000, title: str = "events in space-time") -> "Figure":
-    """Return a 3-D scatter plot of events (x, t, y), ON red and OFF blue, thinned to at most ``max_points``.
+    """Return a 3-D scatter plot of events (x, t, y), ON red and OFF blue (with a legend), thinned to at most
+    ``max_points``.
 
     Thinning keeps every k-th event (deterministic). Time runs along the depth axis, in milliseconds from the first
     event; image rows grow downwards as in an image.
@@ -322,6 +323,7 @@ def plot_event_cloud(events: np.ndarray, max_points: int = 20000, title: str = "
     1
     """
     import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
 
     _check_events(events)
     if events.size == 0:
@@ -340,6 +342,9 @@ def plot_event_cloud(events: np.ndarray, max_points: int = 20000, title: str = "
     ax.set_zlabel("y [px]")
     ax.invert_zaxis()
     ax.view_init(elev=15, azim=-60)
+    handles = [Line2D([], [], ls="", marker="o", ms=4, color=colour, label=label)
+               for colour, label in ((_ON_COLOUR, "ON event (p = +1)"), (_OFF_COLOUR, "OFF event (p = -1)"))]
+    ax.legend(handles=handles, loc="upper left", fontsize=8)
     shown = "all shown" if stride == 1 else f"every {stride}th shown"
     ax.set_title(f"{title} ({events.size} events, {shown})", fontsize=10)
     return fig

@@ -62,6 +62,7 @@ def test_training_sequences_figure_labels_each_row_with_its_sensor():
     axes = np.array(fig.axes[:8]).reshape(2, 4)
     assert axes[0, 0].get_ylabel().startswith("C = 0.18") and "n = 0.30" in axes[0, 0].get_ylabel()
     assert "time windows" in axes[1, 0].get_ylabel() and axes[1, 3].get_title() == "events, window 39"
+    assert axes[1, 0].get_ylabel().endswith("speed 3.0 views/s")                   # the speed with its unit
     assert axes[0, 3].images[0].get_clim() == axes[1, 3].images[0].get_clim()     # one range for every row's events
     assert [ax.get_xlabel() for ax in fig.axes[8:]] == ["sharp intensity (0 black, 1 white)", "voxel sum (red: ON)"]
     plt.close(fig)

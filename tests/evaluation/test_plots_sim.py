@@ -124,6 +124,7 @@ def test_event_cloud_thins_deterministically(events: np.ndarray) -> None:
     drawn = fig.axes[0].collections[0]
     assert len(drawn.get_offsets()) == 1000  # every 5th of 5000
     assert fig.axes[0].get_title().endswith("(5000 events, every 5th shown)")
+    assert [t.get_text() for t in fig.axes[0].get_legend().get_texts()] == ["ON event (p = +1)", "OFF event (p = -1)"]
     assert plot_event_cloud(events[:10]).axes[0].get_title().endswith("(10 events, all shown)")
     with pytest.raises(ValueError, match="at least one event"):
         plot_event_cloud(empty_events())
