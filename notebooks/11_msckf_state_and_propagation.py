@@ -338,9 +338,10 @@ display(Markdown(
     f"(to {sigma[-1, 3:].max():.2f} m after {DURATION:g} s), because the initial velocity error, the accelerometer "
     f"noise and bias, and the tilt error (through gravity) are integrated into it. The attitude uncertainty grows "
     f"from {attitude_deg[0]:.2f}° to {attitude_deg[-1]:.2f}° per axis, mostly from the gyroscope-bias uncertainty: "
-    f"{noise.gyro_bias_init_sigma:g} rad/s over {DURATION:g} s is {bias_alone:.2f}°, while the gyroscope's white "
-    f"noise alone gives {white_alone:.3f}°. Nothing in IMU-only propagation can stop this growth; bounding it is the "
-    f"job of the camera updates (notebook 12)."))
+    f"{noise.gyro_bias_init_sigma:g} rad/s integrated over {DURATION:g} s gives at most {bias_alone:.2f}° (as the body "
+    f"turns, the attitude error a constant bias error makes turns with it, and adds up to a little less), while the "
+    f"gyroscope's white noise alone gives {white_alone:.3f}°. Nothing in IMU-only propagation can stop this growth; "
+    f"bounding it is the job of the camera updates (notebook 12)."))
 
 # %% [markdown]
 # ## 5. State augmentation and its Jacobian J
@@ -472,8 +473,8 @@ display(Markdown(
 # 2. Double the accelerometer noise density in the *simulator* only (keep the filter's config). What happens to the
 #    NEES curve, and why is an overconfident filter dangerous for the chi-square gating of notebook 12?
 #
-#    *Hint:* `dataclasses.replace(noise, accel_noise_density=2 * noise.accel_noise_density)` in `synthesize_imu` only;
-#    also compare how much of the position variance the accelerometer's white noise makes.
+#    *Hint:* `import dataclasses`; `dataclasses.replace(noise, accel_noise_density=2 * noise.accel_noise_density)` in
+#    `synthesize_imu` only; also compare how much of the position variance the accelerometer's white noise makes.
 # 3. Derive the block $\Phi_{p\theta}$ for $\boldsymbol\omega = 0$ from $\exp(F\Delta t)$ by hand (the series stops after a few terms)
 #    and compare with `transition_matrix`.
 #

@@ -275,7 +275,7 @@ def plot_triangulation_error(view_counts: ArrayLike, median_error: ArrayLike, no
         if bars.shape != errors.shape or np.any(bars < 0) or not np.all(np.isfinite(bars)):
             raise ValueError(f"standard_error must hold finite values >= 0 of shape (L, V) = {errors.shape}; got "
                              f"shape {bars.shape}")
-    fig, ax = plt.subplots(figsize=(6, 3.5))
+    fig, ax = plt.subplots(figsize=(8, 3.5))
     for k, (noise_px, row) in enumerate(zip(noise, errors)):
         ax.plot(views, 100 * row, "o-", color=f"C{k}", label=f"{noise_px:g} px noise")  # m -> cm
         if bars is not None:
@@ -283,7 +283,7 @@ def plot_triangulation_error(view_counts: ArrayLike, median_error: ArrayLike, no
     if bars is not None:
         ax.plot([], [], color="0.3", marker="|", ls="none", ms=10, label="±2 standard errors of the median")
     ax.set(xlabel="number of views (same time span)", ylabel="median position error [cm]", title=title)
-    ax.legend()
+    ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)  # beside the axes: covers no curve
     fig.tight_layout()
     return fig
 

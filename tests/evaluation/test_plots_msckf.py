@@ -217,6 +217,8 @@ def test_plot_triangulation_error_one_line_per_noise_level_in_cm():
     assert [t.get_text() for t in ax.get_legend().get_texts()] == ["0.5 px noise", "2 px noise"]
     assert ax.get_title() == "feature at 2.5 m" and ax.get_ylabel() == "median position error [cm]"
     _render(fig)
+    legend_box = ax.get_legend().get_window_extent()
+    assert legend_box.x0 >= ax.get_window_extent().x1  # the legend sits beside the axes, over no curve
 
 
 def test_plot_triangulation_error_rejects_bad_input():
