@@ -13,8 +13,9 @@
 #
 # The pipeline this course builds needs event data **together with** an IMU (inertial measurement unit: a gyroscope
 # and an accelerometer, lesson 02's source of metric scale) and a perfect ground truth: lesson 04
-# turns events into image frames, lesson 08 tests detectors on event frames, and lessons 09-13 build and check the
-# filter on the simulator's trajectories, IMU signals and ground truth. Real recordings with all three are rare (and
+# turns events into image frames, lesson 08 tests detectors on event frames, and the IMU lesson, the MSCKF lessons
+# and the pipeline lessons at the end of the course build and check the filter on the simulator's trajectories, IMU
+# signals and ground truth. Real recordings with all three are rare (and
 # none come with the course), so the course simulates them. This lesson opens the simulator up, following the thesis
 # the course reproduces (Friedel 2020, *Event-based visual-inertial odometry using smart features*) where it
 # describes event cameras (§2.2.1) and its two datasets (§3.4):
@@ -383,6 +384,10 @@ fig = plot_image_table(views, ["boxes_like", "aerial_like"], ["intensity", "dept
                        ["intensity I (0 black, 1 white)", "depth along the optical axis [m] (log scale)"],
                        cmaps=["gray", "viridis"], vranges=[(0.0, 1.0), None], log_scale=[False, True])
 plt.show()
+depth_range = {cfg.preset: (float(np.nanmin(v[1])), float(np.nanmax(v[1]))) for cfg, v in zip((boxes_cfg, aerial_cfg),
+                                                                                               views)}
+print("depth range: " + ", ".join(f"{name} {lo:.1f}-{hi:.1f} m" for name, (lo, hi) in depth_range.items()))
+assert depth_range["boxes_like"][1] < 10 < 100 < depth_range["aerial_like"][0]  # metres against hundreds of metres
 
 # %% [markdown]
 # Now the two recordings; each summary lists what a recording holds.
@@ -489,9 +494,10 @@ display(Markdown(
 # ### Events in space-time
 #
 # Plotted over $(x, y, t)$, events are not a sequence of images but surfaces: each moving edge sweeps a sheet
-# through space-time, ON events on one side of a bright edge, OFF events on the other. Here: 100 ms of the events
-# in a square patch in the middle of the image, at 20 % of the boxes recording (calm motion; the sheets are the
-# mortar lines of the brick wall sliding through the patch; the number of events is in the title).
+# through space-time. Its polarity says which way the brightness went where it passed: a dark line moving over a
+# bright background gives OFF events where it arrives and ON events where it leaves. Here: 100 ms of the events in a
+# square patch in the middle of the image, at 20 % of the boxes recording (calm motion; the sheets are the mortar
+# lines of the brick wall sliding through the patch; the number of events is in the title).
 
 # %%
 t_cloud = boxes_cfg.start_time + 0.2 * boxes_cfg.duration
@@ -532,8 +538,8 @@ assert np.allclose(gyro_noise.std(axis=0), sigma_expected, rtol=0.15)
 # %% [markdown]
 # ### Event rate over time: the two regimes
 #
-# An event camera's data rate follows the motion and the texture. In the room, with textured surfaces 1-4 m away, the
-# rate climbs with the shaking. From 250 m up, 20 m/s of flight moves the image of a DAVIS240C (focal length about 200
+# An event camera's data rate follows the motion and the texture. In the room, with textured surfaces a few metres
+# away (the depth range printed under the depth maps), the rate climbs with the shaking. From 250 m up, 20 m/s of flight moves the image of a DAVIS240C (focal length about 200
 # px) by only $f v / h \approx 200 \cdot 20 / 250 = 16$ px/s (plus the slow turbulence rotations), over fields with
 # few strong edges: far fewer events. We count events in 20 ms bins and plot them with the camera's angular speed, and
 # quote events per pixel and second to compare cameras of any resolution.
@@ -606,8 +612,8 @@ print(f"read back {len(back.events)} events, {len(back.frames)} frames, {len(bac
 #   log-intensity change to within one threshold.
 # * Adaptive sampling renders as often as the fastest pixel needs; the event count converges as the bound tightens.
 # * In fast motion the APS frame blurs: the image moves several pixels during its exposure and the frame keeps a
-#   smaller share of the scene's detail, while an event frame of a fixed number of events spans a few milliseconds
-#   and loses less of its sharpness (section 4). The event rate follows the motion (room) and is several
+#   smaller share of the scene's detail, while an event frame of a fixed number of events spans a fraction of the
+#   exposure and loses less of its sharpness (section 4). The event rate follows the motion (room) and is several
 #   times lower per pixel over sparse, distant terrain, as in the thesis, where the sparse Camp Atterbury scene
 #   "resulted in a much lower rate of events compared to that of the Boxes dataset" (§4.1).
 # * IMU, frames, events and ground truth come from one trajectory; the recording round-trips through the ECD layout.
