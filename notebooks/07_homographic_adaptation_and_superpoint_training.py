@@ -95,8 +95,8 @@ run_root = tempfile.mkdtemp(prefix="evio07_runs_")
 #
 # ### The detector to adapt
 #
-# The thesis adapts MagicPoint, the detector of lesson 06. A MagicPoint trained for a minute or two, like the one of
-# section 3, barely has peaks yet (section 3 measures it), so this section adapts the project's **trained network**:
+# The thesis adapts MagicPoint, the detector of lesson 06. A MagicPoint trained for a few hundred steps, like the one
+# of section 3, barely has peaks yet (section 3 measures it), so this section adapts the project's **trained network**:
 # the same architecture as lesson 06, whose detector began as a MagicPoint trained on about 500 000 augmented
 # Synthetic Shapes images and was then trained together with the descriptor on real images labelled by homographic
 # adaptation (sections 3 and 4 show how). The cell prints what its weights file says about that training. The
@@ -519,9 +519,9 @@ display(Markdown(
 # ## 4. The full chain
 #
 # The thesis (§3.2.5, Fig. 13) compared several training processes; each is a config file. The model it took into the
-# filter (the MSCKF of lessons 10-12) on the strength of its Tables 2-5 (§4.5), **pre-trained DetDesc (Round 2)**,
-# needs MagicPoint, its labels, DetDesc (Round 1), that model's labels, and finally DetDesc (Round 2) started from
-# Round 1's weights:
+# filter (the MSCKF, which the later lessons build) on the strength of its Tables 2-5 (§4.5), **pre-trained DetDesc
+# (Round 2)**, needs MagicPoint, its labels, DetDesc (Round 1), that model's labels, and finally DetDesc (Round 2)
+# started from Round 1's weights:
 
 # %%
 chain = training.variant_dependencies("pretrained_detdesc_round2")
@@ -565,14 +565,14 @@ for name in chain:
     assert name == "magicpoint" or (raw["lr"], thesis["lr"]) == (1e-3, 1e-4)
 
 # %% [markdown]
-# The thesis trained Synthetic Shapes for 50 epochs at 120 x 160 and its MS-COCO steps (82 783 images at 240 x 320)
-# for 15-20 epochs each (§3.2.5). Nothing is downloaded here and the configs are sized for a small CPU: they train on
-# the project's own image pool (scikit-image photographs, renders of simulated scenes, aerial views, textures) at
-# 120 x 160 (MagicPoint at 96 x 128), for the thousands of steps printed above, with 50 instead of 100 adaptation
-# warps, and at a learning rate of $10^{-3}$ where the thesis used $10^{-4}$ for the full network (section 3 says
-# why). The descriptor loss keeps its form; its positive weight $\lambda_d$ is scaled to the number of cells
-# (section 2), and the total weight $\lambda$ differs because this loss is a mean over valid cell pairs
-# (`losses.py`).
+# The thesis trained Synthetic Shapes for 50 epochs at 120 x 160 and its MS-COCO steps (82 783 images at 240 x 320) for
+# 15-20 epochs each (§3.2.5; 15 for the two steps printed above, 20 for the detector-only variants). Nothing is
+# downloaded here and the configs are sized for a small CPU: they train on the project's own image pool (scikit-image
+# photographs, renders of simulated scenes, aerial views, textures) at 120 x 160 (MagicPoint at 96 x 128), for the
+# thousands of steps printed above, with 50 instead of 100 adaptation warps, and at a learning rate of $10^{-3}$ where
+# the thesis used $10^{-4}$ for the full network (section 3 says why). The descriptor loss keeps its form; its positive
+# weight $\lambda_d$ is scaled to the number of cells (section 2), and the total weight $\lambda$ differs because this
+# loss is a mean over valid cell pairs (`losses.py`).
 #
 # ### How many labels?
 #
