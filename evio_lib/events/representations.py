@@ -27,6 +27,8 @@ Every function leaves its inputs untouched.
 """
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from evio_lib.events.array import EVENT_DTYPE
@@ -189,6 +191,19 @@ def time_windows(events: np.ndarray, duration: float, t_start: float | None = No
     return np.stack([idx[:-1], idx[1:]], axis=1), edges[1:]
 
 
+def _check_bounded_window_args(n_events: Any, min_duration: float, max_duration: float | None) -> int:
+    """Return ``n_events`` as an int, or raise ValueError naming the argument of a bounded count window that is wrong."""
+    if isinstance(n_events, bool) or int(n_events) != n_events or n_events < 1:
+        raise ValueError(f"n_events must be a positive integer; got {n_events!r}")
+    n_events = int(n_events)
+    if not (np.isfinite(min_duration) and min_duration >= 0):
+        raise ValueError(f"min_duration must be a number of seconds >= 0; got {min_duration!r}")
+    if max_duration is not None and not (np.isfinite(max_duration) and max_duration > min_duration):
+        raise ValueError(f"max_duration must be None or a number of seconds > min_duration ({min_duration:g}); got "
+                         f"{max_duration!r}")
+    return n_events
+
+
 def bounded_count_windows(events: np.ndarray, n_events: int, min_duration: float = 0.0,
                           max_duration: float | None = None, t_start: float | None = None,
                           t_end: float | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -220,14 +235,7 @@ def bounded_count_windows(events: np.ndarray, n_events: int, min_duration: float
     [[0, 3], [3, 5]]
     """
     _check_events(events)
-    if isinstance(n_events, bool) or int(n_events) != n_events or n_events < 1:
-        raise ValueError(f"n_events must be a positive integer; got {n_events!r}")
-    n_events = int(n_events)
-    if not (np.isfinite(min_duration) and min_duration >= 0):
-        raise ValueError(f"min_duration must be a number of seconds >= 0; got {min_duration!r}")
-    if max_duration is not None and not (np.isfinite(max_duration) and max_duration > min_duration):
-        raise ValueError(f"max_duration must be None or a number of seconds > min_duration ({min_duration:g}); got "
-                         f"{max_duration!r}")
+    n_events = _check_bounded_window_args(n_events, min_duration, max_duration)
     t = np.ascontiguousarray(events["t"])  # searchsorted would copy the strided field at every call
     if events.size == 0 and (t_start is None or t_end is None):
         return np.zeros((0, 2), np.int64), np.zeros(0)

@@ -358,7 +358,7 @@ class _Times:
 def count_windows_source(source: EventSource, lo: int, hi: int, n_events: int) -> np.ndarray:
     """Return (K, 2) global index bounds of the count windows of the events [lo, hi) (as
     :func:`evio_lib.events.representations.count_windows` on ``events[lo:hi]``, plus ``lo``)."""
-    from evio_lib.events.representations import MAX_WINDOWS, _too_many_windows
+    from evio_lib.events.representations import MAX_WINDOWS, _check_bounded_window_args, _too_many_windows
 
     n = hi - lo
     if int(n_events) != n_events or n_events < 1:
@@ -378,16 +378,9 @@ def bounded_count_windows_source(source: EventSource, lo: int, hi: int, n_events
     """Return (bounds (K, 2) global indices, end times (K,)): the windows of
     :func:`evio_lib.events.representations.bounded_count_windows` on the events [lo, hi), reading their times a
     ``block`` at a time (default: the source's chunk size)."""
-    from evio_lib.events.representations import MAX_WINDOWS, _too_many_windows
+    from evio_lib.events.representations import MAX_WINDOWS, _check_bounded_window_args, _too_many_windows
 
-    if isinstance(n_events, bool) or int(n_events) != n_events or n_events < 1:
-        raise ValueError(f"n_events must be a positive integer; got {n_events!r}")
-    n_events = int(n_events)
-    if not (np.isfinite(min_duration) and min_duration >= 0):
-        raise ValueError(f"min_duration must be a number of seconds >= 0; got {min_duration!r}")
-    if max_duration is not None and not (np.isfinite(max_duration) and max_duration > min_duration):
-        raise ValueError(f"max_duration must be None or a number of seconds > min_duration ({min_duration:g}); got "
-                         f"{max_duration!r}")
+    n_events = _check_bounded_window_args(n_events, min_duration, max_duration)
     size = hi - lo
     t = _Times(source, lo, hi, source.chunk_events if block is None else block)
     if size == 0 and (t_start is None or t_end is None):
