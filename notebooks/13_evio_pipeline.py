@@ -9,37 +9,34 @@
 # ---
 
 # %% [markdown]
-# # 13 — The complete EVIO pipeline
+# # 13 — The complete EVIO pipeline on APS frames
 #
 # Every piece of the course now exists on its own: frames from APS or from events (lesson 04), feature detectors
-# (05-08), the MSCKF with its update and its consistency fixes (10-12). This lesson joins them into the thesis's
-# pipeline (Friedel 2020, Chapter IV §4.5):
+# (05-08), the MSCKF with its update and its consistency fixes (10-12). This lesson joins them into the pipeline of
+# the thesis this course follows (Friedel 2020, "Event-based visual-inertial odometry using smart features",
+# Chapter IV §4.5) and runs it on the camera's ordinary frames, the **APS frames** (the DAVIS's Active Pixel Sensor
+# images, exposed like any camera's):
 #
-# ```
-# APS frames or event windows -> frames -> features + tracking (two-point RANSAC) -> MSCKF -> trajectory + metrics
-# ```
-#
-# 1. the **front-end** on real EuRoC frames and on simulated frames: tracks drawn, RANSAC's rejections shown and
-#    checked against the true geometry; the two-point model and pyramidal Lucas-Kanade built from scratch;
-# 2. the **whole pipeline** on APS frames of the simulated `boxes_like` room (and, briefly, the `aerial_like` flight):
+# 1. the **front-end** on real EuRoC and DAVIS frames and on simulated frames: tracks drawn, RANSAC's rejections
+#    shown and checked against the true geometry; the two-point model and pyramidal Lucas-Kanade built from scratch;
+# 2. the **whole pipeline** on the APS frames of the simulated `boxes_like` room (and the `aerial_like` flight):
 #    SIFT, KLT (features followed by optical flow, built in section 1d) and IMU only, with the thesis's error
 #    figures (3σ bounds, biases, trajectory, tracking statistics); then a real still start (EuRoC) with a static
 #    initialisation and zero-velocity updates;
-# 3. **event frames**, reconstructed by FireNet or counted motion-compensated with the gyroscope, instead of APS
-#    frames over a gentle stretch, then beside them in faster motion;
-# 4. the **Table 6 analogue** over configurations and seeds (one seed in fast mode);
-# 5. what events buy, and when they do not.
+# 3. the **Table 6 analogue** of the thesis (its table of MSCKF results) for the rows without events.
+#
+# Lesson 14 feeds the same pipeline frames made from events and asks when they beat the APS frames.
 #
 # The code lives in `evio_lib.frontend` (the tracker) and `evio_lib.pipeline` (`load_dataset`, `PipelineConfig`,
 # `run_pipeline`, `run_table`); the same runs are one command away: `python -m evio_lib run` and
-# `python -m evio_lib table`. Every number below is from **one run** (one simulation seed unless the table says
-# otherwise): the asserts check what the text claims with loose margins, not exact values.
+# `python -m evio_lib table`. Every number below is from one run of one simulated seed unless a table says
+# otherwise.
 
 # %%
 import os
 
 for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_name, "1")  # small images and matrices: on a busy 2-core CPU threads only slow them down
+    os.environ.setdefault(_name, "1")  # small images and matrices: one thread each is the fastest
 from pathlib import Path
 
 import cv2
@@ -63,26 +60,23 @@ from evio_lib.frontend import camera_rotation_priors, create_tracker, match_mutu
 from evio_lib.frontend.two_point_ransac import two_point_ransac
 from evio_lib.geometry.rotation import so3_log
 from evio_lib.pipeline import PipelineConfig, load_dataset, run_pipeline, run_pipelines
-from evio_lib.pipeline.frames import default_window_fraction
 from evio_lib.pipeline.run import msckf_config_for
 
 cv2.setNumThreads(1)
 torch.set_num_threads(1)
-FAST = fast_mode()  # CI sets EVIO_FAST=1: a few seconds of each run
+FAST = fast_mode()
 D_APS = 5.0 if FAST else 20.0  # seconds of each preset for the APS-frame runs
-D_EVENTS = 2.0 if FAST else 8.0  # seconds simulated with events (slow: about 2 CPU seconds per simulated second)
 TABLE_DURATION, TABLE_SEEDS = (3.0, (0,)) if FAST else (6.0, (0, 1))
-JOBS = 1 if FAST else None  # worker processes for the side-by-side runs (None: one per core); fast runs are too short
+JOBS = 1 if FAST else None  # worker processes for the side-by-side runs (None: one per core)
 EUROC = Path(evio_lib.__file__).resolve().parents[1].parent / "shared" / "data" / "real" / "euroc_V1_01_easy_micro"
 HAVE_EUROC = (EUROC / "mav0").is_dir()  # real data is optional: its cells skip without it
-print(f"fast mode: {FAST}; APS runs over {D_APS:g} s, event runs over {D_EVENTS:g} s; EuRoC slice found: {HAVE_EUROC}")
+print(f"APS runs over the first {D_APS:g} s of each preset; EuRoC slice found: {HAVE_EUROC}")
 
 # %% [markdown]
-# The pipeline as a data flow (drawn after the set-up cell, which must limit the threads before numpy loads). Follow
-# the arrows: events become frames through windows and a reconstruction (lesson 04; section 3 adds frames counted
-# with motion compensation, not drawn), APS frames are used as they are; the IMU feeds the filter and, dashed, gives the tracker its rotation prior; the ground truth scores the
-# trajectory (it also gives a moving start its initial state, section 2, not drawn). The number in brackets is the
-# lesson that teaches each box.
+# The pipeline as a data flow. Follow the arrows: APS frames are used as they are, events become frames through
+# windows and a reconstruction (lesson 04; this lesson runs the APS branch, lesson 14 the event branch); the IMU feeds
+# the filter and, dashed, gives the tracker its rotation prior; the ground truth scores the trajectory (it also gives
+# a moving start its initial state, section 2, not drawn). The number in brackets is the lesson that teaches each box.
 
 # %%
 from evio_lib.evaluation.plots_schematics import plot_pipeline_schematic
@@ -119,7 +113,9 @@ plt.show()
 
 # %%
 frontend_config = PipelineConfig().frontend_config()
-print(frontend_config)
+print(f"front-end: {frontend_config.method} tracker, detector {frontend_config.detector}, at most "
+      f"{frontend_config.max_features} features on a {frontend_config.grid_rows} x {frontend_config.grid_cols} grid, "
+      f"two-point RANSAC threshold {frontend_config.ransac_threshold_px:g} px")
 assert (frontend_config.max_features, frontend_config.grid_rows, frontend_config.grid_cols) == (60, 4, 5)
 assert frontend_config.ransac_threshold_px == 1.5
 if HAVE_EUROC:
@@ -144,17 +140,19 @@ if HAVE_EUROC:
     assert euroc_stats["tracked"][1:].mean() > 40
     assert kept.sum() > 0.5 * len(final) and np.median(drift_px) < 2.0
     assert euroc_stats["ransac_degenerate"][1:].sum() >= 5
+    display(Markdown(
+        f"At the start of V1_01_easy the drone still sits on the floor: {kept.sum()} of the {len(final)} features of "
+        f"the last frame were tracked through all eight frames, and they moved a median {np.median(drift_px):.2f} px. "
+        f"With no translation there is no epipolar geometry to test, and two-point RANSAC says so: in "
+        f"{euroc_stats['ransac_degenerate'][1:].sum()} of the 7 frame pairs it finds the translation **unobservable** "
+        f"(degenerate) and falls back to checking each match's displacement after the gyro's rotation is removed. "
+        f"This is the situation of a filter's static start; parallax, and with it depth, only comes once the camera "
+        f"moves."))
 else:
     print(f"EuRoC slice not found at {EUROC}: skipping the real-frame part (section 1b runs the front-end on "
           f"simulated frames)")
 
 # %% [markdown]
-# (When the slice is present.) At the start of V1_01_easy the drone still sits on the floor: most features are
-# tracked through all eight frames and hardly move (median under 2 px). With no translation there is no epipolar
-# geometry to test, and two-point RANSAC says so: it finds the translation **unobservable** (degenerate) and falls
-# back to checking each match's displacement after the gyro's rotation is removed. This is the situation of a
-# filter's static start; parallax, and with it depth, only comes once the camera moves.
-#
 # **Real DAVIS240C frames: ECD `slider_depth`.** The same sensor as the simulated one (240 x 180), on a linear
 # slider: the camera translates without rotating, so the tracker runs without a gyro prior (the slice has no IMU).
 # `read_ecd_frames` reads the frames and calibration of an ECD folder without its events.
@@ -175,21 +173,23 @@ if (SLIDER / "images.txt").is_file():
     slide_px = np.linalg.norm(final.pixels[kept] - first.pixels[np.searchsorted(first.ids, final.ids[kept])], axis=1)
     slider_ratio = slider_stats["tracked"][1:].mean() / slider_stats["total"][1:].mean()
     print(f"tracked per frame {slider_stats['tracked'][1:].mean():.1f} of {slider_stats['total'][1:].mean():.1f} "
-          f"({100 * slider_ratio:.0f} %); {kept.sum()} tracks span all 8 frames, median motion {np.median(slide_px):.1f} px")
+          f"({100 * slider_ratio:.0f} %); {kept.sum()} tracks span all 8 frames, median motion "
+          f"{np.median(slide_px):.1f} px")
     assert slider.frames.shape[1:] == (180, 240) and slider_ratio > 0.6 and np.median(slide_px) > 5
+    display(Markdown(
+        f"On real DAVIS frames SIFT continues {100 * slider_ratio:.0f} % of its features from one frame to the next "
+        f"while the scene slides by {np.median(slide_px):.1f} px (median over the eight frames); keep this share in "
+        f"mind for the simulated room below."))
 else:
     slider_ratio = None
     print(f"ECD slider_depth slice not found at {SLIDER}: skipped")
 
 # %% [markdown]
-# (When the slice is present.) On real DAVIS frames SIFT continues well over half of its features from frame to frame
-# while the scene slides by several pixels; keep this figure in mind for the simulated room below.
-#
 # ### 1b. Simulated frames: the `boxes_like` room
 #
 # The course's simulated DAVIS240C (240 x 180) in a textured room, hand-held motion that starts gently and ends
-# violently over 60 s. `load_dataset` simulates the first `D_APS` seconds once and caches them under
-# `data/cache/sequences`. The tracker runs over eight frames from t = 3 s:
+# violently over 60 s. `load_dataset` simulates the first `D_APS` seconds of it. The tracker runs over eight frames
+# from t = 3 s:
 
 # %%
 data = load_dataset("boxes_like", duration=D_APS)
@@ -213,17 +213,19 @@ assert box_stats["total"][1:].min() >= 50  # the grid is refilled to about N = 6
 assert 0.2 < box_stats["tracked"][1:].mean() / box_stats["total"][1:].mean() < 0.9
 assert 0 < box_stats["rejected_ransac"][1:].mean() < box_stats["tracked"][1:].mean() / 3
 assert PipelineConfig().match_ratio is None and frontend_config.ratio is None  # no ratio test in the pipeline
+display(Markdown(
+    f"The grid refills every frame to {box_stats['total'][1:].min()}-{box_stats['total'][1:].max()} features "
+    f"(N = {frontend_config.max_features}), but only {box_stats['tracked'][1:].mean():.1f} of them on average "
+    f"continue from the previous frame; the rest are new detections filling cells that lost theirs. In this "
+    f"repetitive, low-resolution room many SIFT descriptors have a near twin: the pipeline matches without Lowe's "
+    f"ratio test (which keeps a match only when its descriptor distance is below, say, 0.8 times that of the "
+    f"second-best candidate; `PipelineConfig.match_ratio` says why it is off), and two-point RANSAC then rejects the "
+    f"candidate matches that do not fit the gyro's rotation and one translation: "
+    f"{box_stats['rejected_ransac'][1:].mean():.1f} per frame here. Every track that ends is a loss: the MSCKF uses "
+    f"a track only once it has at least three observations (`min_track_length` of the filter's `MsckfConfig`, "
+    f"lesson 11; asserted in section 2), and gains most from long tracks."))
 
 # %% [markdown]
-# The grid keeps about N = 60 features in every frame, but only part of them continue from the previous frame; the
-# rest are new detections filling cells that lost theirs. In this repetitive, low-resolution room many SIFT
-# descriptors have a near twin: the pipeline matches without Lowe's ratio test (which keeps a match only when its
-# descriptor distance is below, say, 0.8 times that of the second-best candidate; the pipeline measured better
-# without it, see `PipelineConfig.match_ratio`), and two-point RANSAC then rejects the candidate matches that do not
-# fit the gyro's rotation and one translation (here fewer than one for every three continued tracks). Every track
-# that ends is a loss: the MSCKF uses a track only once it has at least three observations (`min_track_length` of
-# the filter's `MsckfConfig`, notebook 11; asserted in section 2), and gains most from long tracks.
-#
 # **Two-point RANSAC by hand.** Match *every* SIFT detection of the last two frames (no search window, only Lowe's
 # ratio test at 0.8, so some wrong matches get through) and let two-point RANSAC, given the gyro's rotation, decide.
 # The simulator knows the true relative pose, so each decision can be checked against the true epipolar geometry
@@ -267,15 +269,16 @@ assert ransac.num_rejected >= 3
 assert inlier_px < 0.5 and kept_ok > 0.9 and rejected_off > 0.7
 assert 0.002 < np.linalg.norm(t_true) < 0.03
 assert ransac.degenerate and np.median(ransac.residuals_px[ransac.inliers]) < 3 * 1.5
+display(Markdown(
+    f"RANSAC never saw the true pose, only the gyro's rotation and the matches, yet {100 * kept_ok:.0f} % of the "
+    f"matches it keeps agree with the true geometry to better than its 1.5 px threshold (median {inlier_px:.2f} px), "
+    f"while {100 * rejected_off:.0f} % of those it rejects are off by more: wrong correspondences between "
+    f"similar-looking places of the room. (The red segments join each rejected candidate to the feature it claimed "
+    f"to continue.) But between two frames 40 ms apart the camera moved only {100 * np.linalg.norm(t_true):.1f} cm, "
+    f"and RANSAC called the translation unobservable (`degenerate: True`): it classified the matches by their "
+    f"displacement after the rotation was removed, and never used its two-point model."))
 
 # %% [markdown]
-# RANSAC never saw the true pose, only the gyro's rotation and the matches, yet more than 90 % of the matches it keeps
-# agree with the true geometry to better than its 1.5 px threshold (median under half a pixel), while most of those
-# it rejects are off by more: wrong correspondences between similar-looking places of the room. (The red segments
-# join each rejected candidate to the feature it claimed to continue.) But between two frames 40 ms apart the camera
-# moved only about a centimetre, and RANSAC called the translation unobservable (`degenerate: True`): it classified
-# the matches by their displacement after the rotation was removed, and never used its two-point model.
-#
 # ### 1c. The two-point model, with translation
 #
 # To see the model at work, take two frames **0.42 s apart** (t = 2.5 s and 2.9 s), where the camera moved several
@@ -351,20 +354,22 @@ plt.show()
 assert not library.degenerate and np.linalg.norm(t_true_ij) > 0.05
 assert angle_deg(library.t_dir, t_true_ij) < 5 and angle_deg(t_ours, t_true_ij) < 5
 assert angle_deg(library.t_dir, t_ours) < 1 and np.mean(our_inliers == library.inliers) > 0.9
+display(Markdown(
+    f"Two matches per hypothesis and 200 draws: from the matches and the gyro alone, the from-scratch RANSAC found a "
+    f"translation direction {angle_deg(t_ours, t_true_ij):.1f}° from the true one and `two_point_ransac` one "
+    f"{angle_deg(library.t_dir, t_true_ij):.1f}° from it; the two agree to {angle_deg(library.t_dir, t_ours):.2f}° "
+    f"and on {100 * np.mean(our_inliers == library.inliers):.0f} % of the decisions. (The library scores with the "
+    f"Sampson distance, which also counts the error of $f_1$, and ranks hypotheses by MSAC's truncated cost "
+    f"$\\sum_k \\min(d_k, 1.5\\,\\text{{px}})^2$, Torr & Zisserman 2000, instead of the inlier count.) In the "
+    f"figure, each green segment joins a previous feature, its rotation removed, to its match: what remains is the "
+    f"translation's parallax, segments along lines through the epipole (here far outside the image, since the "
+    f"camera moved mostly sideways), longer for nearer points. In the consecutive pair of section 1b the kept "
+    f"matches moved a median {np.median(ransac.residuals_px[ransac.inliers]):.2f} px after the rotation was removed, "
+    f"under the {3 * frontend_config.ransac_threshold_px:g} px below which `two_point_ransac` does not trust a "
+    f"segment's direction (3 times its threshold: the line's direction is then uncertain by 20° or more); too few "
+    f"longer ones agreed, hence the degenerate case there."))
 
 # %% [markdown]
-# Two matches per hypothesis and a few hundred draws: RANSAC found a translation direction within 5° of the true one
-# (from the matches and the gyro alone), and the from-scratch version and `two_point_ransac` agree to within 1° and
-# on more than 90 % of the decisions (the library scores with the Sampson distance, which also counts the error of
-# $f_1$, and ranks hypotheses by MSAC's truncated cost $\sum_k \min(d_k, 1.5\,\text{px})^2$, Torr & Zisserman 2000,
-# instead of the inlier count). In the figure, each green segment
-# joins a previous feature, its rotation removed, to its match: what remains is the translation's parallax, segments
-# along lines through the epipole (here far outside the image, since the camera moved mostly sideways), longer for
-# nearer points. In the consecutive pair above the kept matches moved less than 4.5 px after the rotation was removed
-# (the median), the length below which `two_point_ransac` does not trust a segment's direction (3 times its
-# threshold: the line's direction is then uncertain by 20° or more); too few longer ones agreed, hence the
-# degenerate case there.
-#
 # ### 1d. Optical flow: pyramidal Lucas-Kanade
 #
 # The other front-end of section 2, KLT (what msckf_vio and OpenVINS run), does not detect again in each frame: it
@@ -450,16 +455,21 @@ assert 3 < np.linalg.norm(flow[73][1]) < 7  # about 5 px to the next frame
 assert np.linalg.norm(flow[76][1]) > 2 * 7 and np.abs(flow[76][1] - flow[76][2][3]).max() < 0.05
 assert np.linalg.norm(flow[76][0] - flow[76][1]) > 3 and np.linalg.norm(flow[76][2][0] - flow[76][1]) > 3
 assert np.linalg.eigvalsh(G)[0] > 0.2 * np.linalg.eigvalsh(G)[1]
+off = lambda a, b: float(np.abs(a - b).max())  # noqa: E731  largest difference of two displacements, px
+low, high = np.linalg.eigvalsh(G)
+display(Markdown(
+    f"To the next frame the corner moved {np.linalg.norm(flow[73][1]):.1f} px: one level is enough, and the ten lines "
+    f"above agree with OpenCV to {off(flow[73][0], flow[73][2][0]):.3f} px (one level) and "
+    f"{off(flow[73][1], flow[73][2][3]):.3f} px (pyramid). Three frames later it has moved "
+    f"{np.linalg.norm(flow[76][1]):.1f} px, more than twice the window's half-width (7 px): one level then converges "
+    f"to a wrong place ({np.linalg.norm(flow[76][0] - flow[76][1]):.1f} px from the pyramid's answer; OpenCV's one "
+    f"level {np.linalg.norm(flow[76][2][0] - flow[76][1]):.1f} px), while the pyramid again agrees with OpenCV's three "
+    f"levels to {off(flow[76][1], flow[76][2][3]):.3f} px. The eigenvalues of $G$, {low:.0f} and {high:.0f}, are of "
+    f"the same order: a corner, as a KLT feature must be. The library adds what a tracker needs around this core: "
+    f"the gyro's rotation as the starting guess $d$, a forward-backward check (track back, drop what does not return "
+    f"within 1 px) and the same two-point RANSAC and grid as the descriptor tracker."))
 
 # %% [markdown]
-# From the next frame (about 5 px of motion) one level is enough, and the ten lines above agree with OpenCV to within
-# 0.05 px. Three frames later the corner has moved more than twice the window's half-width (7 px): one level then
-# converges to a wrong place (more than 3 px off, as does OpenCV's with one level), while the pyramid again agrees
-# with OpenCV's three levels to within 0.05 px. Both
-# eigenvalues of $G$ are of the same order: a corner, as a KLT feature must be. The library adds what a tracker needs
-# around this core: the gyro's rotation as the starting guess $d$, a forward-backward check (track back, drop what
-# does not return within 1 px) and the same two-point RANSAC and grid as the descriptor tracker.
-#
 # ## 2. The whole pipeline on APS frames
 #
 # `run_pipeline(data, config)` runs frames -> front-end -> MSCKF on the recording: each frame's tracks, undistorted,
@@ -475,9 +485,9 @@ assert np.linalg.eigvalsh(G)[0] > 0.2 * np.linalg.eigvalsh(G)[1]
 # - **SIFT** with the thesis's descriptor tracker;
 # - **KLT**: pyramidal Lucas-Kanade optical flow with FAST detections, what msckf_vio and OpenVINS run.
 #
-# `run_pipelines(data, configs)` runs `run_pipeline` for each of them. In full mode they run side by side, one worker
-# process per CPU core (at most 4); fast mode's short runs go one after the other (`JOBS`). A run is deterministic,
-# so it gives the same trajectory either way; only its timings feel the neighbours.
+# `run_pipelines(data, configs)` runs `run_pipeline` for each of them, side by side in worker processes. A run is
+# deterministic: it gives the same trajectory in a worker as alone; only its timings (the "x real time" of each
+# summary: seconds of recording per second of computing) feel the neighbours.
 
 # %%
 configs = {
@@ -498,16 +508,18 @@ assert all(halves["IMU only"][1] / halves[name][1] > halves["IMU only"][0] / hal
            for name in ("SIFT", "KLT + FAST"))  # the gap to dead reckoning grows
 assert all(r.metrics["percent_of_distance"] < 20 for name, r in results.items() if name != "IMU only")
 assert msckf_config_for(configs["SIFT"], data).min_track_length == 3  # a track is used from 3 observations (1b)
+display(Markdown(
+    f"Both visual front-ends beat dead reckoning by a wide margin: the RMSE (the root-mean-square of the position "
+    f"error over the run) of IMU only is {rmse['IMU only'] / rmse['SIFT']:.0f} times SIFT's and "
+    f"{rmse['IMU only'] / rmse['KLT + FAST']:.0f} times KLT's. The gap grows with the length of the run: IMU-only's "
+    f"error over the second half is {imu_halves[1] / imu_halves[0]:.0f} times that over the first (under a gyro bias "
+    f"the tilt error grows linearly, the misread gravity integrates twice: the position error grows like $t^3$). "
+    f"SIFT ends at {results['SIFT'].metrics['percent_of_distance']:.2f} % of the distance travelled and KLT at "
+    f"{results['KLT + FAST'].metrics['percent_of_distance']:.2f} % over these first {D_APS:g} s of gentle motion. "
+    f"The thesis's unit, **% of distance**, is the mean position error divided by the distance travelled; it "
+    f"flatters long runs and punishes short ones, so compare it only between runs over the same stretch."))
 
 # %% [markdown]
-# Both visual front-ends beat dead reckoning by a wide margin (more than 3x in RMSE, the root-mean-square of the
-# position error over the run, here), and the gap grows with the
-# length of the run: IMU-only's error over the second half is more than 3x that over the first (under a gyro bias the
-# tilt error grows linearly, the misread gravity integrates twice: the position error grows like $t^3$). Both stay
-# under 20 % of the distance travelled over these first seconds of gentle motion. The thesis's unit, **% of
-# distance**, is the mean position error divided by the distance travelled; it flatters long runs and punishes short
-# ones, so compare it only between runs over the same stretch.
-#
 # **ATE, the absolute trajectory error.** The RMSE above compares the estimate with the ground truth in the world frame
 # the filter was started in. When the start is not the truth's (a static start: yaw and position are unobservable,
 # section 2c) or to compare with other systems, the estimate is first moved rigidly onto the truth and only then
@@ -537,25 +549,26 @@ print(f"ATE from scratch {ate_ours:.4f} m, library {results['SIFT'].metrics['ate
 assert abs(ate_ours - results["SIFT"].metrics["ate_se3_m"]) < 1e-9
 assert abs(ate_ours - absolute_trajectory_error(p_est, p_gt, yaw_only=False)) < 1e-9
 assert all(r.metrics["ate_se3_m"] <= r.metrics["rmse_m"] for r in results.values())
+print(f"from scratch against the library: {abs(ate_ours - results['SIFT'].metrics['ate_se3_m']):.1e} m apart")
 
 # %% [markdown]
 # The few lines agree with `evio_lib.evaluation.trajectory_metrics.absolute_trajectory_error` (and with the
-# `ate_se3_m` of every run's metrics) to 1e-9 m. The ATE is never larger than the unaligned RMSE, since the identity
-# is one of the transforms the alignment may choose. It measures the trajectory's shape, not where it lies: the
-# alignment may turn the whole estimate (by the angle printed) to fit it better, and on a short path a large turn
-# costs little, so quote it beside the RMSE, not instead of it. For VIO, whose roll and pitch are observable from
-# gravity, the field's convention is the 4-DoF alignment (yaw and translation only; `ate_4dof_m`, `yaw_only=True`);
-# `evo_ape` (the absolute-pose-error command of the `evo` trajectory-evaluation tool) computes the same numbers from
-# the trajectories that `python -m evio_lib run --out` writes in the TUM text format, one pose per line (a test
-# checks it).
+# `ate_se3_m` of the run's metrics) to the rounding of floating point (the last line printed above). The ATE is never
+# larger than the unaligned RMSE, since the identity is one of the transforms the alignment may choose. It measures
+# the trajectory's shape, not where it lies: the alignment may turn the whole estimate (by the angle printed) to fit
+# it better, and on a short path a large turn costs little, so quote it beside the RMSE, not instead of it. For VIO,
+# whose roll and pitch are observable from gravity, the field's convention is the 4-DoF alignment (yaw and
+# translation only; `ate_4dof_m`, `yaw_only=True`); `evo_ape` (the absolute-pose-error command of the `evo`
+# trajectory-evaluation tool) computes the same numbers from the trajectories that `python -m evio_lib run --out`
+# writes in the TUM text format, one pose per line (a test checks it).
 #
 # The error figures of the thesis (Figs. 23-32): truth minus estimate per axis inside the filter's own ±3σ, for the
 # SIFT run. The filter's state error is $[\delta\theta, \delta b_g, \delta v, \delta b_a, \delta p]$ (its σ's are
 # `result.sigma`, 15 columns in that order); the attitude error is the small angle of
 # $R_{G\to I}^{true} R_{G\to I}^{est\,T} \approx I - [\delta\theta]_\times$ (JPL), in the IMU frame. Which of its
 # components is the yaw (heading) error? The one about the IMU axis that points along gravity: in this room the
-# IMU's $y$ axis stays within about 10° of the vertical (asserted below), so "about $y_I$" is yaw, and the other
-# two are tilt (roll and pitch), which gravity makes observable.
+# IMU's $y$ axis stays close to the vertical (its largest angle to it is printed below the figures), so "about $y_I$"
+# is yaw, and the other two are tilt (roll and pitch), which gravity makes observable.
 
 # %%
 sift_run = results["SIFT"]
@@ -584,16 +597,21 @@ assert min(inside.values()) > 0.7 and max(inside.values()) < 0.997  # fewer than
 assert np.all(sigma[-1, 12:15] > sigma[0, 12:15])
 assert vertical_deg[:, 1].max() < 12 and vertical_deg[:, [0, 2]].min() > 75
 assert sigma[-1, 1] > max(sigma[-1, 0], sigma[-1, 2])  # the yaw band ends the widest
+shares = ", ".join(f"{name} {100 * share:.1f} %" for name, share in inside.items())
+display(Markdown(
+    f"Inside the ±3σ band over this run: {shares} of the error samples, fewer than the 99.7 % that a consistent "
+    f"filter keeps of a Gaussian error: over this run the filter is overconfident, the kind of inconsistency lesson 12 "
+    f"measures with the NEES. Yaw and the absolute position are unobservable (lesson 12): the filter only learns the "
+    f"motion relative to where it started, so the position band ends the run wider than it began, on every axis "
+    f"(σ grows from {1e3 * sigma[0, 12:15].max():.1f} mm to {1e3 * sigma[-1, 12:15].min():.0f}-"
+    f"{1e3 * sigma[-1, 12:15].max():.0f} mm); it "
+    f"narrows only where an update ties the current pose to the poses of earlier frames, whose own uncertainty is the "
+    f"floor. The yaw band (about $y_I$) ends the run the widest of the three attitude bands "
+    f"({np.degrees(sigma[-1, 1]):.2f}° against {np.degrees(sigma[-1, 0]):.2f}° and "
+    f"{np.degrees(sigma[-1, 2]):.2f}°): "
+    f"nothing measures the heading, while gravity bounds the tilt."))
 
 # %% [markdown]
-# More than 70 % of every state's error samples stay inside the ±3σ band over this run (the shares are printed above),
-# fewer than the 99.7 % that a consistent filter keeps of a Gaussian error: over this run the filter is
-# overconfident, the kind of inconsistency lesson 12 measures with the NEES. Yaw and the absolute position are
-# unobservable (lesson 12): the filter only learns the motion relative to where it started, so the position band ends
-# the run wider than it began, on every axis; it narrows only where an update ties the current pose to the poses of
-# earlier frames, whose own uncertainty is the floor. The yaw band (about $y_I$) ends the run the widest of the three:
-# nothing measures the heading, while gravity bounds the tilt.
-#
 # The IMU biases start at zero; the simulator knows the true ones, drawn dashed (the thesis's bias figures, Appendix
 # C, Figs. 49-58, show the estimates alone: its recordings have no true biases):
 
@@ -607,13 +625,15 @@ accel_band_end = 3 * sigma[-1, 9:12]
 print(f"accelerometer bias ±3σ at the end (x_I, y_I, z_I): {accel_band_end.round(3)} m/s^2")
 assert gyro_bias_error[-1] < 0.5 * gyro_bias_error[0]
 assert accel_band_end[1] < min(accel_band_end[0], accel_band_end[2])  # along the vertical y_I: the narrowest
+display(Markdown(
+    f"The gyroscope bias is learned within seconds (its error falls from {1e3 * gyro_bias_error[0]:.1f} to "
+    f"{1e3 * gyro_bias_error[-1]:.1f} mrad/s): every tracked feature constrains the rotation between views. The "
+    f"accelerometer bias is learned unevenly: its ±3σ band ends the narrowest along the vertical $y_I$ "
+    f"({accel_band_end[1]:.3f} m/s² against {accel_band_end[0]:.3f} and {accel_band_end[2]:.3f}), where a bias "
+    f"changes the measured size of gravity, which no tilt can mimic; across the vertical a bias looks like a small "
+    f"tilt, and the two are told apart only as the device rotates relative to gravity."))
 
 # %% [markdown]
-# The gyroscope bias is learned within seconds (its error more than halves): every tracked feature constrains the
-# rotation between views. The accelerometer bias is learned unevenly: its band ends the narrowest along the vertical
-# ($y_I$), where a bias changes the measured size of gravity, which no tilt can mimic; across the vertical a bias
-# looks like a small tilt, and the two are told apart only as the device rotates relative to gravity.
-#
 # The trajectory from above and the front-end's health over the run:
 
 # %%
@@ -627,12 +647,15 @@ plt.show()
 track_length = {name: float(np.mean(results[name].track_lengths)) for name in ("SIFT", "KLT + FAST")}
 print("mean track length [frames]:", {k: round(v, 1) for k, v in track_length.items()})
 assert track_length["KLT + FAST"] > 3 * track_length["SIFT"]
+longest = {name: int(np.max(results[name].track_lengths)) for name in track_length}
+display(Markdown(
+    f"The two front-ends differ most in how long they keep a feature: optical flow follows a patch from frame to frame "
+    f"and keeps it for {track_length['KLT + FAST']:.1f} frames on average (its longest track: "
+    f"{longest['KLT + FAST']} frames), while SIFT's tracks last {track_length['SIFT']:.1f} frames (its longest: "
+    f"{longest['SIFT']}); the histograms' log axes show both ends. Long tracks give the MSCKF more views per feature and therefore more parallax per "
+    f"update."))
 
 # %% [markdown]
-# The two front-ends differ most in how long they keep a feature: optical flow follows a patch from frame to frame
-# and keeps it for many frames, while SIFT's tracks last a few frames (more than 3x shorter on average here). Long
-# tracks give the MSCKF more views per feature and therefore more parallax per update.
-#
 # Why are SIFT's tracks shorter? A descriptor tracker can only continue a feature that the detector finds *again*
 # in the next frame. `evio_lib.frontend.redetection` measures exactly that: it carries every keypoint of one frame
 # into the next with optical flow and asks whether the detector fired within 2 px of it, and whether the guided
@@ -654,20 +677,24 @@ box_ratio = box_stats["tracked"][1:].mean() / box_stats["total"][1:].mean()  # c
 print(f"share of features continued from the previous frame: simulated room {box_ratio:.2f}"
       + ("" if slider_ratio is None else f", real slider {slider_ratio:.2f}"))
 assert slider_ratio is None or abs(slider_ratio - box_ratio) < 0.15  # about the same on real and simulated frames
+display(Markdown(
+    f"SIFT fires again at {100 * redetect['sift'][0]:.0f} % of its points, not at all of them: the rest move to other "
+    f"places of the texture, and their tracks must end however good the matching is, for when the point *is* found "
+    f"again the guided nearest descriptor picks it {100 * redetect['sift'][1]:.0f} % of the time. So a track is lost "
+    f"to a missed detection, not to a wrong match. The CNN, trained for repeatable points, re-detects "
+    f"{100 * redetect['superpoint'][0]:.0f} % of its points on these frames, "
+    f"{redetect['superpoint'][0] / redetect['sift'][0]:.2f} times SIFT's rate: the thesis's argument for a learned "
+    f"detector does not show here."
+    + ("" if slider_ratio is None else
+       f" On the real slider frames of section 1a SIFT continued {100 * slider_ratio:.0f} % of its features from "
+       f"frame to frame, in the simulated room {100 * box_ratio:.0f} %: the simulator's APS noise is matched to those "
+       f"real frames.")))
 
 # %% [markdown]
-# SIFT fires again at more than half of its points, but not at all of them: the rest move to other places of the
-# texture, and their tracks must end however good the matching is, for when the point *is* found again the guided
-# nearest descriptor picks it more than 90 % of the time. So a track is lost to a missed detection, not to a wrong
-# match. The CNN, trained for repeatable points, does not re-detect clearly more often than SIFT on these frames
-# (less than 1.2x SIFT's rate): the thesis's argument for a learned detector does not show here. On the real slider
-# frames of section 1a SIFT continued about the same share of its features as in the simulated room (within 0.15,
-# when the slice is present): the simulator's APS noise is matched to those real frames (`docs/pipeline.md`).
-#
 # A tracker can also keep looking for a point it missed: `PipelineConfig(track_gap=2)` (`run --track-gap 2`) keeps a
 # lost track for two frames, predicts where its point went with the gyro's rotation and continues the track, with
-# its id, when its last descriptor is matched again; the filter keeps such a track open meanwhile. It is not the
-# default: `docs/pipeline.md` measures what it gives and costs.
+# its id, when its last descriptor is matched again; the filter keeps such a track open meanwhile. It is off by
+# default (`PipelineConfig`'s docstring says what it gave on whole recordings); exercise 3 tries it here.
 #
 # ### 2b. The sparse aerial scene
 #
@@ -692,13 +719,17 @@ assert all(aerial_rmse[name] < aerial_rmse["IMU only"] / 2 for name in ("SIFT", 
 assert all(aerial_results[name].metrics["percent_of_distance"] < 5 for name in ("SIFT", "KLT + FAST"))
 assert distance["aerial_like"] > 10 * distance["boxes_like"]
 assert all(aerial_rmse[name] > rmse[name] for name in configs)
+display(Markdown(
+    f"Over sparse terrain both visual front-ends still beat dead reckoning: IMU only's RMSE is "
+    f"{aerial_rmse['IMU only'] / aerial_rmse['SIFT']:.1f} times SIFT's and "
+    f"{aerial_rmse['IMU only'] / aerial_rmse['KLT + FAST']:.1f} times KLT's, and they end at "
+    f"{aerial_results['SIFT'].metrics['percent_of_distance']:.2f} % and "
+    f"{aerial_results['KLT + FAST'].metrics['percent_of_distance']:.2f} % of the distance flown. The flight covers "
+    f"{distance['aerial_like'] / distance['boxes_like']:.0f} times the room's distance in the same time, and every "
+    f"configuration's error in metres is larger than in the room: compare configurations within one scene, not "
+    f"metres across scenes."))
 
 # %% [markdown]
-# Over sparse terrain both visual front-ends still beat dead reckoning (by more than 2x in RMSE here) and stay under 5 %
-# of the distance flown. The flight covers more than ten times the room's distance in the same time, and every
-# configuration's error in metres is larger than in the room: compare configurations within one scene, not metres
-# across scenes.
-#
 # ### 2c. Standing still: static start and zero-velocity updates
 #
 # Both presets start in motion, so the runs above start from the ground truth. A real recording often starts with
@@ -747,339 +778,31 @@ if HAVE_EUROC:
                           log=True, title="EuRoC V1_01, the MAV on the ground: position error")
     plt.show()
     held, free = still_runs.values()
-    print(f"still frames: {held.metrics['zupt_frames']} of {held.metrics['frames']}; ATE {held.metrics['ate_se3_m']:.4f} m "
+    print(f"still frames: {held.metrics['zupt_frames']} of {held.metrics['frames']}; "
+          f"ATE {held.metrics['ate_se3_m']:.4f} m "
           f"with the updates, {free.metrics['ate_se3_m']:.4f} m without; ground-truth path "
           f"{held.metrics['distance_m']:.3f} m")
     assert held.metrics["init"] == "static" and free.metrics["init"] == "static"
     assert held.metrics["zupt_frames"] >= 0.8 * held.metrics["frames"]
     assert held.metrics["ate_se3_m"] < 0.02 and free.metrics["ate_se3_m"] > 5 * held.metrics["ate_se3_m"]
     assert held.metrics["distance_m"] < 0.02 and np.isnan(held.metrics["percent_of_distance"])
+    display(Markdown(
+        f"Both runs start statically. With the zero-velocity updates {held.metrics['zupt_frames']} of the "
+        f"{held.metrics['frames']} frames are declared still and the error stays at "
+        f"{1e3 * held.metrics['ate_se3_m']:.1f} mm (ATE); without them the same filter drifts to "
+        f"{1e3 * free.metrics['ate_se3_m']:.0f} mm, {free.metrics['ate_se3_m'] / held.metrics['ate_se3_m']:.0f} times "
+        f"further, while the MAV does not move. The ground truth's path is {1e3 * held.metrics['distance_m']:.0f} mm "
+        f"here (the MAV vibrating on the floor), so no % of distance is reported: divided by almost nothing it would "
+        f"only measure noise."))
 else:
     print(f"EuRoC slice not found at {EUROC}: skipping the still-start comparison")
 
 # %% [markdown]
-# Both runs start statically. With the zero-velocity updates at least 80 % of the frames are declared still and
-# the error stays under 2 cm (ATE); without them the same filter drifts more than 5x further while the MAV does not
-# move. The ground truth's path is under 2 cm here (the MAV vibrating on the floor), so no % of distance
-# is reported: divided by almost nothing it would only measure noise.
+# ## 3. The Table 6 analogue
 #
-# ## 3. Event frames
-#
-# `PipelineConfig(frames="events")` replaces the APS frames by frames reconstructed from windows of
-# $N_e = n H W$ events (thesis Eq. 87, n = 0.7 for this room) by the shipped FireNet (lesson 04). The recording must
-# then be simulated with events, which is slow (the more so the faster the motion), so this part uses a short stretch: the first `D_EVENTS` seconds. APS frames over the same recording are
-# the reference.
-
-# %%
-data_events = load_dataset("boxes_like", duration=D_EVENTS, need_events=True)
-print(f"{len(data_events.sequence.events):,} events over {D_EVENTS:g} s; window fraction n = "
-      f"{default_window_fraction(data_events.sequence.name)}")
-assert default_window_fraction(data_events.sequence.name) == 0.7
-event_configs = {
-    "IMU only": PipelineConfig(imu_only=True),
-    "SIFT, APS frames": PipelineConfig(features="sift"),
-    "SIFT, event frames": PipelineConfig(features="sift", frames="events"),
-    "KLT + FAST, APS frames": PipelineConfig(tracker="klt", features="fast"),
-    "KLT + FAST, event frames": PipelineConfig(tracker="klt", features="fast", frames="events"),
-}
-event_results = run_pipelines(data_events, event_configs, jobs=JOBS)
-for result in event_results.values():
-    print(result.summary())
-ev, aps = event_results["SIFT, event frames"], event_results["SIFT, APS frames"]
-print(f"event-frame rate {len(ev.t) / D_EVENTS:.0f} Hz vs APS {len(aps.t) / D_EVENTS:.0f} Hz; reconstruction took "
-      f"{ev.timings['reconstruction']:.1f} s of {ev.timings['total']:.1f} s")
-ev_rmse = {name: r.metrics["rmse_m"] for name, r in event_results.items()}
-plot_error_comparison({name: r.t for name, r in event_results.items()},
-                      {name: np.linalg.norm(r.truth["p_IinG"] - r.p_IinG, axis=1) for name, r in event_results.items()},
-                      log=True, styles={name: "--" for name in event_results if "event frames" in name},
-                      title=f"boxes_like, first {D_EVENTS:g} s: position error (dashed: event frames)")
-plt.show()
-for front_end in ("SIFT", "KLT + FAST"):  # at the gentle start, APS frames win with either front-end
-    assert ev_rmse[f"{front_end}, event frames"] > ev_rmse[f"{front_end}, APS frames"]
-sift_over_klt = {frames: ev_rmse[f"SIFT, {frames}"] / ev_rmse[f"KLT + FAST, {frames}"]
-                 for frames in ("APS frames", "event frames")}
-print("SIFT's RMSE over KLT's: " + ", ".join(f"{k} {v:.2f}" for k, v in sift_over_klt.items()))
-assert sift_over_klt["APS frames"] > 2.5 and 1 / 2 < sift_over_klt["event frames"] < 2
-assert sift_over_klt["event frames"] < sift_over_klt["APS frames"] / 1.5
-assert (np.mean(event_results["KLT + FAST, event frames"].track_lengths)
-        > 3 * np.mean(event_results["SIFT, event frames"].track_lengths))
-assert ev.reconstructor_precision is not None and aps.reconstructor_precision is None  # a network pass per event frame
-THESIS_BOXES_RMSE_M = {"SIFT": (1.11, 0.437), "DetDesc (Round 2)": (1.05, 0.457)}  # Table 6: (grayscale, event)
-assert all(gray / event > 2 for gray, event in THESIS_BOXES_RMSE_M.values())  # the thesis's "2x improvement"
-
-# %% [markdown]
-# What the front-end saw: the frames the pipeline reconstructs (`evio_lib.pipeline.frames.event_frames`, the same
-# generator `run_pipeline` reads) over the first second, beside the APS frame nearest to one of them.
-
-# %%
-from evio_lib.evaluation.plots_events import plot_image_grid
-from evio_lib.pipeline.frames import event_frames
-
-seq_e = data_events.sequence
-made = [(t, image) for t, image, _ in event_frames(seq_e, "firenet", t_end=seq_e.events["t"][0] + 1.0)]
-k = len(made) // 2
-k_aps = int(np.argmin(np.abs(seq_e.frame_times - made[k][0])))
-plot_image_grid({f"FireNet, first window, t = {made[0][0]:.3f} s": made[0][1],
-                 f"FireNet, t = {made[k][0]:.3f} s": made[k][1],
-                 f"next window, t = {made[k + 1][0]:.3f} s": made[k + 1][1],
-                 f"APS frame, t = {seq_e.frame_times[k_aps]:.3f} s": seq_e.frames[k_aps]}, columns=4, size=3.0)
-plt.show()
-contrast_first, contrast_k = float(made[0][1].std()), float(made[k][1].std())
-print(f"{len(made)} event frames in the first second; standard deviation of the first {contrast_first:.3f}, "
-      f"of frame {k} {contrast_k:.3f}")
-assert contrast_first < 0.8 * contrast_k   # the first window: a network that has seen little so far
-
-# %% [markdown]
-# Over the gentle start of the room the **APS frames win** with both front-ends: they are sharp at this speed, while
-# the event frames are reconstructions that start from nothing (the network warms up its recurrent state over the
-# first windows: the first frame above has less contrast than later ones) and that invent what the events do not
-# show, differently in each window. On APS frames SIFT's RMSE is more than 2.5 times
-# KLT's; on event frames the two front-ends are within a factor of 2 of each other (which one leads depends on the
-# stretch: fast and full mode differ), although KLT's tracks there still last more than three times as long as
-# SIFT's (optical flow only needs the local patch to stay similar between two frames, while SIFT's descriptors of two
-# reconstructions of the same corner differ more). Why KLT's lead shrinks is not measured here; one candidate is
-# that a long track through a patch whose look drifts from window to window carries that drift into the filter. Event frames also cost
-# more work: each one is a pass of the network over the whole image, which an APS frame does not need. The line printed
-# above says how many of the run's seconds the reconstruction took, and each run's summary its speed in "x real time"
-# (wall-clock times: they depend on the machine and on what else it runs).
-#
-# The thesis found the opposite on its real Boxes recording: event frames more than halved the RMSE over the **whole**
-# recording (Table 6: SIFT 1.11 m -> 0.437 m, DetDesc (Round 2) 1.05 m -> 0.457 m; §4.5.1 calls it a 2x improvement).
-# Table 6 gives no split by halves; §4.5.1 credits the gain to the rapid, blurring camera motion of the recording's
-# latter half, where event frames stay sharp. This notebook does not run that comparison: the whole 60 s room is too
-# long to simulate with events in a lesson (a short stretch of its violent end is simulated below, to look
-# at its frames). The sweep `python -m evio_lib table` runs it; `docs/pipeline.md` holds the measured table.
-#
-# ### Motion-compensated event frames
-#
-# A reconstruction is one way to make a frame of a window; a cheaper one counts the events per pixel. Counted as they
-# come, a window's events smear every edge over the pixels it swept while the window lasted. Most of that sweep is
-# rotation, and the gyroscope measures it, so the events can be put back where they would have been at one reference
-# time before counting (Rebecq et al., BMVC 2017). For an event at pixel $u_e$ and time $t_e$, with the ray
-# $b_e = [x, y, 1]$ through its undistorted pixel:
-#
-# $$b_\mathrm{ref} = R_{C(t_e) \to C(t_\mathrm{ref})}\, b_e, \qquad
-#   R_{C(t_e) \to C(t_\mathrm{ref})} = R_{I \to C}\, A(t_\mathrm{ref})^\top A(t_e)\, R_{C \to I},$$
-#
-# where $A(t) = R_{I(t) \to I(t_a)}$ is the gyro integrated from the window's start (integrating
-# $\dot R_{ItoG} = R_{ItoG}\,[\omega]_\times$, the same integrator as the tracker's rotation prior,
-# `frontend.gyro_prior`). The warped event lands at $\pi(b_\mathrm{ref})$ (divide by the third component, apply the
-# lens distortion and the intrinsics: lesson 01's projection), usually between pixels, so it is split over its four
-# neighbours with bilinear weights;
-# a light blur and a scale to [0, 1] make the frame. `PipelineConfig(frames="mc-events")` does this for windows of
-# $N_e = 1.0\,HW$ events held between 10 ms and 100 ms, with $t_\mathrm{ref}$ the window's middle. The translation is
-# not compensated: its flow $f\,|v|/Z$ is what still blurs these frames, which is why the windows stay short.
-#
-# Where does it matter? Over the gentle stretch above the camera turns at a few tenths of a radian per second, so a
-# window's rotation moves the image by a few pixels at most and compensation changes little; at the violent end it
-# turns several times faster (both rates are printed below). A stretch of the same motion can be simulated from any
-# time (`load_dataset(..., start=...)`): here `D_VIOLENT` seconds from t = 52 s, and one window of 40 ms in its
-# middle (four times the 10 ms that mc-events' windows last at this speed, so that the smear is easy to see), counted
-# as it comes (a zero gyro) and motion-compensated:
-
-# %%
-from evio_lib.events.motion_compensation import accumulate_bilinear, motion_compensated_frame, warp_events
-from evio_lib.events.representations import bounded_count_windows, window_size_from_fraction
-from evio_lib.pipeline.frames import MC_MAX_WINDOW_S, MC_MIN_WINDOW_S, MC_WINDOW_FRACTION
-
-D_VIOLENT = 0.5 if FAST else 2.0
-data_violent = load_dataset("boxes_like", start=52.0, duration=D_VIOLENT, need_events=True)
-seq_v = data_violent.sequence
-t_mid = 52.0 + 0.5 * D_VIOLENT
-a, b = np.searchsorted(seq_v.events["t"], [t_mid - 0.02, t_mid + 0.02])
-window = seq_v.events[a:b]
-gyros = {"counted as they come": np.zeros_like(seq_v.imu.gyro), "motion-compensated (gyro)": seq_v.imu.gyro}
-frames_mc = {name: motion_compensated_frame(window, seq_v.camera, t_mid, seq_v.imu.t, gyro, data_violent.R_CtoI)
-             for name, gyro in gyros.items()}
-plot_image_grid(frames_mc, columns=2, size=4.0, title=f"{window.size:,} events over 40 ms around t = {t_mid:g} s")
-plt.show()
-# contrast: the variance of the raw image of warped events (before the blur and the scale to [0, 1])
-width, height = seq_v.camera.width, seq_v.camera.height
-contrast = {name: float(accumulate_bilinear(warp_events(window, seq_v.camera, t_mid, seq_v.imu.t, gyro,
-                                                        data_violent.R_CtoI), width, height).var())
-            for name, gyro in gyros.items()}
-rate_gentle = float(np.linalg.norm(data_events.sequence.imu.gyro, axis=1).mean())
-i0, i1 = np.searchsorted(seq_v.imu.t, [t_mid - 0.02, t_mid + 0.02])
-rate = float(np.linalg.norm(seq_v.imu.gyro[i0:i1], axis=1).mean())  # over the 40 ms window
-shift_gentle = rate_gentle * 0.04 * seq_v.camera.fx  # pixels a 40 ms window's rotation moves the image
-bounds, ends = bounded_count_windows(seq_v.events, window_size_from_fraction(MC_WINDOW_FRACTION, width, height),
-                                     MC_MIN_WINDOW_S, MC_MAX_WINDOW_S)
-lasts = np.median(np.diff(ends))
-print(f"angular rate: gentle stretch {rate_gentle:.2f} rad/s (a 40 ms window turns the image by {shift_gentle:.1f} "
-      f"px), this window {rate:.2f} rad/s; mc-events' windows here last {1e3 * lasts:.1f} ms (median)")
-print("contrast: " + ", ".join(f"{k} {v:.1f}" for k, v in contrast.items()))
-assert rate_gentle < 0.5 and shift_gentle < 5 and rate > 3 * rate_gentle
-assert abs(lasts - 0.01) < 0.001
-assert contrast["motion-compensated (gyro)"] > 2 * contrast["counted as they come"]
-
-# %% [markdown]
-# The compensated frame shows thin edges where the counted one shows bands, and its contrast is more than twice as
-# high. (The variance of the image of events is the measure that contrast-maximisation methods optimise: Gallego et
-# al., CVPR 2018, estimate the motion as the one that makes this image sharpest.) Back to the
-# gentle stretch of the FireNet comparison, now with motion-compensated frames and both front-ends:
-
-# %%
-mc_configs = {
-    "SIFT, motion-compensated event frames": PipelineConfig(features="sift", frames="mc-events"),
-    "KLT + FAST, motion-compensated event frames": PipelineConfig(tracker="klt", features="fast", frames="mc-events"),
-}
-mc_results = run_pipelines(data_events, mc_configs, jobs=JOBS)
-for result in mc_results.values():
-    print(result.summary())
-all_rmse = ev_rmse | {name: r.metrics["rmse_m"] for name, r in mc_results.items()}
-mc_klt = mc_results["KLT + FAST, motion-compensated event frames"]
-firenet_klt = event_results["KLT + FAST, event frames"]
-per_frame = {"FireNet": firenet_klt.timings["reconstruction"] / len(firenet_klt.t),
-             "motion-compensated": mc_klt.timings["reconstruction"] / len(mc_klt.t)}
-print("milliseconds to make one frame: " + ", ".join(f"{k} {1e3 * v:.1f}" for k, v in per_frame.items()))
-assert all_rmse["KLT + FAST, motion-compensated event frames"] < 0.7 * all_rmse["KLT + FAST, event frames"]
-sift_runs = {"FireNet": event_results["SIFT, event frames"],
-             "motion-compensated": mc_results["SIFT, motion-compensated event frames"]}
-sift_tracks = {name: np.mean(r.track_lengths) for name, r in sift_runs.items()}
-print("SIFT's mean track length [frames]: " + ", ".join(f"{k} {v:.1f}" for k, v in sift_tracks.items()))
-assert max(sift_tracks.values()) < 3
-print(f"KLT's run: {firenet_klt.timings['realtime_factor']:.2f}x real time on FireNet frames "
-      f"({len(firenet_klt.t)} frames), {mc_klt.timings['realtime_factor']:.2f}x on motion-compensated ones "
-      f"({len(mc_klt.t)} frames)")
-assert len(mc_klt.t) < len(firenet_klt.t)  # larger windows, fewer frames to track
-assert all_rmse["KLT + FAST, APS frames"] < all_rmse["KLT + FAST, motion-compensated event frames"]
-
-# %% [markdown]
-# A motion-compensated frame takes a warp and a count per event, where FireNet runs a network over the whole image; the
-# milliseconds each took per frame here are printed above (wall-clock times: they depend on the machine's load). The
-# KLT run on them also has fewer frames to track (its windows hold N_e = 1.0 H W events, FireNet's 0.7 H W; both
-# counts are printed beside each run's speed). KLT's RMSE on them is
-# below 0.7 times its RMSE on FireNet frames: the edges sit where the scene's edges are, window after window, where
-# a reconstruction re-invents its texture at each step. For SIFT, compare its RMSEs on the two kinds and on the APS
-# frames (printed above): its tracks last under three frames on every kind, and with tracks that short one run
-# cannot rank them. At this gentle speed the APS frames still win with KLT. Where motion-compensated frames should pay off is
-# the violent end of the room, where a 10 ms APS exposure smears while a window of events lasts 10 ms (measured
-# above) and is de-rotated. On this simulator they did not, over the whole recording: `docs/pipeline.md` holds the
-# whole recordings with three seeds, where KLT on APS frames still wins on the mean;
-# `python -m evio_lib run boxes_like --start 52 --duration 4 --frames mc-events --tracker klt --features fast` runs
-# a stretch of the violent end alone (exercise 6).
-#
-# ### Faster than the frames can follow
-#
-# The thesis's premise is that fast motion blurs the APS frames while event frames stay sharp. At this simulator's
-# 10 ms exposure even the room's violent end does not blur them enough to cost KLT its tracks (exercise 6;
-# `docs/pipeline.md`, "Motion-compensated event frames"). Two settings
-# of the simulator make faster, blurrier motion: `speed` plays the preset's motion faster,
-# $p(t) = p_\mathrm{preset}(s t)$, so every velocity and rate is $s$ times and every acceleration $s^2$ times the
-# preset's (`evio_lib.sim.trajectory.TimeScaledTrajectory`; the accelerometer reads the acceleration minus gravity,
-# which grows less; at $s = 2$ the whole room lasts 30 s), and `aps_exposure_s` exposes each APS frame longer, as a
-# camera in dim light does. Here the room's violent end at $s = 2$ with a 20 ms exposure (the settings were chosen on
-# other seeds, `docs/pipeline.md`, "Faster motion"), on seed 2, one of the six seeds measured there; the note after
-# the runs says how the others came out. Beside an APS frame, the motion-compensated frame the pipeline makes at the
-# same moment, from its window of events:
-
-# %%
-from evio_lib.evaluation.trajectory_metrics import camera_motion, format_table
-
-D_FAST = 1.5 if FAST else 4.0
-SEED_FAST = 2
-data_fast = load_dataset("boxes_like", seed=SEED_FAST, speed=2.0, start=24.0, duration=D_FAST, aps_exposure_s=0.02,
-                         need_events=True)
-seq_f = data_fast.sequence
-t_motion = np.linspace(seq_f.imu.t[0] + 0.05, seq_f.imu.t[-1] - 0.05, 200)
-speed_f, rate_f = camera_motion(seq_f, t_motion)
-k_mid = len(seq_f.frame_times) // 2
-t_k = float(seq_f.frame_times[k_mid])
-n_e = window_size_from_fraction(MC_WINDOW_FRACTION, width, height)
-bounds_f, ends_f = bounded_count_windows(seq_f.events, n_e, MC_MIN_WINDOW_S, MC_MAX_WINDOW_S)
-j = int(np.searchsorted(ends_f, t_k))  # the pipeline's window that holds t_k
-window_f = seq_f.events[bounds_f[j, 0]:bounds_f[j, 1]]
-t0_f = float(ends_f[j - 1]) if j else float(seq_f.events["t"][0])
-t_ref = 0.5 * (t0_f + float(ends_f[j]))  # the window's middle, as mc_event_frames uses
-frame_mc = motion_compensated_frame(window_f, seq_f.camera, t_ref, seq_f.imu.t, seq_f.imu.gyro, data_fast.R_CtoI)
-plot_image_grid({f"APS frame, 20 ms exposure, t = {t_k:.3f} s": seq_f.frames[k_mid],
-                 f"motion-compensated events, t = {t_ref:.3f} s": frame_mc}, columns=2, size=4.0, title="speed 2")
-plt.show()
-window_ms = 1e3 * (float(ends_f[j]) - t0_f)
-smear_px = float(np.interp(t_k, t_motion, rate_f)) * 0.02 * seq_f.camera.fx  # image motion of the rotation in 20 ms
-print(f"{len(seq_f.events) / D_FAST / 1e6:.1f} M events/s; camera {speed_f.mean():.2f} m/s and {rate_f.mean():.2f} "
-      f"rad/s on average; at t = {t_k:.3f} s the rotation moves "
-      f"the image about {smear_px:.0f} px during the exposure; the event frame holds {window_f.size:,} events of "
-      f"{window_ms:.1f} ms (at least N_e = {n_e:,} and 10 ms)")
-assert speed_f.mean() > 2.0 and rate_f.mean() > 3.0 and smear_px > 10
-assert abs(window_ms - 10.0) < 1.0 and window_f.size > n_e
-
-# %% [markdown]
-# The APS frame is smeared by more than ten pixels of rotation alone; the events are so many that a window reaches
-# its N_e events in less than 10 ms and is held open to the 10 ms floor, and warped with the gyro they still draw thin
-# edges. Now three KLT runs over the stretch: on the APS frames, on the motion-compensated frames, and on both
-# streams in one filter (`frames="aps+mc-events"`). In that third run each stream has its own KLT tracker, and every
-# frame of either stream is a camera clone with its own update; the filter gives the event tracks three times the
-# APS tracks' pixel noise (3 px against 1 px, `FUSED_EVENT_NOISE_FACTOR`): their pixel errors are about twice as
-# large, and they come several times as often with errors that persist from one frame to the next, so more of them
-# do not average the errors out, and at equal noise they would outvote the APS tracks (`docs/pipeline.md`,
-# "Weighting the two streams"). So an APS observation weighs nine times an event observation.
-
-# %%
-from evio_lib.pipeline.run import FUSED_EVENT_NOISE_FACTOR
-
-assert FUSED_EVENT_NOISE_FACTOR == 3.0 and PipelineConfig().pixel_noise_px == 1.0   # 3 px against 1 px
-fast_configs = {
-    "KLT, APS frames": PipelineConfig(tracker="klt", features="fast", seed=SEED_FAST),
-    "KLT, motion-compensated event frames": PipelineConfig(tracker="klt", features="fast", frames="mc-events",
-                                                           seed=SEED_FAST),
-    "KLT, APS + motion-compensated event frames": PipelineConfig(tracker="klt", features="fast", frames="aps+mc-events",
-                                                                 seed=SEED_FAST),
-}
-fast_results = run_pipelines(data_fast, fast_configs, jobs=JOBS)
-fast_stats = {}
-for name, r in fast_results.items():
-    per_second = len(r.t) / D_FAST  # frames the filter used per second
-    fast_stats[name] = {"name": name, "percent_of_distance": r.metrics["percent_of_distance"], "rmse_m": r.metrics["rmse_m"],
-                        "per_second": per_second, "track_length": float(np.mean(r.track_lengths)),
-                        "features_used": float(r.features_used.mean())}
-    if "+" not in r.config.frames:  # one stream: frames per track / frames per second (two streams mix two rates)
-        fast_stats[name]["track_ms"] = 1e3 * fast_stats[name]["track_length"] / per_second
-display(Markdown(format_table(list(fast_stats.values()), [
-    ("name", "configuration"), ("rmse_m", "RMSE [m]"), ("percent_of_distance", "% of distance"),
-    ("per_second", "frames used per second"), ("track_length", "mean track length [frames]"),
-    ("track_ms", "mean track length [ms]"), ("features_used", "features used per frame")])))
-plot_error_comparison({name: r.t for name, r in fast_results.items()},
-                      {name: np.linalg.norm(r.truth["p_IinG"] - r.p_IinG, axis=1) for name, r in fast_results.items()},
-                      styles={name: "--" for name in fast_results if "event" in name},
-                      title="boxes_like at speed 2, 20 ms exposure: position error (dashed: event frames)",
-                      motion=(t_motion, speed_f, rate_f))
-plt.show()
-between_px = rate_f.mean() / 24.0 * seq_f.camera.fx  # image motion of the mean rotation between two APS frames
-aps_f, mc_f = fast_stats["KLT, APS frames"], fast_stats["KLT, motion-compensated event frames"]
-both_f = fast_stats["KLT, APS + motion-compensated event frames"]
-print(f"between two APS frames the rotation moves the image about {between_px:.0f} px on average; "
-      f"RMSE of both streams over the event frames' alone: {both_f['rmse_m'] / mc_f['rmse_m']:.2f}")
-assert aps_f["track_length"] < 2.0 and aps_f["features_used"] < 3.0
-assert mc_f["track_length"] > 3.5 and mc_f["features_used"] > 2 * aps_f["features_used"] and mc_f["per_second"] > 80
-assert mc_f["track_ms"] < aps_f["track_ms"]
-assert mc_f["rmse_m"] < 0.6 * aps_f["rmse_m"] and both_f["rmse_m"] < 0.9 * aps_f["rmse_m"]
-assert 1 / 1.7 < both_f["rmse_m"] / mc_f["rmse_m"] < 1.7
-assert between_px > 20
-
-# %% [markdown]
-# The fast motion costs the APS frames their tracks (the smear, and an image that moves tens of pixels between two
-# frames 42 ms apart): KLT keeps a corner for less than two frames on average, and the filter uses fewer than three
-# features per frame. The event frames, made more than 80 times a second, give the filter more than twice as many
-# features per frame, over more than three frames; in time, though, their tracks are shorter than the APS frames'
-# (the table's last but one column; left out for the two-stream run, whose frames come at two rates). Here the event
-# frames win, as the thesis found for fast motion: their RMSE is below 0.6 times the APS frames'. Both streams
-# together also beat the APS frames alone (below 0.9 times their RMSE), but not the event frames alone: the ratio of
-# the two RMSEs is printed above (within a factor of 1.7; these runs are chaotic, so differences too small to see,
-# such as another CPU's rounding, move it), and over the six seeds of `docs/pipeline.md` the fused run was worse
-# than the event frames alone on five. The few, smeared APS tracks still weigh nine times an event track each;
-# whether weighting them by their blur helps is exercise 7.
-#
-# How typical is this seed? `docs/pipeline.md` ("Faster motion") measured this stretch on six seeds, this one among
-# them (three to choose the settings, three to test them): the motion-compensated frames had the lower % of
-# distance on five, and on the mean about half the APS frames'; on seed 0, the seed of the rest of this notebook,
-# the APS frames won narrowly (1.76 against 1.88 %). One stretch of one seed is not a verdict on a front-end; read
-# comparisons over several recordings.
-#
-# ## 4. The Table 6 analogue
-#
-# `run_table` runs every (preset, row, seed) job through joblib (each job is a pure function, `table_job`, so
-# joblib's Dask or Ray backend, libraries that spread Python jobs over many machines, can spread a full sweep over a cluster unchanged); `aggregate` takes the mean and
+# The thesis's Table 6 lists the MSCKF's error for each configuration. `run_table` runs every (preset, row, seed) job
+# through joblib (each job is a pure function, `table_job`, so joblib's Dask or Ray backend, libraries that spread
+# Python jobs over many machines, could spread a sweep over a cluster unchanged); `aggregate` takes the mean and
 # spread over seeds and `format_table6` prints the thesis's columns. Here: short runs of the rows without events.
 # The "bias correction" row starts the biases at the simulator's true values; the thesis's row of that name used the
 # biases it had "manually estimated" (§4.4, method not given) and propagated the IMU alone with them.
@@ -1099,91 +822,79 @@ assert max(table["sift_aps"]["rmse_m"], table["klt_aps"]["rmse_m"]) < table["imu
 assert table["imu_bias"]["rmse_m"] < table["imu"]["rmse_m"] / 5
 assert table["imu_bias"]["rmse_m"] < table["sift_aps"]["rmse_m"]
 assert all(table[key]["rmse_second_half_m"] > table[key]["rmse_first_half_m"] for key in ("imu", "imu_bias"))
+display(Markdown(
+    f"Over {TABLE_DURATION:g} s, part of Table 6's structure appears: uncorrected dead reckoning's RMSE is "
+    f"{table['imu']['rmse_m'] / table['sift_aps']['rmse_m']:.0f} times SIFT's and "
+    f"{table['imu']['rmse_m'] / table['klt_aps']['rmse_m']:.0f} times KLT's, and starting the biases at their true "
+    f"values shrinks the IMU-only error {table['imu']['rmse_m'] / table['imu_bias']['rmse_m']:.0f} times. Over these "
+    f"short runs that bias-corrected dead reckoning even beats SIFT ({table['imu_bias']['rmse_m']:.3f} against "
+    f"{table['sift_aps']['rmse_m']:.3f} m): with *exactly* known biases (which only a simulator offers; the thesis's "
+    f"recordings had no true biases to check its hand estimates against) the IMU's error grows from noise and bias "
+    f"drift alone, slowly at first, while a visual error starts at once from the tracks' noise. Dead reckoning's "
+    f"error still grows without bound: its second-half RMSE is the larger in both IMU rows."))
 
 # %% [markdown]
-# Over a few seconds, part of Table 6's structure appears: both visual rows beat uncorrected dead reckoning (by more
-# than 2x), and starting the biases at their true values shrinks the IMU-only error more than 5x. Over these short
-# runs that bias-corrected dead reckoning even beats SIFT: with *exactly* known biases (which only a simulator offers;
-# the thesis's recordings had no true biases to check its hand estimates against) the IMU's error grows from noise
-# and bias drift alone, slowly at
-# first, while a visual error starts at once from the tracks' noise. Dead reckoning's error still grows without bound
-# (its second-half RMSE is the larger in every IMU row above); whether the visual rows overtake it over the whole
-# recordings is what the full table measures (both presets, all rows including the CNN and event frames; three seeds
-# by default):
-#
-# ```
-# python -m evio_lib table --jobs 2 --out runs/table6
-# ```
-#
-# (long on a 2-core CPU, mostly the event simulation). `docs/pipeline.md` reports what was measured, with the commands:
-# the whole recordings with two or three seeds (the APS rows and the motion-compensated event rows with three, the
-# FireNet event rows with two), the first 15 s with two. One run of one configuration, with its output folder (the
-# trajectory in the TUM format, per-frame states, figures):
-# `python -m evio_lib run boxes_like --duration 10 --out runs/boxes`.
-#
-# ## 5. What events buy, and when they do not
-#
-# What this notebook measured, one run each:
-#
-# - On APS frames at moderate speed, either visual front-end cut the error of dead reckoning with unknown biases by
-#   more than 3x over the first seconds, a gap that grows with time; KLT's tracks were more than 3x longer than
-#   SIFT's.
-# - Over the gentle start, FireNet's event frames (a network pass each) were worse than APS frames with both
-#   front-ends: when the APS frames are sharp, a reconstruction has little to add and loses detail. Motion-compensated
-#   frames (a warp and a count per event) were, with KLT, better than FireNet's, but still worse than the APS frames. On event frames KLT's lead over
-#   SIFT shrank (their RMSEs within a factor of 2), although its tracks stayed more than 3x as long.
-# - With exactly known biases, dead reckoning beat SIFT over a few seconds (section 4); a visual front-end earns its
-#   keep when the biases are unknown, which outside a simulator they always are to some degree.
-# - Played twice as fast with a 20 ms exposure (section 3), KLT kept an APS corner for under two frames on average,
-#   while motion-compensated event frames fed the filter more than twice as many features and had under 0.6 times
-#   the APS run's RMSE (seed 2; five of the six seeds in `docs/pipeline.md` went the same way).
-#
-# What the thesis found, and what the full table checks: on Boxes, event frames paid off where the APS frames blurred
-# (§4.5.1: the rapid motion of the latter half; whole-recording RMSE halved, Table 6); on the sparse Camp Atterbury
-# flight they were "much noisier than the grayscale images" and the filter did worse with them (§4.5.2; Table 6:
-# SIFT 0.645 % -> 2.36 % of the distance). The reasons are the sensor's: the APS exposure integrates the motion while
-# an event window shrinks to milliseconds when the scene moves fast, and a scene that gives few events gives poor
-# frames. Events' other advantages, high dynamic range and low latency (the survey of Gallego et al. 2020), were not
-# tested by the thesis, nor here. Events cost compute (simulation, reconstruction).
+# Whether the visual rows overtake it over the whole recordings is what the full sweep measures: every row, both
+# presets, the whole 60 s room and 40 s flight, three seeds (`python -m evio_lib table`, hours on a 2-core CPU). Its
+# APS rows, as the project recorded them (the command and the commit it ran at are printed with the table), beside
+# the thesis's grayscale rows on its real recordings (boxes_6dof, 69.8 m, and the Camp Atterbury flight, 1 077 m):
+
+# %%
+import json
+
+sweep = json.loads((Path(evio_lib.__file__).resolve().parents[1] / "docs" / "results" / "data" / "table6.json")
+                   .read_text(encoding="utf-8"))
+values = sweep["values"]
+THESIS_GRAYSCALE = {"sift_aps": ("SIFT", 0.989, 0.645), "cnn_aps": ("DetDesc (Round 2), the thesis's CNN", 0.996, 1.09)}
+
+
+def sweep_cell(preset, row):
+    """mean ± std over the seeds, or the number of diverged seeds, of one row of the recorded sweep."""
+    key = f"{preset}.{row}"
+    if f"{key}.mean" in values:
+        return f"{values[key + '.mean']:.2f} ± {values[key + '.std']:.2f}"
+    return f"{values[key + '.diverged']} of {values[key + '.seeds']} seeds diverged"
+
+
+lines = ["| configuration | boxes_like, 60 s [% of distance] | aerial_like, 40 s | "
+         "thesis, boxes_6dof / Camp Atterbury |", "|---|---|---|---|"]
+for row, label in (("sift_aps", "SIFT, APS frames"), ("cnn_aps", "CNN, APS frames"),
+                   ("klt_aps", "KLT + FAST, APS frames")):
+    thesis = THESIS_GRAYSCALE.get(row)
+    lines.append(f"| {label} | {sweep_cell('boxes_like', row)} | {sweep_cell('aerial_like', row)} | "
+                 + (f"{thesis[1]} / {thesis[2]} % ({thesis[0]})" if thesis else "-") + " |")
+display(Markdown("\n".join(lines)))
+print(f"the full sweep's numbers: {sweep['data']}\ncommand: {sweep['command']}\nat commit {sweep['commit']}")
+assert values["boxes_like.sift_aps.mean"] < 1.0 and values["boxes_like.klt_aps.mean"] < 1.0
+
+# %% [markdown]
+# Over the whole recordings both visual front-ends stay under 1 % of the distance in the room, as the thesis's rows
+# on its real Boxes recording do; the CNN is the least reliable of the three on these simulated frames. The thesis's
+# numbers come from other sensors, scenes and durations: read them for orientation, not as a like-for-like
+# comparison. One run of one configuration, with its output folder (the trajectory in the TUM format, per-frame
+# states, figures): `python -m evio_lib run boxes_like --duration 10 --out runs/boxes`.
 #
 # ## Summary
 #
 # - The front-end detects, matches inside the gyro-predicted window, rejects outliers with two-point RANSAC and keeps
 #   features spread on a grid; on a still camera RANSAC correctly reports the translation unobservable.
 # - With the rotation known from the gyro, the epipolar constraint is linear in the translation: two matches give a
-#   hypothesis $t \propto c_1 \times c_2$, and over 0.42 s the direction came out within 5° of the truth.
+#   hypothesis $t \propto c_1 \times c_2$, and RANSAC over such pairs recovers the direction of the camera's motion.
 # - Lucas-Kanade solves a 2 x 2 system with the window's structure tensor, iterated; the pyramid extends it to
 #   motions larger than the window.
 # - ATE: align the estimate rigidly onto the truth (Umeyama's closed form with one SVD), then take the RMSE.
 # - `run_pipeline(load_dataset(...), PipelineConfig(...))` is the whole chain; `result.summary()`, the figures of
 #   `evio_lib.evaluation.plots_pipeline` and `python -m evio_lib run` give the thesis's outputs.
 # - The MSCKF with either visual front-end beats IMU-only with unknown biases by a wide margin, in the textured room
-#   and over sparse terrain, and learns the gyroscope bias within seconds.
+#   and over sparse terrain, and learns the gyroscope bias within seconds; KLT keeps its features far longer than
+#   SIFT, whose tracks end where the detector does not fire again.
 # - A still start needs two things the moving presets do not: a static initialisation (attitude and gyro bias from
 #   the still IMU) and zero-velocity updates while the platform stands still, detected from the tracks and the IMU.
-# - Event frames are a means for fast motion (and high dynamic range, not tested here), not an improvement
-#   everywhere: at gentle speed the APS frames beat FireNet's frames with both front-ends, and motion-compensated
-#   ones with KLT. Played twice as fast with a 20 ms exposure, KLT kept an APS corner for under two frames on
-#   average, while motion-compensated event frames gave the filter more than twice as many features and had under
-#   0.6 times the APS run's RMSE (seed 2; on five of six seeds in `docs/pipeline.md` the event frames won).
-#
-# ## What you have built
-#
-# Over the thirteen lessons: a camera model with distortion and epipolar geometry (01-02); an event camera simulator
-# and the frames made from its events, by integration and by a recurrent network trained here (03-04); classical
-# features and a SuperPoint-style network trained from synthetic shapes and homographic adaptation, with the
-# thesis's benchmark (05-08); IMU kinematics and the MSCKF, its update and its observability fix (09-12); and this
-# pipeline, which joins them and is one command on a recording. The thesis found that the learned features did about
-# as well as SIFT inside the filter (§4.5.1: "on par"), that event frames more than halved the whole-recording RMSE of
-# a textured indoor scene (Table 6, Boxes: 1.11 m -> 0.437 m with SIFT), which it credits to the blur of the fast
-# latter half, and that in a sparse aerial scene event frames were noisier than grayscale ones (§4.5.2). This course
-# reproduces the structure of those experiments on its own simulated data; which findings carry over is what the
-# table in `docs/pipeline.md` measures, and it says plainly where they do not.
 #
 # ## Exercises
 #
-# 1. Run section 2 with `PipelineConfig(match_ratio=0.8)`, the front-end's stand-alone default. What happens to the
-#    track length and the error, and why does a ratio test hurt in a repetitive room?
+# 1. Run section 2's SIFT with `PipelineConfig(match_ratio=0.8)`, the front-end's stand-alone default. What happens
+#    to the track length and to the error? Why would a ratio test cost correct matches in a repetitive room?
 #
 #    *Hint:* compare `np.mean(result.track_lengths)` and `rmse_m` of both runs; in a room of repeated textures, how
 #    close is the second-best match?
@@ -1191,41 +902,18 @@ assert all(table[key]["rmse_second_half_m"] > table[key]["rmse_first_half_m"] fo
 #
 #    *Hint:* `pixel_noise_px` is the noise the filter assumes, not the noise of the tracks; compare
 #    `result.sigma[:, 12:15]` and the share of errors inside ±3σ.
-# 3. Run the event-frame comparison with `window_fraction=0.35` and with `adaptive_windows=True`. Which gives more
-#    frames per second, and which the lower error?
+# 3. Run SIFT with `PipelineConfig(features="sift", track_gap=2)` over section 2's stretch. How much longer do its
+#    tracks get, and does the error follow?
 #
-#    *Hint:* `PipelineConfig(frames='events', window_fraction=0.35)` or `adaptive_windows=True`; frames per second is
-#    `len(result.t)` over the duration.
+#    *Hint:* `np.mean(result.track_lengths)` and `result.metrics["rmse_m"]` beside section 2's SIFT run, and the
+#    `rmse_first_half_m` / `rmse_second_half_m` of both.
 # 4. Call `evio_lib.msckf.zero_velocity.imu_still_test` on the first 0.25 s of the EuRoC IMU (`euroc_data.sequence.imu`,
-#    with the static start's attitude and gyro bias from `held`), then on the same samples plus a constant 1 m/s^2
-#    along $y_I$ (horizontal here: this MAV's IMU has its $x$ axis up, so along $x$ the push would add to |a|).
-#    Which of its figures changes, and why would testing |a| against g alone have missed it? (Hint:
-#    sqrt(9.81² + 1²) ≈ 9.86.)
+#    with the static start's attitude and gyro bias), then on the same samples plus a constant 1 m/s^2 along $y_I$
+#    (horizontal here: this MAV's IMU has its $x$ axis up, so along $x$ the push would add to |a|). Which of its
+#    figures changes, and why would testing |a| against g alone have missed it?
 #
 #    *Hint:* `static_initialization` on the first second gives the attitude and gyro bias; the test's fourth figure
-#    compares the mean accelerometer with $-R_{GtoI}g + b_a$ as a vector.
-# 5. With `python -m evio_lib run boxes_like --duration 30 --frames events --out runs/ev` (the event simulation takes
-#    a long while), compare `rmse_second_half_m` in `metrics.json` with the APS run over the same 30 s.
-#
-#    *Hint:* read `metrics.json` of both `--out` folders; the APS run is the same command without `--frames events`.
-# 6. Simulate the violent end of the room, `load_dataset("boxes_like", start=52, duration=4, need_events=True)`
-#    (about a minute), and run KLT + FAST on APS frames, on motion-compensated event frames and on both
-#    (`frames="aps+mc-events"`). Which wins over these 4 s, how many frames per second does each make, and how long
-#    are their tracks?
-#
-#    *Hint:* `len(result.t) / 4` frames per second; `np.mean(result.track_lengths)`; the APS exposure is 10 ms
-#    (`evio_lib.sim.aps.ApsParams`), and an event window at this speed lasts about as long.
-# 7. In "Faster than the frames can follow" the run on both streams gave every APS observation the same 1 px of
-#    noise, however smeared its frame. Run it again with `aps_blur_noise=0.5`, which grows each APS frame's σ with the
-#    rotation blur the gyro predicts, $\sigma = \sqrt{\sigma_0^2 + (0.5\,|\omega|\,T f)^2}$: $\sigma_0$ the usual
-#    1 px (`pixel_noise_px`), $|\omega|$ the gyro's rate (bias removed) averaged over the exposure, $T$ the exposure
-#    (20 ms here) and $f$ the focal length in pixels, so that $|\omega| T f$ is how far the rotation moves a point
-#    near the image centre while the shutter is open. What σ do the frames of this stretch get, and does the error of
-#    this seed move? Why might one seed not settle it?
-#
-#    *Hint:* `PipelineConfig(tracker="klt", features="fast", frames="aps+mc-events", seed=SEED_FAST,
-#    aps_blur_noise=0.5)` on `data_fast`; the run's `notes` give the least, median and largest σ; compare
-#    `metrics["rmse_m"]` with the table's row for both streams.
+#    compares the mean accelerometer with $-R_{GtoI}g + b_a$ as a vector; $\sqrt{9.81^2 + 1^2} \approx 9.86$.
 #
 # Solutions, with the code to run (checked by `tests/test_solutions.py`):
 # [docs/solutions/13_evio_pipeline.md](../docs/solutions/13_evio_pipeline.md).

@@ -14,6 +14,10 @@ trajectory seen from above, the front-end's tracking statistics and an error com
 - :func:`plot_error_comparison`: position-error norm against time for several configurations on one axis (e.g. APS
   frames vs event frames vs IMU only, the comparison of thesis Table 6), with an optional line at the start of the
   fast second half of a recording.
+- :func:`plot_error_ratio_vs_blur`: when event frames beat APS frames: the ratio of their errors against the APS
+  frames' rotation blur |ω| T f, over runs at several speeds and exposures (thesis §4.5.1's argument, measured).
+- :func:`plot_blur_schematic`: the idea behind it drawn: APS exposures and event windows on a timeline, and one
+  edge as the APS frame, a count of events and motion-compensated events show it.
 - :func:`plot_tracks`: the front-end's feature tracks drawn over the frame they end in (polylines over the last frames,
   new features, and the candidates two-point RANSAC rejected), the tracking figure of thesis §3.3.5 / §4.5.
 
@@ -37,6 +41,9 @@ __all__ = [
     "plot_tracking_statistics",
     "plot_error_comparison",
     "plot_tracks",
+    "track_length_bins",
+    "plot_error_ratio_vs_blur",
+    "plot_blur_schematic",
 ]
 
 _BIAS_KINDS = {  # kind -> (default unit, name used in labels)
@@ -251,6 +258,47 @@ def plot_trajectory_topdown(estimates: Mapping[str, ArrayLike], groundtruth: Arr
     return fig
 
 
+def _plain_log_ticks(ax: Any) -> None:
+    """Label both log axes of ``ax`` with plain numbers (0.5, 1, 2, 5, 10 rather than 5x10^-1, 10^0), the minor ticks
+    only at the leading digits 2 and 5."""
+    from matplotlib.ticker import FuncFormatter
+
+    def plain(value: float, _: Any) -> str:
+        digit = round(value / 10 ** np.floor(np.log10(value))) if value > 0 else 0
+        return f"{value:g}" if digit in (1, 2, 5) else ""
+
+    for axis in (ax.xaxis, ax.yaxis):
+        axis.set_major_formatter(FuncFormatter(plain))
+        axis.set_minor_formatter(FuncFormatter(plain))
+    ax.tick_params(which="minor", labelsize=7)
+
+
+def track_length_bins(lengths: ArrayLike, per_decade: int = 10) -> NDArray[np.float64]:
+    """Return histogram bin edges for track lengths on a logarithmic axis.
+
+    Lengths up to 10 frames get one bin each (1, 2, 3, ... frames); longer ones share bins whose width grows with the
+    length, about ``per_decade`` per decade, so that a histogram from 1 to hundreds of frames keeps both ends
+    readable. Each edge lies half a frame below a whole length, and the last one above the longest track.
+
+    >>> track_length_bins([1, 2, 3]).tolist()
+    [0.5, 1.5, 2.5, 3.5]
+    >>> edges = track_length_bins([1, 480]); bool(edges[0] == 0.5 and edges[-1] > 480 and len(edges) < 40)
+    True
+    """
+    arr = _array(lengths, "track_lengths", "(K,)")
+    if arr.ndim != 1 or arr.shape[0] < 1 or not np.all(np.isfinite(arr)) or np.any(arr < 1):
+        raise ValueError(f"track_lengths must be finite track lengths >= 1 [frames] of shape (K,) with K >= 1; got "
+                         f"shape {arr.shape}")
+    if isinstance(per_decade, bool) or not isinstance(per_decade, (int, np.integer)) or per_decade < 1:
+        raise ValueError(f"per_decade must be an integer >= 1; got {per_decade!r}")
+    longest = float(np.ceil(arr.max()))
+    whole = np.arange(1.0, min(longest, 10.0) + 2.0)  # 1, 2, ..., 11 at most: one bin per length up to 10 frames
+    if longest > 10:
+        steps = max(1, int(np.ceil(np.log10((longest + 1.0) / 11.0) * per_decade)))
+        whole = np.unique(np.r_[whole, np.round(np.geomspace(11.0, longest + 1.0, steps + 1))])
+    return whole - 0.5  # the last start is longest + 1: the last edge lies above the longest track
+
+
 def plot_tracking_statistics(stats: Mapping[str, ArrayLike], *, track_lengths: ArrayLike | None = None,
                              title: str = "") -> "Figure":
     """Return a figure of the front-end's per-frame statistics: features (top), RANSAC rejections (bottom).
@@ -316,13 +364,17 @@ def plot_tracking_statistics(stats: Mapping[str, ArrayLike], *, track_lengths: A
         ax.legend(fontsize=8, loc="upper right")
     if lengths is not None:
         hist = axes[2]
-        integer = np.all(lengths == np.round(lengths))
-        bins = np.arange(0.5, lengths.max() + 1.5) if integer else "auto"  # one bar per whole length
-        hist.hist(lengths, bins=bins, color="C0", alpha=0.8)
+        hist.hist(lengths, bins=track_length_bins(lengths), color="C0", alpha=0.8)
         hist.axvline(float(np.median(lengths)), color="k", ls="--", lw=1.0,
-                     label=f"median {np.median(lengths):g} frames ({lengths.shape[0]} tracks)")
-        hist.set_xlabel("track length [frames]")
-        hist.set_ylabel("tracks")
+                     label=f"median {np.median(lengths):g} frames, mean {lengths.mean():.1f} "
+                           f"({lengths.shape[0]} tracks)")
+        hist.set_xscale("log")  # lengths from 1 frame to hundreds: a few long tracks would squeeze the rest
+        hist.set_yscale("log")  # counts from thousands of short tracks to a handful of long ones
+        hist.set_xlim(0.8, 1.3 * (lengths.max() + 0.5))
+        _plain_log_ticks(hist)
+        hist.set_xlabel("track length [frames] (log; one bin per length up to 10, wider bins above)")
+        hist.set_ylabel("tracks per bin (log)")
+        hist.grid(True, which="both", alpha=0.3)
         hist.legend(fontsize=8)
     fig.suptitle(title or f"front-end statistics over {t.shape[0]} frames")
     fig.tight_layout()
@@ -345,7 +397,8 @@ def plot_error_comparison(t_by_name: Mapping[str, ArrayLike], error_norm_by_name
         styles: optional label -> matplotlib line style ("-", "--", ":", "-."), e.g. dashed for event frames; each
             line keeps its own colour and its legend entry shows the style. Default: solid.
         motion: optional (t, speed [m/s], angular rate [rad/s]) of the camera, drawn in a panel below on the same
-            time axis, so the reader sees where each configuration gains or loses against how fast the camera moves.
+            time axis (speed on its left axis, angular rate on a second axis at its right, each with its unit), so the
+            reader sees where each configuration gains or loses against how fast the camera moves.
 
     Reference: the configurations of thesis Table 6 (IMU only, grayscale/APS frames, event frames).
 
@@ -410,13 +463,19 @@ def plot_error_comparison(t_by_name: Mapping[str, ArrayLike], error_norm_by_name
     ax.legend(fontsize=8)
     if title:
         ax.set_title(title)
-    if motion is not None:
+    if motion is not None:  # two quantities, two units: speed on the left axis, angular rate on the right
         ax_m.plot(t_m, v_m, color="k", lw=1.2, label="speed [m/s]")
-        ax_m.plot(t_m, w_m, color="0.5", lw=1.2, ls="--", label="angular rate [rad/s]")
-        ax_m.set_ylabel("camera motion")
+        ax_m.set_ylabel("speed [m/s]")
+        ax_m.set_ylim(bottom=0.0)
         ax_m.grid(True, alpha=0.3)
-        ax_m.legend(fontsize=8)
         ax_m.set_xlabel("time [s]")
+        ax_w = ax_m.twinx()
+        ax_w.plot(t_m, w_m, color="C3", lw=1.2, ls="--", label="angular rate [rad/s]")
+        ax_w.set_ylabel("angular rate [rad/s]", color="C3")
+        ax_w.tick_params(axis="y", colors="C3")
+        ax_w.set_ylim(bottom=0.0)
+        ax_m.legend(ax_m.lines + ax_w.lines, [line.get_label() for line in ax_m.lines + ax_w.lines], fontsize=8,
+                    loc="upper left")
     else:
         ax.set_xlabel("time [s]")
     fig.tight_layout()
@@ -543,5 +602,152 @@ def plot_tracks(image: ArrayLike, frames_or_tracks: Sequence[Any] | Mapping[Any,
     if ax.get_legend_handles_labels()[1]:
         ax.legend(fontsize=8, loc="lower right", framealpha=0.8)
     ax.set_title(title or f"{len(tracks)} features, {len(long_tracks)} tracked from earlier frames")
+    fig.tight_layout()
+    return fig
+
+
+def _positive(value: ArrayLike, name: str, n: int | None = None) -> NDArray[np.float64]:
+    """Return value as a finite float64 (K,) array of numbers > 0 (length n when given); raise ValueError otherwise."""
+    arr = _array(value, name, "(K,)")
+    if arr.ndim != 1 or arr.shape[0] < 1 or (n is not None and arr.shape[0] != n):
+        raise ValueError(f"{name} must have shape (K,) with K >= 1" + ("" if n is None else f" = {n} like blur_px")
+                         + f"; got {arr.shape}")
+    if not np.all(np.isfinite(arr)) or np.any(arr <= 0):
+        raise ValueError(f"{name} must contain finite numbers > 0")
+    return arr
+
+
+def plot_error_ratio_vs_blur(blur_px: ArrayLike, ratio: ArrayLike, *, exposure_ms: ArrayLike, speed: ArrayLike,
+                             speed_labels: Mapping[float, str] | None = None,
+                             ylabel: str = "error ratio, event frames / APS frames", title: str = "") -> "Figure":
+    """Return the "when do events win" figure: an error ratio against the APS frames' rotation blur, log-log.
+
+    Args:
+        blur_px: (K,) rotation blur b = |ω| T f of each run's APS frames, pixels (> 0): the mean angular rate over
+            the stretch times the exposure T times the focal length f, how far the rotation moves a point near the
+            image centre while the shutter is open.
+        ratio: (K,) the error of the run on event frames divided by that of the run on APS frames over the same
+            stretch (> 0): below 1 the events win.
+        exposure_ms: (K,) each run's APS exposure T [ms]; the marker's colour, with a colourbar.
+        speed: (K,) each run's playback speed of the motion (1: the preset's); the marker's shape, in the legend.
+        speed_labels: optional legend text per speed (e.g. {1.0: "gentle start, speed 1"}); default "speed s".
+        ylabel, title: labels.
+
+    Every run is a small marker; each (speed, exposure) cell's geometric mean over its runs is a large one with a
+    black edge (a ratio's natural mean). A horizontal line marks ratio 1, the region below it is shaded.
+
+    >>> import matplotlib; matplotlib.use("Agg")
+    >>> fig = plot_error_ratio_vs_blur([1.0, 10.0], [2.0, 0.5], exposure_ms=[10, 20], speed=[1, 2])
+    >>> fig.axes[0].get_xscale(), fig.axes[0].get_yscale(), fig.axes[1].get_ylabel()
+    ('log', 'log', 'APS exposure T [ms]')
+    """
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import LogNorm, Normalize
+    from matplotlib.lines import Line2D
+
+    b = _positive(blur_px, "blur_px")
+    r = _positive(ratio, "ratio", b.shape[0])
+    exposure = _positive(exposure_ms, "exposure_ms", b.shape[0])
+    speeds = _positive(speed, "speed", b.shape[0])
+    low, high = float(exposure.min()), float(exposure.max())
+    norm = LogNorm(low, high) if high > low else Normalize(low - 1.0, high + 1.0)
+    cmap = plt.get_cmap("viridis")
+    markers = "osD^vP*X"
+    fig, ax = plt.subplots(figsize=(7.5, 4.8))
+    lo = min(float(r.min()), 0.5) / 1.3
+    ax.axhspan(lo, 1.0, color="C2", alpha=0.08, lw=0)
+    line = ax.axhline(1.0, color="k", lw=1.0, ls="--")
+    handles, labels = [line], ["ratio 1: equal errors (below: events win)"]
+    names = {} if speed_labels is None else {float(key): str(value) for key, value in speed_labels.items()}
+    for k, s in enumerate(np.unique(speeds)):
+        marker = markers[k % len(markers)]
+        here = speeds == s
+        ax.scatter(b[here], r[here], c=exposure[here], cmap=cmap, norm=norm, marker=marker, s=22, alpha=0.6,
+                   edgecolors="none")
+        cells = np.unique(exposure[here])
+        mean_b = [float(np.exp(np.log(b[here & (exposure == e)]).mean())) for e in cells]
+        mean_r = [float(np.exp(np.log(r[here & (exposure == e)]).mean())) for e in cells]
+        ax.scatter(mean_b, mean_r, c=cells, cmap=cmap, norm=norm, marker=marker, s=90, edgecolors="k",
+                   linewidths=1.0)
+        handles.append(Line2D([], [], ls="", marker=marker, ms=8, mfc="0.7", mec="k"))  # the shape, no colour
+        labels.append(names.get(float(s), f"speed {s:g}"))
+    handles.append(Line2D([], [], ls="", marker="o", ms=4, mfc="0.6", mec="none", alpha=0.6))
+    labels.append("one run (small) / geometric mean of a cell's runs (large)")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_ylim(bottom=lo)
+    ax.set_xlabel("rotation blur of the APS frames |ω| T f [px] (log)")
+    ax.set_ylabel(ylabel + " (log)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(handles, labels, fontsize=8, loc="upper right")
+    _plain_log_ticks(ax)
+    colourbar = fig.colorbar(plt.cm.ScalarMappable(norm=norm, cmap=cmap), ax=ax)
+    colourbar.set_ticks(np.unique(exposure))
+    colourbar.set_ticklabels([f"{value:g}" for value in np.unique(exposure)])
+    colourbar.minorticks_off()
+    colourbar.set_label("APS exposure T [ms]")
+    ax.set_title(title or "when do event frames beat APS frames?")
+    fig.tight_layout()
+    return fig
+
+
+def plot_blur_schematic(rate_rad_s: float = 4.5, exposure_s: float = 0.02, focal_px: float = 199.0,
+                        window_s: float = 0.01, frame_rate_hz: float = 24.0) -> "Figure":
+    """Return the idea behind event frames in fast motion, drawn in two panels.
+
+    Left, a timeline of 0.1 s: the APS frames come every 1 / ``frame_rate_hz`` s, each integrating the light over
+    its exposure T; the event windows follow each other back to back, each ``window_s`` long at this speed. Right,
+    one vertical edge seen by each, as an intensity profile across it: the camera turning at ``rate_rad_s`` moves
+    the edge at |ω| f px/s, so the APS frame spreads it into a ramp b = |ω| T f pixels wide, a count of a window's
+    events into a band |ω| w f wide, and the same events warped with the gyroscope's rotation to one time
+    (motion-compensated) back onto a line.
+
+    >>> import matplotlib; matplotlib.use("Agg")
+    >>> fig = plot_blur_schematic()
+    >>> len(fig.axes), fig.axes[1].get_xlabel()
+    (2, 'x across the edge [px]')
+    """
+    import matplotlib.pyplot as plt
+
+    values = {"rate_rad_s": rate_rad_s, "exposure_s": exposure_s, "focal_px": focal_px, "window_s": window_s,
+              "frame_rate_hz": frame_rate_hz}
+    for name, value in values.items():
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+                or not (np.isfinite(value) and value > 0):
+            raise ValueError(f"{name} must be a finite number > 0; got {value!r}")
+    if exposure_s > 1.0 / frame_rate_hz:
+        raise ValueError(f"exposure_s ({exposure_s:g} s) must be at most one frame interval, 1/{frame_rate_hz:g} s")
+    blur_aps = rate_rad_s * exposure_s * focal_px
+    blur_window = rate_rad_s * window_s * focal_px
+    fig, (ax_t, ax_x) = plt.subplots(1, 2, figsize=(11.5, 3.6), width_ratios=(1.15, 1))
+    span = 0.1
+    for k in range(int(np.ceil(span * frame_rate_hz)) + 1):
+        t_mid = (k + 0.5) / frame_rate_hz
+        if t_mid - exposure_s / 2 < span:
+            ax_t.add_patch(plt.Rectangle((1e3 * (t_mid - exposure_s / 2), 1.15), 1e3 * exposure_s, 0.6, color="C0",
+                                         alpha=0.7, label="APS exposure T" if k == 0 else None))
+    for k in range(int(np.ceil(span / window_s))):
+        ax_t.add_patch(plt.Rectangle((1e3 * k * window_s, 0.25), 1e3 * window_s, 0.6, facecolor="C1",
+                                     edgecolor="w", alpha=0.8, label="event window w" if k == 0 else None))
+    ax_t.set_xlim(0, 1e3 * span)
+    ax_t.set_ylim(0, 2.1)
+    ax_t.set_yticks([0.55, 1.45], ["events", "APS frames"])
+    ax_t.set_xlabel("time [ms]")
+    ax_t.legend(fontsize=8, loc="upper right", ncol=2)
+    ax_t.set_title(f"APS: one frame every {1e3 / frame_rate_hz:.1f} ms, exposed {1e3 * exposure_s:g} ms; "
+                   f"events: windows of {1e3 * window_s:g} ms", fontsize=9)
+    x = np.linspace(-1.6 * blur_aps, 1.6 * blur_aps, 801)
+    ramp = np.clip(0.5 + x / blur_aps, 0.0, 1.0)  # a step edge averaged over its sweep of b pixels
+    band = np.where(np.abs(x) <= blur_window / 2, 1.0, 0.0)  # events fired along the window's sweep
+    line = np.exp(-0.5 * (x / 0.7) ** 2)  # warped to one time: back on a line, about a pixel wide
+    ax_x.plot(x, ramp, color="C0", lw=2.0, label=f"APS frame: a ramp b = |ω|Tf = {blur_aps:.0f} px wide")
+    ax_x.plot(x, band, color="C1", lw=1.5, ls="--", label=f"events counted as they come: {blur_window:.0f} px band")
+    ax_x.plot(x, line, color="C2", lw=2.0, label="events warped with the gyro (motion-compensated)")
+    ax_x.set_xlabel("x across the edge [px]")
+    ax_x.set_ylabel("intensity / event count (scaled to 1)")
+    ax_x.set_ylim(-0.05, 1.45)
+    ax_x.legend(fontsize=8, loc="upper left")
+    ax_x.grid(True, alpha=0.3)
+    ax_x.set_title(f"one edge, camera turning at |ω| = {rate_rad_s:g} rad/s, f = {focal_px:g} px", fontsize=9)
     fig.tight_layout()
     return fig

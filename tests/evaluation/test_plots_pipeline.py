@@ -14,8 +14,11 @@ from evio_lib.evaluation.plots_pipeline import (  # noqa: E402
     plot_error_comparison,
     plot_state_errors,
     plot_tracking_statistics,
+    plot_blur_schematic,
+    plot_error_ratio_vs_blur,
     plot_tracks,
     plot_trajectory_topdown,
+    track_length_bins,
 )
 
 
@@ -233,8 +236,26 @@ def test_plot_tracking_statistics_histogram_of_track_lengths(rng):
     assert len(fig.axes) == 3
     assert len(fig.axes[1].lines) == 1  # no "lost" line without the column
     heights = [patch.get_height() for patch in fig.axes[2].patches]
-    np.testing.assert_array_equal(heights, np.bincount(lengths)[1:])  # one bar per whole length 1..max
-    assert fig.axes[2].get_xlabel() == "track length [frames]"
+    np.testing.assert_array_equal(heights, np.bincount(lengths)[1:])  # short lengths: one bar per whole length
+    assert fig.axes[2].get_xlabel().startswith("track length [frames] (log")
+    assert fig.axes[2].get_xscale() == "log" and fig.axes[2].get_yscale() == "log"
+    _render(fig)
+
+
+def test_track_lengths_up_to_hundreds_of_frames_share_log_spaced_bins(rng):
+    lengths = np.r_[rng.integers(1, 4, 3000), [50, 120, 480]]  # thousands of short tracks and three long ones
+    edges = track_length_bins(lengths)
+    assert edges[0] == 0.5 and edges[-1] == 480.5 and len(edges) < 40
+    assert np.all(np.diff(edges) >= 1) and np.all(edges == np.round(edges - 0.5) + 0.5)  # between whole lengths
+    widths = np.diff(edges)
+    assert widths[0] == 1 and widths[-1] > 50  # one frame wide at the short end, wide at the long end
+    fig = plot_tracking_statistics(_stats(rng), track_lengths=lengths)
+    heights = np.array([patch.get_height() for patch in fig.axes[2].patches])
+    assert heights.sum() == len(lengths) and fig.axes[2].get_xlim()[1] > 480
+    with pytest.raises(ValueError, match=r"track_lengths must be finite track lengths >= 1"):
+        track_length_bins([0.0, 2.0])
+    with pytest.raises(ValueError, match=r"per_decade must be an integer >= 1"):
+        track_length_bins([1, 2], per_decade=0)
     _render(fig)
 
 
@@ -322,10 +343,12 @@ def test_plot_error_comparison_line_styles_reach_the_legend():
 def test_plot_error_comparison_with_the_camera_motion_below():
     t = np.linspace(0.0, 60.0, 61)
     fig = plot_error_comparison({"APS": t}, {"APS": 0.01 * t}, motion=(t, 0.05 * t, 0.1 * t))
-    ax, ax_m = fig.axes
+    ax, ax_m, ax_w = fig.axes  # the rate on its own axis, at the right of the speed's
     assert ax.get_xlabel() == "" and ax_m.get_xlabel() == "time [s]"
-    assert [line.get_label() for line in ax_m.lines] == ["speed [m/s]", "angular rate [rad/s]"]
-    np.testing.assert_allclose(ax_m.lines[1].get_ydata(), 0.1 * t)
+    assert ax_m.get_ylabel() == "speed [m/s]" and ax_w.get_ylabel() == "angular rate [rad/s]"
+    np.testing.assert_allclose(ax_m.lines[0].get_ydata(), 0.05 * t)
+    np.testing.assert_allclose(ax_w.lines[0].get_ydata(), 0.1 * t)
+    assert _legend_labels(ax_m) == ["speed [m/s]", "angular rate [rad/s]"]
     with pytest.raises(ValueError, match="motion's speed and angular rate must have the shape"):
         plot_error_comparison({"APS": t}, {"APS": t}, motion=(t, t[:-1], t))
     with pytest.raises(ValueError, match=r"motion must be \(t, speed, angular_rate\)"):
@@ -490,3 +513,65 @@ def test_plot_tracks_names_a_frame_whose_pixels_do_not_match_its_ids():
     with pytest.raises(ValueError, match=r"frames\[1\]\.pixels must have shape \(K, 2\) = \(2, 2\) like its ids"):
         plot_tracks(np.zeros((48, 64)), frames)
     plot_tracks(np.zeros((48, 64)), iter(_tracked_frames()))  # any iterable of frames, e.g. a generator
+
+
+# ---------------------------------------------------------------------------------------- plot_error_ratio_vs_blur
+def test_plot_error_ratio_vs_blur_draws_runs_cell_means_and_the_line_of_equal_errors():
+    blur = np.array([0.5, 0.6, 2.0, 2.2, 9.0, 10.0])
+    ratio = np.array([2.0, 8.0, 1.5, 1.5, 0.5, 0.5])
+    exposure = np.array([5.0, 5.0, 20.0, 20.0, 20.0, 20.0])
+    speed = np.array([1.0, 1.0, 1.0, 1.0, 2.0, 2.0])
+    fig = plot_error_ratio_vs_blur(blur, ratio, exposure_ms=exposure, speed=speed, title="when")
+    ax, bar = fig.axes
+    assert (ax.get_xscale(), ax.get_yscale()) == ("log", "log") and bar.get_ylabel() == "APS exposure T [ms]"
+    runs, means = ax.collections[::2], ax.collections[1::2]  # per speed: every run, then the cells' means
+    assert [len(c.get_offsets()) for c in runs] == [4, 2] and [len(c.get_offsets()) for c in means] == [2, 1]
+    np.testing.assert_allclose(means[0].get_offsets(), [[np.sqrt(0.5 * 0.6), 4.0], [np.sqrt(2.0 * 2.2), 1.5]])
+    assert [line.get_ydata()[0] for line in ax.lines] == [1.0]  # equal errors
+    assert _legend_labels(ax)[:3] == ["ratio 1: equal errors (below: events win)", "speed 1", "speed 2"]
+    assert ax.get_title() == "when"
+    assert [float(t) for t in bar.get_yticks()] == [5.0, 20.0]
+    _render(fig)
+
+
+def test_plot_error_ratio_vs_blur_names_the_speeds_in_the_legend():
+    fig = plot_error_ratio_vs_blur([1.0, 10.0], [2.0, 0.5], exposure_ms=[10.0, 10.0], speed=[1.0, 2.0],
+                                   speed_labels={1.0: "gentle start", 2.0: "violent end, speed 2"})
+    labels = _legend_labels(fig.axes[0])
+    assert labels[1:3] == ["gentle start", "violent end, speed 2"] and "geometric mean" in labels[3]
+    _render(fig)
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(ratio=[1.0]), r"ratio must have shape \(K,\) with K >= 1 = 2 like blur_px; got \(1,\)"),
+        (dict(ratio=[1.0, 0.0]), r"ratio must contain finite numbers > 0"),
+        (dict(blur_px=[1.0, np.nan]), r"blur_px must contain finite numbers > 0"),
+        (dict(exposure_ms=[10.0]), r"exposure_ms must have shape \(K,\)"),
+        (dict(speed=[1.0, -2.0]), r"speed must contain finite numbers > 0"),
+    ],
+)
+def test_plot_error_ratio_vs_blur_rejects_bad_input(kwargs, match):
+    args = dict(blur_px=[1.0, 2.0], ratio=[1.0, 2.0], exposure_ms=[10.0, 20.0], speed=[1.0, 1.0]) | kwargs
+    with pytest.raises(ValueError, match=match):
+        plot_error_ratio_vs_blur(args.pop("blur_px"), args.pop("ratio"), **args)
+
+
+def test_plot_blur_schematic_draws_the_smear_the_formula_gives():
+    fig = plot_blur_schematic(rate_rad_s=5.0, exposure_s=0.02, focal_px=200.0, window_s=0.01)
+    timeline, edge = fig.axes
+    ramp, band, line = edge.lines
+    x, y = ramp.get_xdata(), ramp.get_ydata()
+    rising = x[(y > 0) & (y < 1)]
+    assert rising.max() - rising.min() == pytest.approx(20.0, abs=0.3)  # b = 5 rad/s x 20 ms x 200 px
+    wide = band.get_xdata()[band.get_ydata() > 0]
+    assert wide.max() - wide.min() == pytest.approx(10.0, abs=0.3)  # a 10 ms window's sweep
+    assert "b = |ω|Tf = 20 px" in _legend_labels(edge)[0]
+    exposures = [p for p in timeline.patches if p.get_label() == "APS exposure T" or p.get_y() > 1]
+    assert exposures and all(p.get_width() == pytest.approx(20.0) for p in exposures)  # 20 ms each
+    with pytest.raises(ValueError, match=r"exposure_s \(0.05 s\) must be at most one frame interval"):
+        plot_blur_schematic(exposure_s=0.05)
+    with pytest.raises(ValueError, match=r"rate_rad_s must be a finite number > 0"):
+        plot_blur_schematic(rate_rad_s=0.0)
+    _render(fig)
