@@ -11,10 +11,10 @@ One function per figure, each returning the matplotlib Figure:
 - :func:`plot_homographic_adaptation_schematic` (notebook 07): an image, N random homographies, the detector on
   every view, the responses mapped back and averaged into labels (thesis §3.2.5.2); and the descriptor loss on a
   warped pair: corresponding and other cells, the two hinge terms and their margins (Eqs. 10-12).
-- :func:`plot_msckf_schematic` (notebook 10): the MSCKF state vector (IMU state + N camera clones, thesis Eqs. 21,
+- :func:`plot_msckf_schematic` (notebook 11): the MSCKF state vector (IMU state + N camera clones, thesis Eqs. 21,
   25-26) and the life of a feature track (observed, lost or pruned, triangulated, nullspace-projected update,
   clones marginalised; §3.3.6-3.3.7).
-- :func:`plot_pipeline_schematic` (notebook 13): the pipeline's data flow from the sensors to a trajectory and its
+- :func:`plot_pipeline_schematic` (notebook 14): the pipeline's data flow from the sensors to a trajectory and its
   error metrics (Chapter IV §4.5).
 
 The sizes written in the boxes are those of the library (`evio_lib.features.network`,
@@ -474,7 +474,7 @@ def plot_pipeline_schematic() -> "Figure":
 
     Events become frames by windows of N_e = n H W events and a reconstruction (lesson 04), or the APS frames are
     used directly; features (classical or CNN, lessons 05-08) are tracked from frame to frame (KLT or descriptor
-    matching, two-point RANSAC with the gyroscope's rotation); the MSCKF (lessons 09-12) propagates with the IMU
+    matching, two-point RANSAC with the gyroscope's rotation); the MSCKF (lessons 09-13) propagates with the IMU
     and updates with finished tracks; the trajectory is scored against the ground truth (thesis Chapter IV §4.5).
 
     >>> import matplotlib; matplotlib.use("Agg")

@@ -9,9 +9,9 @@
 # ---
 
 # %% [markdown]
-# # 14 — Events against frames
+# # 15 — Events against frames
 #
-# Lesson 13 ran the whole pipeline on the APS frames, the event camera's ordinary images. The thesis this course
+# Lesson 14 ran the whole pipeline on the APS frames, the event camera's ordinary images. The thesis this course
 # follows (Friedel 2020, "Event-based visual-inertial odometry using smart features", §4.5) also fed it frames made
 # from the **events**, and on its real Boxes recording (boxes_6dof, 69.8 m of hand-held motion) SIFT's error fell from
 # **0.989 %** of the distance travelled on the grayscale (APS) frames to **0.447 %** on event frames (its Table 6).
@@ -25,7 +25,7 @@
 # 4. **one results table** over several seeds, beside the thesis's numbers and the project's full sweep;
 # 5. **when**: the error on event frames over the error on APS frames, against the APS frames' blur in pixels.
 #
-# The front-end is KLT + FAST (optical flow, lesson 13, section 1d) unless a cell says SIFT; the code lives in
+# The front-end is KLT + FAST (optical flow, lesson 14, section 1d) unless a cell says SIFT; the code lives in
 # `evio_lib.pipeline` (`PipelineConfig(frames=...)`) and `evio_lib.pipeline.stretches` (short stretches of a preset
 # over speeds, exposures and seeds).
 
@@ -571,8 +571,8 @@ display(Markdown(
 # Over the lessons: a camera model with distortion and epipolar geometry (01-02); an event camera simulator and the
 # frames made from its events, by integration and by a recurrent network trained here (03-04); classical features and
 # a SuperPoint-style network trained from synthetic shapes and homographic adaptation, with the thesis's benchmark
-# (05-08); IMU kinematics and the MSCKF, its update and its observability fix (09-12); the pipeline that joins them
-# and is one command on a recording (13); and this comparison of events against frames (14). The thesis found that the
+# (05-08); IMU kinematics and the MSCKF, its update and its observability fix (09-13); the pipeline that joins them
+# and is one command on a recording (14); and this comparison of events against frames (15). The thesis found that the
 # learned features did about as well as SIFT inside the filter (§4.5.1: "on par"), that event frames more than halved
 # the whole-recording error of a textured indoor scene (Table 6, Boxes: 0.989 % -> 0.447 % with SIFT), which it
 # credits to the blur of the fast latter half, and that in a sparse aerial scene event frames were noisier than
@@ -609,4 +609,4 @@ display(Markdown(
 #    gives a record with `percent_of_distance`; SIFT's tracks at this speed are short (`track_length`).
 #
 # Solutions, with the code to run (checked by `tests/test_solutions.py`):
-# [docs/solutions/14_events_against_frames.md](../docs/solutions/14_events_against_frames.md).
+# [docs/solutions/15_events_against_frames.md](../docs/solutions/15_events_against_frames.md).

@@ -9,10 +9,10 @@
 # ---
 
 # %% [markdown]
-# # 13 — The complete EVIO pipeline on APS frames
+# # 14 — The complete EVIO pipeline on APS frames
 #
 # Every piece of the course now exists on its own: frames from APS or from events (lesson 04), feature detectors
-# (05-08), the MSCKF with its update and its consistency fixes (10-12). This lesson joins them into the pipeline of
+# (05-08), the MSCKF with its update and its consistency fixes (11-13). This lesson joins them into the pipeline of
 # the thesis this course follows (Friedel 2020, "Event-based visual-inertial odometry using smart features",
 # Chapter IV §4.5) and runs it on the camera's ordinary frames, the **APS frames** (the DAVIS's Active Pixel Sensor
 # images, exposed like any camera's):
@@ -25,7 +25,7 @@
 #    initialisation and zero-velocity updates;
 # 3. the **Table 6 analogue** of the thesis (its table of MSCKF results) for the rows without events.
 #
-# Lesson 14 feeds the same pipeline frames made from events and asks when they beat the APS frames.
+# Lesson 15 feeds the same pipeline frames made from events and asks when they beat the APS frames.
 #
 # The code lives in `evio_lib.frontend` (the tracker) and `evio_lib.pipeline` (`load_dataset`, `PipelineConfig`,
 # `run_pipeline`, `run_table`); the same runs are one command away: `python -m evio_lib run` and
@@ -74,7 +74,7 @@ print(f"APS runs over the first {D_APS:g} s of each preset; EuRoC slice found: {
 
 # %% [markdown]
 # The pipeline as a data flow. Follow the arrows: APS frames are used as they are, events become frames through
-# windows and a reconstruction (lesson 04; this lesson runs the APS branch, lesson 14 the event branch); the IMU feeds
+# windows and a reconstruction (lesson 04; this lesson runs the APS branch, lesson 15 the event branch); the IMU feeds
 # the filter and, dashed, gives the tracker its rotation prior; the ground truth scores the trajectory (it also gives
 # a moving start its initial state, section 2, not drawn). The number in brackets is the lesson that teaches each box.
 
@@ -223,7 +223,7 @@ display(Markdown(
     f"candidate matches that do not fit the gyro's rotation and one translation: "
     f"{box_stats['rejected_ransac'][1:].mean():.1f} per frame here. Every track that ends is a loss: the MSCKF uses "
     f"a track only once it has at least three observations (`min_track_length` of the filter's `MsckfConfig`, "
-    f"lesson 11; asserted in section 2), and gains most from long tracks."))
+    f"lesson 12; asserted in section 2), and gains most from long tracks."))
 
 # %% [markdown]
 # **Two-point RANSAC by hand.** Match *every* SIFT detection of the last two frames (no search window, only Lowe's
@@ -600,8 +600,8 @@ assert sigma[-1, 1] > max(sigma[-1, 0], sigma[-1, 2])  # the yaw band ends the w
 shares = ", ".join(f"{name} {100 * share:.1f} %" for name, share in inside.items())
 display(Markdown(
     f"Inside the ±3σ band over this run: {shares} of the error samples, fewer than the 99.7 % that a consistent "
-    f"filter keeps of a Gaussian error: over this run the filter is overconfident, the kind of inconsistency lesson 12 "
-    f"measures with the NEES. Yaw and the absolute position are unobservable (lesson 12): the filter only learns the "
+    f"filter keeps of a Gaussian error: over this run the filter is overconfident, the kind of inconsistency lesson 13 "
+    f"measures with the NEES. Yaw and the absolute position are unobservable (lesson 13): the filter only learns the "
     f"motion relative to where it started, so the position band ends the run wider than it began, on every axis "
     f"(σ grows from {1e3 * sigma[0, 12:15].max():.1f} mm to {1e3 * sigma[-1, 12:15].min():.0f}-"
     f"{1e3 * sigma[-1, 12:15].max():.0f} mm); it "
@@ -754,7 +754,7 @@ display(Markdown(
 # over the IMU samples since the last frame (bars are means). With the JPL attitude error
 # $R_{G\to I} \approx (I - [\delta\theta]_\times)\hat R_{G\to I}$ the accelerometer row's Jacobian is
 # $H_\theta = -[\hat R_{G\to I} g^G]_\times$ and $H_{b_a} = I$; it has no column for position and
-# $H_\theta$ is zero along gravity, so yaw and position stay unobservable as they should (lesson 12). No camera pose is
+# $H_\theta$ is zero along gravity, so yaw and position stay unobservable as they should (lesson 13). No camera pose is
 # cloned on a still frame. `evio_lib.msckf.zero_velocity` holds the test and the measurement, and
 # `tests/msckf/test_zero_velocity.py` checks the Jacobian against finite differences. The same run with and
 # without it (`PipelineConfig(zupt=False)`, `python -m evio_lib run --no-zupt`):
@@ -916,4 +916,4 @@ assert values["boxes_like.sift_aps.mean"] < 1.0 and values["boxes_like.klt_aps.m
 #    compares the mean accelerometer with $-R_{GtoI}g + b_a$ as a vector; $\sqrt{9.81^2 + 1^2} \approx 9.86$.
 #
 # Solutions, with the code to run (checked by `tests/test_solutions.py`):
-# [docs/solutions/13_evio_pipeline.md](../docs/solutions/13_evio_pipeline.md).
+# [docs/solutions/14_evio_pipeline.md](../docs/solutions/14_evio_pipeline.md).
