@@ -241,8 +241,8 @@ HEADLINE: tuple[tuple[str, str, str], ...] = (
 
 #: The run times quoted beside the README's commands.
 TIMES_TEMPLATE = ("From a clean clone on a 2-core CPU the tests take {times.tests_s} s ({times.tests_cpu_s} s of CPU, "
-                  "the install included); each lesson's time and the pipeline's speed are on the "
-                  "[speed page](docs/results/speed.md).")
+                  "the install included) and the course {times.course_s} s ({times.course_cpu_s} s of CPU); each "
+                  "lesson's time and the pipeline's speed are on the [speed page](docs/results/speed.md).")
 
 _FIELD = re.compile(r"\{([a-z0-9_]+)\.([^}:]+)(?::([^}]*))?\}")
 
