@@ -27,6 +27,7 @@ Every function leaves its inputs untouched.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -268,6 +269,42 @@ def bounded_count_windows(events: np.ndarray, n_events: int, min_duration: float
     return np.asarray(bounds, dtype=np.int64).reshape(-1, 2), np.asarray(ends, dtype=np.float64)
 
 
+def _check_adaptive_args(width: int, height: int, events_per_active_pixel: float, min_fraction: float,
+                         max_fraction: float) -> tuple[int, int, int, int]:
+    """Return (W, H, n_min, n_max events) of adaptive windows, or raise ValueError naming the argument that is wrong."""
+    w, h = _check_size(width, height)
+    if not (np.isfinite(events_per_active_pixel) and events_per_active_pixel > 1.0):
+        raise ValueError(f"events_per_active_pixel must be > 1 (every active pixel has at least one event); "
+                         f"got {events_per_active_pixel!r}")
+    if not 0 < min_fraction <= max_fraction:
+        raise ValueError(f"need 0 < min_fraction <= max_fraction; got {min_fraction}, {max_fraction}")
+    return w, h, window_size_from_fraction(min_fraction, w, h), window_size_from_fraction(max_fraction, w, h)
+
+
+def _adaptive_window_bounds(pixels: Callable[[int, int], np.ndarray], lo: int, hi: int, n_min: int, n_max: int,
+                            events_per_active_pixel: float) -> np.ndarray:
+    """Return (K, 2) bounds of the adaptive windows over events [lo, hi); ``pixels(a, b)`` gives the pixel index of
+    events [a, b) (from memory or read from disk; at most ``n_max`` events are asked for at a time)."""
+    bounds = []
+    start = lo
+    while hi - start >= n_min:
+        chunk = pixels(start, min(hi, start + n_max))
+        first = np.zeros(chunk.size, dtype=bool)
+        first[np.unique(chunk, return_index=True)[1]] = True     # first event of each pixel in the window
+        count = np.arange(1, chunk.size + 1)
+        active = np.cumsum(first)
+        ratio_reached = np.flatnonzero((count >= n_min) & (count >= events_per_active_pixel * active))
+        if ratio_reached.size:
+            stop = start + int(ratio_reached[0]) + 1
+        elif chunk.size == n_max:
+            stop = start + n_max
+        else:
+            break                                                # the stream ended before the window closed
+        bounds.append((start, stop))
+        start = stop
+    return np.asarray(bounds, dtype=np.int64).reshape(-1, 2)
+
+
 def adaptive_windows(events: np.ndarray, width: int, height: int, events_per_active_pixel: float = 2.0,
                      min_fraction: float = 0.02, max_fraction: float = 1.5) -> np.ndarray:
     """Return (K, 2) index bounds of windows that close when events / active pixels reaches ``events_per_active_pixel``.
@@ -290,33 +327,9 @@ def adaptive_windows(events: np.ndarray, width: int, height: int, events_per_act
         max_fraction: largest window, as a fraction n of H * W.
     """
     _check_events(events)
-    w, h = _check_size(width, height)
-    if not (np.isfinite(events_per_active_pixel) and events_per_active_pixel > 1.0):
-        raise ValueError(f"events_per_active_pixel must be > 1 (every active pixel has at least one event); "
-                         f"got {events_per_active_pixel!r}")
-    if not 0 < min_fraction <= max_fraction:
-        raise ValueError(f"need 0 < min_fraction <= max_fraction; got {min_fraction}, {max_fraction}")
-    n_min = window_size_from_fraction(min_fraction, w, h)
-    n_max = window_size_from_fraction(max_fraction, w, h)
+    w, h, n_min, n_max = _check_adaptive_args(width, height, events_per_active_pixel, min_fraction, max_fraction)
     pix = _pixel_index(events, w, h)
-    bounds = []
-    start = 0
-    while events.size - start >= n_min:
-        chunk = pix[start:start + n_max]
-        first = np.zeros(chunk.size, dtype=bool)
-        first[np.unique(chunk, return_index=True)[1]] = True     # first event of each pixel in the window
-        count = np.arange(1, chunk.size + 1)
-        active = np.cumsum(first)
-        ratio_reached = np.flatnonzero((count >= n_min) & (count >= events_per_active_pixel * active))
-        if ratio_reached.size:
-            stop = start + int(ratio_reached[0]) + 1
-        elif chunk.size == n_max:
-            stop = start + n_max
-        else:
-            break                                                # the stream ended before the window closed
-        bounds.append((start, stop))
-        start = stop
-    return np.asarray(bounds, dtype=np.int64).reshape(-1, 2)
+    return _adaptive_window_bounds(lambda a, b: pix[a:b], 0, events.size, n_min, n_max, events_per_active_pixel)
 
 
 def polarity_frame(events: np.ndarray, width: int, height: int, signed: bool = True) -> np.ndarray:

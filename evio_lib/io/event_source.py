@@ -420,31 +420,8 @@ def adaptive_windows_source(source: EventSource, lo: int, hi: int, width: int, h
                             max_fraction: float = 1.5) -> np.ndarray:
     """Return (K, 2) global index bounds of :func:`evio_lib.events.representations.adaptive_windows` on the events
     [lo, hi), reading at most one window's largest size (``max_fraction`` H W events) at a time."""
-    from evio_lib.events.representations import _check_size, _pixel_index, window_size_from_fraction
+    from evio_lib.events.representations import _adaptive_window_bounds, _check_adaptive_args, _pixel_index
 
-    w, h = _check_size(width, height)
-    if not (np.isfinite(events_per_active_pixel) and events_per_active_pixel > 1.0):
-        raise ValueError(f"events_per_active_pixel must be > 1 (every active pixel has at least one event); "
-                         f"got {events_per_active_pixel!r}")
-    if not 0 < min_fraction <= max_fraction:
-        raise ValueError(f"need 0 < min_fraction <= max_fraction; got {min_fraction}, {max_fraction}")
-    n_min = window_size_from_fraction(min_fraction, w, h)
-    n_max = window_size_from_fraction(max_fraction, w, h)
-    bounds = []
-    start = lo
-    while hi - start >= n_min:
-        chunk = _pixel_index(source.take(start, min(hi, start + n_max)), w, h)
-        first = np.zeros(chunk.size, dtype=bool)
-        first[np.unique(chunk, return_index=True)[1]] = True
-        count = np.arange(1, chunk.size + 1)
-        active = np.cumsum(first)
-        ratio_reached = np.flatnonzero((count >= n_min) & (count >= events_per_active_pixel * active))
-        if ratio_reached.size:
-            stop = start + int(ratio_reached[0]) + 1
-        elif chunk.size == n_max:
-            stop = start + n_max
-        else:
-            break
-        bounds.append((start, stop))
-        start = stop
-    return np.asarray(bounds, dtype=np.int64).reshape(-1, 2)
+    w, h, n_min, n_max = _check_adaptive_args(width, height, events_per_active_pixel, min_fraction, max_fraction)
+    return _adaptive_window_bounds(lambda a, b: _pixel_index(source.take(a, b), w, h), lo, hi, n_min, n_max,
+                                   events_per_active_pixel)
