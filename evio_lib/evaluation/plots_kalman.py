@@ -19,6 +19,8 @@ from typing import TYPE_CHECKING, Mapping, Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from evio_lib.evaluation.plots_msckf import _band
+
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
@@ -50,16 +52,6 @@ def _times(t: ArrayLike) -> NDArray[np.float64]:
     if arr.shape[0] < 2:
         raise ValueError(f"t must hold at least 2 times; got {arr.shape[0]}")
     return arr
-
-
-def _band(band: Sequence[float], name: str) -> tuple[float, float]:
-    try:
-        lo, hi = (float(b) for b in band)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be a (lo, hi) pair of numbers; got {band!r}") from exc
-    if not (0.0 <= lo < hi and np.isfinite(hi)):
-        raise ValueError(f"{name} must satisfy 0 <= lo < hi; got ({lo}, {hi})")
-    return lo, hi
 
 
 def gaussian_product(mean_a: float, var_a: float, mean_b: float, var_b: float) -> tuple[float, float]:
