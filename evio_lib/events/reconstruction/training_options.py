@@ -23,6 +23,10 @@ def add_reconstruct_data_arguments(parser: argparse.ArgumentParser) -> argparse.
     parser.add_argument("--jobs", type=int, default=2, help="worker processes (default 2); the set does not depend on it")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=JSON",
                         help="override a setting of the set, e.g. --set height=96 --set width=96")
+    parser.add_argument("--photos", default="auto", metavar="DIR",
+                        help="a folder of photographs for 70 %% of the textures, split by name into train/val/test "
+                             "(default auto: ../shared/data/photos or $EVIO_PHOTOS where present; none: the bundled "
+                             "textures alone)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     return parser
 

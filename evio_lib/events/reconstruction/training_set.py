@@ -61,6 +61,7 @@ from evio_lib.events.reconstruction.data import (_SPLIT_SEED_OFFSET, SPLIT_PHOTO
                                                  hot_pixel_events, random_contrast, random_crop)
 from evio_lib.events.representations import count_windows, time_windows, voxel_grid
 from evio_lib.events.simulate import EventCameraParams, simulate_events
+from evio_lib.sim.photos import list_photos, load_photo, photo_fingerprint, resolve_photo_option
 from evio_lib.sim.textures import PROCEDURAL_KINDS, aerial_terrain_texture, procedural_texture
 
 __all__ = ["TrainingSetConfig", "SPLITS", "make_sequence", "make_training_set", "read_training_set",
@@ -73,6 +74,10 @@ _FORMAT = "evio-reconstruction-set-v1"
 #: window rule drawn first and the sequence lengthened to hold it), so that a set is never resumed or extended with
 #: sequences of another generator.
 GENERATOR_VERSION = 3
+#: share of textures taken from the photo folder when a set is made with one (the rest as without it: bundled
+#: photographs, farmland, procedural kinds); E2VID's scenes were all MS-COCO photographs, the rest keeps the flat
+#: regions, blur and regular patterns that held-out scenes have
+PHOTO_FOLDER_FRACTION = 0.7
 _ARRAYS = ("voxels", "frames", "flow")
 
 
@@ -140,8 +145,21 @@ def _farmland() -> np.ndarray:
     return aerial_terrain_texture(1024, seed=12345)
 
 
-def _texture(rng: np.random.Generator, split: str, size: tuple[int, int]) -> np.ndarray:
-    """Return a float32 texture in [0, 1] of ``size`` from one of the split's sources, with random contrast and gamma."""
+def _texture(rng: np.random.Generator, split: str, size: tuple[int, int], photos: tuple[str, ...] = ()) -> np.ndarray:
+    """Return a float32 texture in [0, 1] of ``size`` from one of the split's sources, with random contrast and gamma.
+
+    ``photos``: the split's photographs of a photo folder (:mod:`evio_lib.sim.photos`); when given, a texture is one of
+    them with probability :data:`PHOTO_FOLDER_FRACTION`, else drawn as without them.
+    """
+    if photos and rng.random() < PHOTO_FOLDER_FRACTION:         # a natural photograph of the folder
+        photo = load_photo(photos[int(rng.integers(len(photos)))])
+        scale = float(np.exp(rng.uniform(np.log(0.3), np.log(3.0))))
+        tex = random_crop(rng, photo, size, scale)
+        if rng.random() < 0.5:
+            tex = tex[:, ::-1]
+        if rng.random() < 0.3:
+            tex = cv2.GaussianBlur(np.ascontiguousarray(tex, dtype=np.float32), (0, 0), float(rng.uniform(0.5, 3.0)))
+        return random_contrast(rng, tex, gamma=(0.5, 2.0), min_span=0.25)
     source = rng.random()
     if source < 0.45:                                           # a photograph, cropped at a random zoom
         names = SPLIT_PHOTOS[split]
@@ -192,7 +210,8 @@ def _shape_mask(rng: np.random.Generator, size: tuple[int, int], centre: tuple[f
 class _LayeredScene:
     """Planes seen from a moving pinhole camera: ``render(t)``, ``visible_layer(t)``, ``homographies(t)``."""
 
-    def __init__(self, rng: np.random.Generator, split: str, config: TrainingSetConfig, duration: float) -> None:
+    def __init__(self, rng: np.random.Generator, split: str, config: TrainingSetConfig, duration: float,
+                 photos: tuple[str, ...] = ()) -> None:
         h, w = config.height, config.width
         f = 0.85 * w                                             # about a 60 degree field of view (DAVIS240C)
         self.size = (h, w)
@@ -214,7 +233,7 @@ class _LayeredScene:
             tilt = rng.normal(0.0, 0.25, 2)
             normal = np.array([tilt[0], tilt[1], 1.0])
             normal /= np.linalg.norm(normal)
-            texture = _texture(rng, split, canvas)
+            texture = _texture(rng, split, canvas, photos)
             if k == 0:
                 self.layers.append((texture, None, normal, depth, np.zeros(3)))
                 continue
@@ -287,12 +306,13 @@ def _sensor(rng: np.random.Generator, config: TrainingSetConfig) -> EventCameraP
 
 
 def make_sequence(rng: np.random.Generator, split: str = "train", config: TrainingSetConfig = TrainingSetConfig(),
-                  max_tries: int = 8) -> tuple[dict[str, np.ndarray], dict]:
+                  max_tries: int = 8, photos: tuple[str, ...] = ()) -> tuple[dict[str, np.ndarray], dict]:
     """Return (arrays, metadata) of one random sequence of ``split``.
 
     arrays: ``voxels`` (L, B, H, W) float16 (normalised voxel grids), ``frames`` (L, H, W) float16 (sharp linear
     intensity at each window's end), ``flow`` (L, 2, H, W) float16 (pixel k -> its place in view k - 1, minus itself;
-    zero for k = 0). metadata: the drawn contrast, window rule, speed, events and duration.
+    zero for k = 0). metadata: the drawn contrast, window rule, speed, events and duration. ``photos``: paths of the
+    split's photographs of a photo folder (see :func:`_texture`); empty: the textures of generator version 3 alone.
 
     The window rule (and for count windows n) is drawn first. A sequence with fewer than L n H W events is simulated
     again (at most twice) with the same scene, sensor and motion (the generator's state restored) over a longer time,
@@ -311,7 +331,7 @@ def make_sequence(rng: np.random.Generator, split: str = "train", config: Traini
         duration = float(rng.uniform(config.duration_min, config.duration_max))
         state, drawn_duration = rng.bit_generator.state, duration
         for attempt in range(3):
-            scene = _LayeredScene(rng, split, config, drawn_duration)
+            scene = _LayeredScene(rng, split, config, drawn_duration, photos)
             params = _sensor(rng, config)
             events, _ = simulate_events(scene.render, 0.0, duration, w, h, params=params, rng=rng,
                                         change_quantile=0.99, dt_min=1e-5)
@@ -360,7 +380,8 @@ def load_sequence(path: str | Path) -> dict[str, np.ndarray]:
     return load_npz_arrays(Path(path), _ARRAYS)
 
 
-def _write_sequence(folder: Path, split: str, i: int, seed: int, config: TrainingSetConfig) -> dict:
+def _write_sequence(folder: Path, split: str, i: int, seed: int, config: TrainingSetConfig,
+                    photos: tuple[str, ...] = ()) -> dict:
     """Make sequence i of ``split`` (unless its file is there and readable) and return its metadata."""
     path = _sequence_path(folder, split, i)
     meta_path = path.with_suffix(".json")
@@ -371,7 +392,8 @@ def _write_sequence(folder: Path, split: str, i: int, seed: int, config: Trainin
             pass                                                # a damaged metadata file: make the sequence again
     cv2.setNumThreads(1)                                        # the worker processes are the parallelism
     start = time.process_time()
-    arrays, meta = make_sequence(np.random.default_rng([seed, _SPLIT_SEED_OFFSET[split], i]), split, config)
+    arrays, meta = make_sequence(np.random.default_rng([seed, _SPLIT_SEED_OFFSET[split], i]), split, config,
+                                 photos=photos)
     meta["cpu_s"] = time.process_time() - start
     tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp.npz")
     np.savez_compressed(tmp, **arrays)                         # voxel grids are mostly zeros: 2.6 -> 1.1 MB
@@ -382,14 +404,17 @@ def _write_sequence(folder: Path, split: str, i: int, seed: int, config: Trainin
     return meta
 
 
-def _manifest(config: TrainingSetConfig, seed: int, counts: dict[str, int]) -> dict:
-    return {"format": _FORMAT, "generator": GENERATOR_VERSION, "seed": int(seed), "config": asdict(config),
-            "sequences": dict(counts)}
+def _manifest(config: TrainingSetConfig, seed: int, counts: dict[str, int], photos: dict | None = None) -> dict:
+    manifest = {"format": _FORMAT, "generator": GENERATOR_VERSION, "seed": int(seed), "config": asdict(config),
+                "sequences": dict(counts)}
+    if photos is not None:                                      # a set made without photographs keeps v3's manifest
+        manifest["photos"] = photos
+    return manifest
 
 
 def make_training_set(out: str | Path, sequences: int = 600, val: int = 32, test: int = 32, seed: int = 0,
                       config: TrainingSetConfig = TrainingSetConfig(), workers: int = 2,
-                      progress: bool = True) -> dict:
+                      progress: bool = True, photos: str | Path | None = None) -> dict:
     """Make (or resume) a training set in ``out``; return its summary (sequences, simulated seconds, events, time).
 
     Args:
@@ -399,6 +424,9 @@ def make_training_set(out: str | Path, sequences: int = 600, val: int = 32, test
         config: sizes and ranges.
         workers: processes simulating in parallel (joblib); the result does not depend on it.
         progress: a progress bar on stderr.
+        photos: a folder of photographs (:mod:`evio_lib.sim.photos`: split by name, so the train, val and test
+            sequences see disjoint photographs); None: the bundled textures alone. The manifest records the folder's
+            fingerprint (counts and a digest of the names), so a set is never resumed with other photographs.
     """
     for name, value, low in (("sequences", sequences, 1), ("val", val, 1), ("test", test, 0), ("workers", workers, 1),
                              ("seed", seed, 0)):
@@ -407,17 +435,20 @@ def make_training_set(out: str | Path, sequences: int = 600, val: int = 32, test
     out = Path(out)
     counts = {"train": int(sequences), "val": int(val), "test": int(test)}
     manifest_path = out / MANIFEST_NAME
-    wanted = _manifest(config, seed, counts)
+    fingerprint = photo_fingerprint(photos) if photos is not None else None
+    split_photos = {split: tuple(str(p) for p in list_photos(photos, split))
+                    if photos is not None and counts[split] else () for split in SPLITS}
+    wanted = _manifest(config, seed, counts, fingerprint)
     if manifest_path.is_file():
         try:
             have = json.loads(manifest_path.read_text())
         except (OSError, ValueError) as error:
             raise ValueError(f"{manifest_path} is not a readable training-set manifest ({error}); use another folder")
-        keys = ("format", "generator", "seed", "config")
+        keys = ("format", "generator", "seed", "config", "photos")
         if {k: have.get(k) for k in keys} != {k: wanted[k] for k in keys}:
             raise ValueError(f"{out} holds a training set made with other settings (seed {have.get('seed')}, "
-                             f"generator version {have.get('generator')}, config {have.get('config')}); use another "
-                             f"folder to make this one")
+                             f"generator version {have.get('generator')}, photos {have.get('photos')}, config "
+                             f"{have.get('config')}); use another folder to make this one")
     elif out.exists() and any(out.iterdir()):
         raise ValueError(f"{out} is not empty and holds no {MANIFEST_NAME}: not a training set; use an empty folder")
     for split in SPLITS:
@@ -431,7 +462,8 @@ def make_training_set(out: str | Path, sequences: int = 600, val: int = 32, test
     from joblib import Parallel, delayed
 
     runner = Parallel(n_jobs=int(workers), return_as="generator", batch_size=1)
-    results = runner(delayed(_write_sequence)(out, split, i, int(seed), config) for split, i in jobs)
+    results = runner(delayed(_write_sequence)(out, split, i, int(seed), config, split_photos[split])
+                     for split, i in jobs)
     if progress:
         from tqdm.auto import tqdm
 
@@ -505,8 +537,12 @@ def main_reconstruct_data(args) -> int:
         raise ValueError(f"--sequences must be <= 1000000; got {args.sequences}")
     # not the working folder nor the package; a set folder is resumed, so a non-empty one is checked by its manifest
     check_output_dir(args.out, force=True, name="--out")
+    photos = resolve_photo_option(args.photos)
+    if photos is None and args.photos == "auto":
+        print("note: no photo folder found (../shared/data/photos or $EVIO_PHOTOS); the set uses the bundled "
+              "textures alone (give --photos DIR to use yours)")
     summary = make_training_set(args.out, args.sequences, args.val, args.test, args.seed, config, workers=args.jobs,
-                                progress=not args.quiet)
+                                progress=not args.quiet, photos=photos)
     counts = summary["sequences"]
     print(f"made {counts['train']} training, {counts['val']} validation and {counts['test']} test sequences in "
           f"{summary['folder']}: {summary['simulated_s']:.0f} s simulated, {summary['events'] / 1e6:.1f} M events, "
