@@ -445,7 +445,7 @@ def make_training_set(out: str | Path, sequences: int = 600, val: int = 32, test
         except (OSError, ValueError) as error:
             raise ValueError(f"{manifest_path} is not a readable training-set manifest ({error}); use another folder")
         keys = ("format", "generator", "seed", "config", "photos")
-        if {k: have.get(k) for k in keys} != {k: wanted[k] for k in keys}:
+        if {k: have.get(k) for k in keys} != {k: wanted.get(k) for k in keys}:
             raise ValueError(f"{out} holds a training set made with other settings (seed {have.get('seed')}, "
                              f"generator version {have.get('generator')}, photos {have.get('photos')}, config "
                              f"{have.get('config')}); use another folder to make this one")
