@@ -158,7 +158,10 @@ class LearnedReconstructor(Reconstructor):
         path = Path(checkpoint)
         # a missing (CheckpointNotFoundError, also a FileNotFoundError), empty, truncated, foreign or SuperPoint file
         # is a one-line CheckpointError (a ValueError) naming it
-        ckpt = read_checkpoint(path, "reconstructor", map_location="cpu", weights_only=True)
+        try:
+            ckpt = read_checkpoint(path, "reconstructor", map_location="cpu", weights_only=True)
+        except CheckpointError as error:            # published FireNet weights are not a reconstruct-train checkpoint
+            ckpt = _published_checkpoint(path, error)
         self.device = device or ("cuda" if torch.cuda.is_available() else "cpu")
         if threads is not None:
             torch.set_num_threads(int(threads))
@@ -199,6 +202,25 @@ class LearnedReconstructor(Reconstructor):
             image, self.state = self.forward(torch.from_numpy(voxels)[None].to(self.device), self.state)
         self.last_image = image[0, 0].float().cpu().numpy()
         return self.last_image.copy()
+
+
+def _published_checkpoint(path: Path, error: Exception) -> dict:
+    """Return published FireNet weights in ``path`` as a checkpoint dict
+    (:mod:`evio_lib.events.reconstruction.published`), or raise ``error`` (why it is no reconstruct-train checkpoint)
+    when the file holds no published layout."""
+    import torch
+
+    from evio_lib.events.reconstruction.published import is_published_layout, published_firenet_checkpoint
+
+    if not path.is_file():
+        raise error
+    try:
+        raw = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception:                                   # unreadable: the reconstruct-train reader's message says why
+        raise error from None
+    if is_published_layout(raw) is None:
+        raise error
+    return published_firenet_checkpoint(raw, path)
 
 
 def shipped_checkpoint(name: str) -> Path:

@@ -40,8 +40,8 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                         "the descriptor stream)")
     p.add_argument("--max-features", type=integer(minimum=20), default=60, help="N, features per frame (default 60)")
     p.add_argument("--reconstructor", default="firenet",
-                   help="event frames: firenet (default, shipped), high_pass, direct, or a reconstruct-train "
-                        "checkpoint file")
+                   help="event frames: firenet (default, shipped), high_pass, direct, a reconstruct-train "
+                        "checkpoint file, or published FireNet / FireNet+ weights (.pth)")
     p.add_argument("--reconstructor-precision", choices=PRECISIONS, default=PRECISIONS[0],
                    help="event frames: a network's arithmetic (default auto: int8 for FireNet on an x86 CPU, "
                         "else float32; speed and quality of each: docs/results/reconstruction.md)")

@@ -110,7 +110,8 @@ def add_reconstruct_arguments(parser: argparse.ArgumentParser) -> argparse.Argum
                         help="output folder for images.txt and images/ (created; never an input or inside one)")
     parser.add_argument("--method", default="firenet",
                         help=f"reconstructor: {', '.join(available_reconstructors())} (default firenet, the shipped "
-                             f"network), or a checkpoint file written by reconstruct-train")
+                             f"network), a checkpoint file written by reconstruct-train, or published FireNet / FireNet+ "
+                             f"weights (.pth: the event_cnn_minimal / EVREAL layout)")
     parser.add_argument("--precision", choices=PRECISIONS, default=PRECISIONS[0],
                         help="a network's arithmetic (default auto: int8 for FireNet on an x86 CPU, 2.4-3x float32's "
                              "frames per second with SSIM within 0.005 on the held-out stretches, else float32; "

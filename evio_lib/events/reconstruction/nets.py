@@ -14,7 +14,9 @@ ConvGRU (Ballas et al. 2016), for input x and hidden state h:
 ConvLSTM (Shi et al. 2015): [i, f, o, g] = W * [x, h];  c' = sigmoid(f) . c + sigmoid(i) . tanh(g);  h' = sigmoid(o) . tanh(c')
 
 Both networks output an image in [0, 1] (a sigmoid on the last layer) and return their new state; ``state=None`` starts
-from zeros.
+from zeros. A FireNet built with ``output="clamp"`` instead clips its last layer to [0, 1]: the published FireNet+
+(Stoffregen et al. 2020; EVREAL) ends in a plain 1 x 1 convolution, and its weights load into that form
+(:mod:`evio_lib.events.reconstruction.published`).
 """
 from __future__ import annotations
 
@@ -24,7 +26,10 @@ from torch.nn import functional as F
 
 from evio_lib.events.reconstruct import PRECISIONS  # re-exported: the names a forward pass can compute in
 
-__all__ = ["PRECISIONS", "AutocastForward", "ConvGRUCell", "ConvLSTMCell", "FireNet", "FireNetInference",
+#: what a FireNet's last layer becomes: "sigmoid" (trained here) or "clamp" (published FireNet+ weights)
+FIRENET_OUTPUTS = ("sigmoid", "clamp")
+
+__all__ = ["FIRENET_OUTPUTS", "PRECISIONS", "AutocastForward", "ConvGRUCell", "ConvLSTMCell", "FireNet", "FireNetInference",
            "E2VIDRecurrent", "build_network", "count_parameters", "inference_network", "resolve_precision"]
 
 
@@ -80,9 +85,12 @@ class _ResidualBlock(nn.Module):
 class FireNet(nn.Module):
     """The small recurrent reconstructor: ``forward(voxels (N, B, H, W), state) -> (image (N, 1, H, W), state)``."""
 
-    def __init__(self, num_bins: int = 5, channels: int = 16) -> None:
+    def __init__(self, num_bins: int = 5, channels: int = 16, output: str = "sigmoid") -> None:
         super().__init__()
+        if output not in FIRENET_OUTPUTS:
+            raise ValueError(f"output must be one of {FIRENET_OUTPUTS}; got {output!r}")
         self.num_bins = num_bins
+        self.output = output
         self.head = nn.Conv2d(num_bins, channels, 3, padding=1)
         self.gru1 = ConvGRUCell(channels, channels)
         self.res1 = _ResidualBlock(channels)
@@ -97,7 +105,12 @@ class FireNet(nn.Module):
         x = self.res1(h1)
         h2 = self.gru2(x, h2)
         x = self.res2(h2)
-        return torch.sigmoid(self.pred(x)), [h1, h2]
+        return _image(self.pred(x), self.output), [h1, h2]
+
+
+def _image(a: torch.Tensor, output: str) -> torch.Tensor:
+    """Return the image of the last layer's output ``a``: sigmoid(a) (the project's networks) or a clipped to [0, 1]."""
+    return torch.sigmoid(a) if output == "sigmoid" else a.clamp(0.0, 1.0)
 
 
 def _tanh_(a: torch.Tensor) -> torch.Tensor:
@@ -127,6 +140,7 @@ class FireNetInference(nn.Module):
             return conv.weight.detach()[rows, cols].clone().contiguous(memory_format=last)
 
         self.num_bins = net.num_bins
+        self.output = net.output
         self.head_w, self.head_b = weights(net.head), net.head.bias.detach().clone()
         self.pred_w, self.pred_b = weights(net.pred), net.pred.bias.detach().clone()
         self.res = [(weights(r.conv1), r.conv1.bias.detach().clone(), weights(r.conv2), r.conv2.bias.detach().clone())
@@ -167,7 +181,7 @@ class FireNetInference(nn.Module):
         x = self._residual(self.res[0], h1)
         h2 = self._gru(self.grus[1], x, h2)
         x = self._residual(self.res[1], h2)
-        return torch.sigmoid_(F.conv2d(x, self.pred_w, self.pred_b)), [h1, h2]
+        return _image(F.conv2d(x, self.pred_w, self.pred_b), self.output), [h1, h2]
 
 
 class AutocastForward(nn.Module):
@@ -204,8 +218,8 @@ def resolve_precision(net: nn.Module, precision: str = "auto") -> str:
         raise ValueError(f"precision must be one of {', '.join(PRECISIONS)}; got {precision!r}")
     if precision != "auto":
         return precision
-    if type(net) is not FireNet or any(p.device.type != "cpu" for p in net.parameters()):
-        return "float32"
+    if type(net) is not FireNet or net.output != "sigmoid" or any(p.device.type != "cpu" for p in net.parameters()):
+        return "float32"                                # (the int8 kernels fuse the sigmoid into the last layer)
     from evio_lib.events.reconstruction.quantized import int8_unavailable
 
     return "float32" if int8_unavailable() else "int8"

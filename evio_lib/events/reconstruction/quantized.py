@@ -412,6 +412,9 @@ def int8_forward(net: FireNet, stored: dict | None = None) -> FireNetInt8:
     if type(net) is not FireNet or any(p.device.type != "cpu" for p in net.parameters()):
         where = next(net.parameters()).device.type
         raise ValueError(f"precision int8 runs a FireNet on the CPU only; got a {type(net).__name__} on {where}")
+    if net.output != "sigmoid":
+        raise ValueError(f"precision int8 runs a FireNet that ends in a sigmoid; this one's output is {net.output!r} "
+                         f"(published weights): use float32")
     problem = int8_unavailable()
     if problem:
         raise ValueError(f"precision int8 cannot run here: {problem}; use float32")
