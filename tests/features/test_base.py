@@ -321,6 +321,9 @@ def test_superpoint_is_the_best_shipped_network():
     default = create_detector("superpoint", max_keypoints=100, inference="fused")
     assert default.weights_path.name == base.SUPERPOINT_DEFAULT_WEIGHTS + ".pt"
     named = create_detector(base.SUPERPOINT_DEFAULT_WEIGHTS, max_keypoints=100, inference="fused")
+    from evio_lib.features.network import SuperPointDetector
+
+    assert SuperPointDetector().weights_path == default.weights_path   # the class's default names the same file
     image = _textured_image()
     a, b = default.detect_and_describe(image), named.detect_and_describe(image)  # the same network, the same output
     np.testing.assert_array_equal(a.keypoints, b.keypoints)

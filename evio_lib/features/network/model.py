@@ -32,6 +32,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from evio_lib.features.base import SUPERPOINT_DEFAULT_WEIGHTS
 from evio_lib.features.network.checks import _check_device
 
 __all__ = [
@@ -59,7 +60,8 @@ MODEL_CONFIGS: dict[str, dict[str, Any]] = {
     "narrow": {"encoder_channels": [32, 32, 32, 32, 64, 64, 64, 64], "head_channels": 128, "descriptor_dim": 256},
 }
 WEIGHTS_DIR = Path(__file__).resolve().parents[2] / "weights"  # package data: evio_lib/weights/*.pt
-DEFAULT_WEIGHTS = "superpoint"  # evio_lib/weights/superpoint.pt: the shipped best model (pre-trained DetDesc Round 2)
+#: the shipped weights SuperPointDetector() loads: the same as create_detector("superpoint") (features.base)
+DEFAULT_WEIGHTS = SUPERPOINT_DEFAULT_WEIGHTS
 # How the shipped weights are made (issue 4 training chain); quoted by the missing-weights error.
 TRAINING_COMMAND = (
     "python -m evio_lib features-train pretrained_detdesc_round2 --chain  (writes "
