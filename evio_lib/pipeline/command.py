@@ -2,6 +2,8 @@
 from __future__ import annotations
 
 import argparse
+import json
+import sys
 import time
 from pathlib import Path
 
@@ -217,9 +219,12 @@ def main_run(args: argparse.Namespace) -> int:
     for note in result.notes[len(data.notes):]:
         print(f"  {note}")
     if args.out is not None:
-        write_run(result, data, args.out, force=args.force, figures=not args.no_figures)
+        out = write_run(result, data, args.out, force=args.force, figures=not args.no_figures)
+        problems = json.loads((out / "metrics.json").read_text(encoding="utf-8"))["output_problems"]
         print(f"wrote {args.out} (trajectory.txt is the {'IMU' if data.kind == 'euroc' else 'camera'} pose in TUM "
               f"format)")
+        for problem in problems:
+            print(f"warning: left out {problem}", file=sys.stderr)
     return 0
 
 

@@ -5,13 +5,19 @@
                         for EuRoC, whose ground truth is the IMU's), in the filter's world frame
     trajectory_imu.txt  TUM: the IMU's estimated pose (the filter's state)
     groundtruth.txt     TUM: the ground truth of the same body at the frame times (when the recording has one), so
-                        ``evo_ape tum groundtruth.txt trajectory.txt`` works as is (add ``-a`` after a static start)
+                        ``evo_ape tum groundtruth.txt trajectory.txt`` works as is (add ``-a`` after a static start);
+                        a ground truth that covers part of the run gives the frames it covers (the overlap the
+                        metrics score), never values extrapolated past its ends
     states.csv          per frame: t, p_IinG, q_GtoI (JPL, x y z w), v_IinG, b_g, b_a, and the 15 standard deviations
                         of [δθ, δb_g, δv, δb_a, δp] (3-sigma bounds are 3x these)
     tracking.csv        per frame: the front-end's counts and timings (``frontend.stats_table``)
     metrics.json        the configuration, the dataset, notes, metrics, timings, the filter's faults and rejections
-    figures/            position, orientation and velocity errors with 3-sigma bounds (thesis Figs. 23-32), the bias
-                        estimates with 3-sigma bounds (Appendix C), the top-down trajectory, the tracking statistics
+    figures/            position, orientation and velocity errors with 3-sigma bounds (thesis Figs. 23-32), over the
+                        overlap with the ground truth, the bias estimates with 3-sigma bounds (Appendix C), the
+                        top-down trajectory, the tracking statistics
+
+A finished run is never thrown away for a part of its output: a figure that cannot be drawn is left out, the rest is
+written, and metrics.json's ``output_problems`` (returned by :func:`write_run` too) names each part left out and why.
 """
 from __future__ import annotations
 
@@ -29,7 +35,7 @@ from evio_lib.io.tum import write_tum
 from evio_lib.pipeline.dataset import LoadedDataset
 from evio_lib.pipeline.run import PipelineResult
 
-__all__ = ["write_run", "write_json", "trajectory_body", "STATE_COLUMNS"]
+__all__ = ["write_run", "write_json", "trajectory_body", "truth_rows", "STATE_COLUMNS"]
 
 STATE_COLUMNS = (["t", "px", "py", "pz", "qx", "qy", "qz", "qw", "vx", "vy", "vz", "bgx", "bgy", "bgz", "bax", "bay",
                   "baz"] + [f"sigma_{n}" for n in ("thx", "thy", "thz", "bgx", "bgy", "bgz", "vx", "vy", "vz", "bax",
@@ -65,10 +71,23 @@ def _write_csv(path: Path, columns: list[str], data: np.ndarray) -> None:
     np.savetxt(path, data, delimiter=",", header=",".join(columns), comments="", fmt="%.9g")
 
 
+def truth_rows(truth: dict[str, np.ndarray]) -> np.ndarray:
+    """Return the boolean mask of the frames a ground truth covers (finite position and orientation); the run holds
+    NaN at the frames outside the ground truth's time span."""
+    p, R = truth["p_IinG"], truth["R_ItoG"]
+    return np.all(np.isfinite(p), axis=1) & np.all(np.isfinite(R.reshape(len(R), -1)), axis=1)
+
+
 def write_run(result: PipelineResult, data: LoadedDataset, out: str | Path, force: bool = False,
               figures: bool = True) -> Path:
-    """Write the run's folder (module docstring) to ``out``; refuse a non-empty one unless ``force``. Return it."""
+    """Write the run's folder (module docstring) to ``out``; refuse a non-empty one unless ``force``. Return it.
+
+    A part that cannot be written is left out and named in metrics.json's ``output_problems`` ("figures/NAME.png:
+    why"; an empty list when everything was written). Raises (leaving no folder) only when the folder itself cannot
+    be written.
+    """
     body = trajectory_body(data.kind)
+    problems: list[str] = []
     with atomic_output_dir(out, force) as tmp:
         q_imu = rot_to_quat(np.swapaxes(result.R_ItoG, -1, -2))  # JPL q_GtoI == Hamilton q of R_ItoG (same numbers)
         write_tum(tmp / "trajectory_imu.txt", result.t, result.p_IinG, q_imu)
@@ -79,31 +98,37 @@ def write_run(result: PipelineResult, data: LoadedDataset, out: str | Path, forc
             write_tum(tmp / "trajectory.txt", result.t, result.p_IinG, q_imu)
         if result.truth:
             R_ItoG, p_IinG = result.truth["R_ItoG"], result.truth["p_IinG"]
+            inside = truth_rows(result.truth)
+            R_ItoG, p_IinG = R_ItoG[inside], p_IinG[inside]
             if body == "camera":
                 R_ItoG, p_IinG = R_ItoG @ result.R_CtoI, p_IinG + R_ItoG @ result.p_CinI
-            write_tum(tmp / "groundtruth.txt", result.t, p_IinG, rot_to_quat(np.swapaxes(R_ItoG, -1, -2)))
+            write_tum(tmp / "groundtruth.txt", result.t[inside], p_IinG, rot_to_quat(np.swapaxes(R_ItoG, -1, -2)))
         states = np.column_stack([result.t, result.p_IinG, result.q_GtoI, result.v_IinG, result.b_g, result.b_a,
                                   result.sigma])
         _write_csv(tmp / "states.csv", STATE_COLUMNS, states)
         if result.tracking:
             names = list(result.tracking)
             _write_csv(tmp / "tracking.csv", names, np.column_stack([result.tracking[n].astype(float) for n in names]))
+        if figures:
+            problems = save_figures(result, tmp / "figures")
         record = {
             "config": dataclasses.asdict(result.config), "label": result.config.label(), "dataset": result.dataset,
             "trajectory_body": body, "notes": result.notes, "metrics": result.metrics, "timings": result.timings,
             "faults": result.faults, "rejections": result.rejections,
             "tracking_mean": {k: float(np.mean(v)) for k, v in result.tracking.items() if k != "t"},
             "track_length_mean": float(np.mean(result.track_lengths)) if len(result.track_lengths) else None,
+            "output_problems": problems,
         }
         write_json(tmp / "metrics.json", record)
         (tmp / "summary.txt").write_text(result.summary() + "\n" + "\n".join(result.notes) + "\n", encoding="utf-8")
-        if figures:
-            save_figures(result, tmp / "figures")
     return Path(out)
 
 
-def save_figures(result: PipelineResult, folder: Path) -> list[Path]:
-    """Save the run's figures as PNG files in ``folder``; return their paths."""
+def save_figures(result: PipelineResult, folder: Path) -> list[str]:
+    """Save the run's figures as PNG files in ``folder``; return the figures left out, each "figures/NAME.png: why".
+
+    The error figures cover the frames the ground truth covers. A figure that fails to draw or save is left out (and
+    closed); the others are still saved."""
     import matplotlib
 
     matplotlib.use("Agg", force=False)
@@ -113,31 +138,45 @@ def save_figures(result: PipelineResult, folder: Path) -> list[Path]:
     from evio_lib.geometry.rotation import so3_log
 
     folder.mkdir(parents=True, exist_ok=True)
-    figs: dict[str, Any] = {}
     t = result.t - result.t[0]
     truth = result.truth
+    builders: dict[str, Any] = {}
     if truth:
-        figs["position_errors"] = pp.plot_state_errors(t, truth["p_IinG"] - result.p_IinG, result.sigma[:, 12:15],
-                                                       quantity="position", unit="m")
-        # the filter's attitude error, in I: q_true = δq ⊗ q_est, C(δq) = I - [δθ]x, so δθ = log(R_est^T R_true)
-        # with R = R_ItoG; its standard deviations are the filter's sigma[0:3] (same frame)
-        dR = np.einsum("nji,njk->nik", result.R_ItoG, truth["R_ItoG"])
-        err = np.degrees(np.array([so3_log(R) for R in dR]))
-        figs["orientation_errors"] = pp.plot_state_errors(t, err, np.degrees(result.sigma[:, 0:3]),
-                                                          quantity="orientation", unit="deg")
+        k = truth_rows(truth)                          # the frames the ground truth covers
+        builders["position_errors"] = lambda: pp.plot_state_errors(
+            t[k], truth["p_IinG"][k] - result.p_IinG[k], result.sigma[k, 12:15], quantity="position", unit="m")
+
+        def orientation():
+            # the filter's attitude error, in I: q_true = δq ⊗ q_est, C(δq) = I - [δθ]x, so δθ = log(R_est^T R_true)
+            # with R = R_ItoG; its standard deviations are the filter's sigma[0:3] (same frame)
+            dR = np.einsum("nji,njk->nik", result.R_ItoG[k], truth["R_ItoG"][k])
+            err = np.degrees(np.array([so3_log(R) for R in dR])).reshape(-1, 3)
+            return pp.plot_state_errors(t[k], err, np.degrees(result.sigma[k, 0:3]), quantity="orientation",
+                                        unit="deg")
+
+        builders["orientation_errors"] = orientation
         if "v_IinG" in truth:
-            figs["velocity_errors"] = pp.plot_state_errors(t, truth["v_IinG"] - result.v_IinG, result.sigma[:, 6:9],
-                                                           quantity="velocity", unit="m/s")
-    figs["gyro_bias"] = pp.plot_bias_estimates(t, result.b_g, result.sigma[:, 3:6], truth.get("b_g"), kind="gyro")
-    figs["accel_bias"] = pp.plot_bias_estimates(t, result.b_a, result.sigma[:, 9:12], truth.get("b_a"), kind="accel")
-    figs["trajectory_topdown"] = pp.plot_trajectory_topdown({result.config.label(): result.p_IinG},
-                                                            truth.get("p_IinG"))
+            builders["velocity_errors"] = lambda: pp.plot_state_errors(
+                t[k], truth["v_IinG"][k] - result.v_IinG[k], result.sigma[k, 6:9], quantity="velocity", unit="m/s")
+    builders["gyro_bias"] = lambda: pp.plot_bias_estimates(t, result.b_g, result.sigma[:, 3:6], truth.get("b_g"),
+                                                           kind="gyro")
+    builders["accel_bias"] = lambda: pp.plot_bias_estimates(t, result.b_a, result.sigma[:, 9:12], truth.get("b_a"),
+                                                            kind="accel")
+    builders["trajectory_topdown"] = lambda: pp.plot_trajectory_topdown({result.config.label(): result.p_IinG},
+                                                                        truth.get("p_IinG"))
     if result.tracking:
-        figs["tracking"] = pp.plot_tracking_statistics(result.tracking, track_lengths=result.track_lengths)
-    paths = []
-    for name, fig in figs.items():
-        path = folder / f"{name}.png"
-        fig.savefig(path, dpi=110, bbox_inches="tight")
-        plt.close(fig)
-        paths.append(path)
-    return paths
+        builders["tracking"] = lambda: pp.plot_tracking_statistics(result.tracking, track_lengths=result.track_lengths)
+    problems = []
+    for name, build in builders.items():
+        fig = None
+        try:
+            fig = build()
+            fig.savefig(folder / f"{name}.png", dpi=110, bbox_inches="tight")
+        except (ValueError, TypeError, IndexError, FloatingPointError, OverflowError, RuntimeError, OSError) as error:
+            (folder / f"{name}.png").unlink(missing_ok=True)
+            first = (str(error).strip().splitlines() or [type(error).__name__])[0]
+            problems.append(f"figures/{name}.png: {first}")
+        finally:
+            if fig is not None:
+                plt.close(fig)
+    return problems

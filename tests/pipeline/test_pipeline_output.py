@@ -253,3 +253,33 @@ def test_table_rows_take_a_reconstructor_precision_and_the_table_names_it():
     assert "| SIFT, event frames (int8) | 1.500 ± 0.707 |" in format_table6([row])
     plain = aggregate([{k: v for k, v in r.items() if k != "reconstructor_precision"} for r in records])[0]
     assert "reconstructor_precision" not in plain and "| SIFT, event frames | 1.500" in format_table6([plain])
+
+
+def test_a_ground_truth_shorter_than_the_run_writes_everything_over_the_overlap(short_run, boxes_aps, tmp_path):
+    import copy
+
+    cut = copy.copy(short_run)
+    n = len(cut.t)
+    inside = np.arange(n) < int(0.6 * n)              # the ground truth ends at 60 % of the frames
+    cut.truth = {k: np.where(inside.reshape(-1, *([1] * (v.ndim - 1))), v, np.nan) for k, v in short_run.truth.items()}
+    out = write_run(cut, boxes_aps, tmp_path / "run", figures=True)
+    t_gt, p_gt, q_gt = read_tum(out / "groundtruth.txt")
+    assert len(t_gt) == inside.sum() and np.isfinite(p_gt).all() and np.isfinite(q_gt).all()
+    np.testing.assert_array_equal(t_gt, cut.t[inside])
+    assert len(read_tum(out / "trajectory.txt")[0]) == n   # the estimate keeps every frame
+    assert len(list((out / "figures").glob("*.png"))) == 7
+    assert json.loads((out / "metrics.json").read_text())["output_problems"] == []
+
+
+def test_a_figure_that_fails_is_left_out_and_named(short_run, boxes_aps, tmp_path, monkeypatch):
+    from evio_lib.evaluation import plots_pipeline
+
+    def broken(*args, **kwargs):
+        raise ValueError("cannot draw")
+
+    monkeypatch.setattr(plots_pipeline, "plot_tracking_statistics", broken)
+    out = write_run(short_run, boxes_aps, tmp_path / "run", figures=True)
+    assert len(list((out / "figures").glob("*.png"))) == 6 and not (out / "figures" / "tracking.png").exists()
+    record = json.loads((out / "metrics.json").read_text())
+    assert record["output_problems"] == ["figures/tracking.png: cannot draw"]
+    assert (out / "trajectory.txt").is_file() and (out / "summary.txt").is_file()
