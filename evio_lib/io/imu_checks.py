@@ -84,6 +84,13 @@ GYRO_BIAS_BOUND = 0.5
 #: ±150 mg (1.5 m/s^2) at most; 3 m/s^2 is twice that.
 ACCEL_BIAS_BOUND = 3.0
 
+#: a sample with |a| or |w| beyond this many times the median, and beyond the floors below, is a glitch (a bit error,
+#: a parser fault) that the unit, axis and gravity checks leave out, when at most GLITCH_MAX_FRACTION of the samples
+#: are such (more are not glitches: the checks see them and say what is wrong)
+GLITCH_FACTOR = 100.0
+GLITCH_ACCEL_FLOOR = 1e3   # m/s^2: ~100 g, beyond any MEMS accelerometer, and beyond 100 g-unit readings
+GLITCH_GYRO_FLOOR = 1e4    # beyond 2000 deg/s read as rad/s, so a gyro in deg/s is still diagnosed
+GLITCH_MAX_FRACTION = 0.01
 _STILL_WINDOW_S = 0.1  # length of the windows tested for stillness [s]
 _STILL_BIN_S = 0.01  # samples are averaged into bins of this length before the steadiness test (noise / sqrt(n))
 _STILL_ACCEL_STD = 0.1  # m/s^2: per-axis std of the binned accelerometer in a still window
@@ -96,6 +103,16 @@ _GYRO_RATIO_BOUND = 10.0  # gyro / truth rate ratio beyond which the gyro is not
 
 class ImuUnitsError(DataFileError):
     """The IMU samples are not in the library's units or frame (accel m/s^2, gyro rad/s, axes of the truth)."""
+
+
+def _glitched_samples(gyro: np.ndarray, accel: np.ndarray) -> np.ndarray:
+    """Return the mask of samples whose |a| or |w| lies beyond GLITCH_FACTOR times its median (and beyond a floor no
+    unit mistake reaches: GLITCH_ACCEL_FLOOR, GLITCH_GYRO_FLOOR), computed without overflow."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        a = np.abs(accel).max(axis=1)                   # the largest component: no squares of 1e200
+        w = np.abs(gyro).max(axis=1)
+    return ((a > max(GLITCH_FACTOR * float(np.median(a)), GLITCH_ACCEL_FLOOR))
+            | (w > max(GLITCH_FACTOR * float(np.median(w)), GLITCH_GYRO_FLOOR)))
 
 
 def _norms(x: np.ndarray) -> np.ndarray:
@@ -390,6 +407,11 @@ def check_imu_units(t: Any, gyro: Any, accel: Any, truth: Any = None, *, source:
     t, gyro, accel = t[finite], gyro[finite], accel[finite]
     if t.size < 2:
         return "IMU units: not checked (fewer than 2 finite samples)"
+    glitch = _glitched_samples(gyro, accel)                # a few absurd samples never steer the diagnosis
+    if 0 < glitch.sum() <= max(1, GLITCH_MAX_FRACTION * t.size):
+        t, gyro, accel = t[~glitch], gyro[~glitch], accel[~glitch]
+    else:
+        glitch = np.zeros(t.size, bool)
 
     step = float(np.median(np.diff(t)))
     if step > MAX_IMU_STEP_S:
@@ -440,6 +462,9 @@ def check_imu_units(t: Any, gyro: Any, accel: Any, truth: Any = None, *, source:
             done.append(f"axes not checked (the ground truth shares {shared:.2f} s with the IMU; "
                         f"{MIN_GRAVITY_SPAN_S:g} s needed" + (", and camera-IMU extrinsics"
                                                              if truth.body == "camera" and R_CtoI is None else "") + ")")
+    if glitch.any():
+        done.append(f"{int(glitch.sum())} glitched sample{'s' if glitch.sum() > 1 else ''} left out of these checks "
+                    f"(|a| or |w| beyond {GLITCH_FACTOR:g}x the median)")
     return "IMU units: " + ", ".join(done)
 
 

@@ -150,6 +150,23 @@ def test_gyro_in_deg_per_s_without_ground_truth(euroc, boxes):
 
 # ----------------------------------------------------------------------------- refused: gravity on the wrong axis
 
+@pytest.mark.parametrize("value", [1e200, -1e200, 5e4])
+def test_a_glitched_sample_is_left_out_not_blamed_on_the_axes(boxes, value):
+    import warnings
+
+    accel, gyro = boxes.imu.accel.copy(), boxes.imu.gyro.copy()
+    accel[len(accel) // 2, 1] = value                    # one absurd accelerometer sample
+    gyro[len(gyro) // 3, 0] = value                      # and one absurd gyro sample
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")                   # no numpy overflow warning reaches the screen
+        summary = check_imu_units(boxes.imu.t, gyro, accel, boxes.groundtruth_imu,
+                                  gravity_G=boxes.metadata["gravity_G"])
+    assert "gravity and axes checked" in summary and "2 glitched samples left out of these checks" in summary
+    # a whole column of another unit is no glitch: still diagnosed
+    assert "in g" in _refused(boxes.imu.t, gyro, accel / 9.81, boxes.groundtruth_imu,
+                              gravity_G=boxes.metadata["gravity_G"])
+
+
 def test_gravity_on_an_axis_the_truth_contradicts(euroc, boxes):
     imu, truth = euroc.imu, euroc.groundtruth_imu
     message = _refused(imu.t, imu.gyro, imu.accel[:, [2, 1, 0]], truth)  # x and z exchanged
