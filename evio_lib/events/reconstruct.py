@@ -214,8 +214,12 @@ def _published_checkpoint(path: Path, error: Exception) -> dict:
 
     if not path.is_file():
         raise error
+    import warnings
+
     try:
-        raw = torch.load(path, map_location="cpu", weights_only=True)
+        with warnings.catch_warnings():                 # "Detected pickle protocol 4": the error below says more
+            warnings.simplefilter("ignore")
+            raw = torch.load(path, map_location="cpu", weights_only=True)
     except Exception:                                   # unreadable: the reconstruct-train reader's message says why
         raise error from None
     if is_published_layout(raw) is None:

@@ -523,4 +523,52 @@ def intrinsics_problem(camera: PinholeRadtan) -> str | None:
                     f"another unit?")
     if not 0.5 <= camera.fy / camera.fx <= 2.0:
         return f"fy / fx = {camera.fy / camera.fx:.3g} (fx {camera.fx:g}, fy {camera.fy:g}); pixels are close to square (0.5 .. 2)"
+    return _distortion_problem(camera)
+
+
+#: at the image's border the radial distortion factor r_d / r_u of a lens a radtan model describes lies within this
+#: range (strong wide-angle lenses reach about 0.6; a fisheye needs another model)
+PLAUSIBLE_DISTORTION_SCALE = (1.0 / 3.0, 3.0)
+
+
+def _distortion_problem(camera: PinholeRadtan) -> str | None:
+    """Return what is implausible about the distortion coefficients, or None.
+
+    Along the border of the image (distorted pixels) the model is inverted (``undistort_normalized``) and applied
+    again: the round trip must come back within 0.1 px (where it does not, the model folds: two rays land on one
+    pixel), the distortion r_d(r) = r (1 + k1 r^2 + k2 r^4 + k3 r^6) must grow along every ray up to the border
+    (d r_d / d r > 0; a fold otherwise), and the factor r_d / r_u at the border must lie within
+    :data:`PLAUSIBLE_DISTORTION_SCALE`. ``k1 = 1e6`` fails the last (the image would span 0.9 degrees); coefficients
+    in another order or unit, or of another model, fail one of them.
+    """
+    if not camera._has_distortion:
+        return None
+    w, h = camera.width, camera.height
+    u = np.concatenate([np.linspace(-0.5, w - 0.5, 33), np.full(25, -0.5), np.full(25, w - 0.5)])
+    v = np.concatenate([np.full(33, -0.5), np.linspace(-0.5, h - 0.5, 25), np.linspace(-0.5, h - 0.5, 25)])
+    u, v = np.concatenate([u, u[:33]]), np.concatenate([v, np.full(33, h - 0.5)])
+    xy_d = np.column_stack([(u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy])
+    coefficients = (f"k1 {camera.k1:g}, k2 {camera.k2:g}, k3 {camera.k3:g}, p1 {camera.p1:g}, p2 {camera.p2:g}")
+    with np.errstate(all="ignore"):
+        xy_u = camera.undistort_normalized(xy_d)
+        back = camera.distort_normalized(xy_u)
+        error_px = np.hypot((back[:, 0] - xy_d[:, 0]) * camera.fx, (back[:, 1] - xy_d[:, 1]) * camera.fy)
+        r_d, r_u = np.hypot(*xy_d.T), np.hypot(*xy_u.T)
+    if not (np.all(np.isfinite(error_px)) and error_px.max() <= 0.1):
+        return (f"the distortion ({coefficients}) cannot be inverted at the image border (round trip off by "
+                f"{np.nanmax(error_px):.3g} px): it folds the image; coefficients in another order (k1 k2 p1 p2 k3) "
+                f"or of another lens model?")
+    r = np.linspace(0.0, float(r_u.max()), 200)
+    grows = np.diff(r * (1 + camera.k1 * r ** 2 + camera.k2 * r ** 4 + camera.k3 * r ** 6))
+    if np.any(grows <= 0):
+        return (f"the radial distortion ({coefficients}) turns back before the image border (r_d stops growing at "
+                f"r = {r[int(np.argmax(grows <= 0))]:.3g}): it folds the image; coefficients in another order "
+                f"(k1 k2 p1 p2 k3) or of another lens model?")
+    scale = r_d[r_u > 0] / r_u[r_u > 0]
+    low, high = PLAUSIBLE_DISTORTION_SCALE
+    if scale.size and not (low <= scale.min() and scale.max() <= high):
+        worst = scale.min() if scale.min() < low else scale.max()
+        return (f"the distortion ({coefficients}) scales the image border by {worst:.3g} (r_d / r_u; a lens the radtan "
+                f"model describes stays within {low:.2g} to {high:g}): coefficients in another order or unit, or of "
+                f"another lens model?")
     return None

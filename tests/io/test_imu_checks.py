@@ -327,6 +327,8 @@ def test_stored_noise_is_refused_or_named_never_replaced(boxes, tmp_path):
     ("19910 19880 132.2 110.7 0 0 0 0 0", r"fx = 19910 px gives a field of view of 0.691 degrees"),
     ("199.1 598.8 132.2 110.7 0 0 0 0 0", r"fy / fx = 3.01"),
     ("-199.1 198.8 132.2 110.7 0 0 0 0 0", r"fx must be a positive focal length"),
+    ("199.1 198.8 132.2 110.7 1e6 0.15 0 0 0", r"the distortion \(k1 1e\+06.*\) scales the image border by 9\d"),
+    ("199.1 198.8 132.2 110.7 -1.0 0.15 0 0 0", r"the distortion .* cannot be inverted at the image border.*folds"),
 ])
 def test_ecd_calibration_outside_the_image_is_refused(tmp_path, calib, message):
     folder = tmp_path / "rec"
