@@ -337,7 +337,8 @@ def read_ecd(folder: str | Path, *, load_events: bool = True, load_frames: bool 
         check_imu_units(imu.t, imu.gyro, imu.accel, groundtruth_imu if groundtruth_imu is not None else groundtruth,
                         source="imu.txt", columns="t ax ay az gx gy gz (accelerometer m/s^2, then gyro rad/s)",
                         R_CtoI=sidecar.get("R_CtoI") if sidecar is not None else None,
-                        gravity_G=side_meta.get("gravity_G") if isinstance(side_meta, dict) else None)
+                        gravity_G=side_meta.get("gravity_G") if isinstance(side_meta, dict) else None,
+                        truth_source="groundtruth_imu.txt" if groundtruth_imu is not None else "groundtruth.txt")
 
     event_size = None if size_unknown else (width, height)
     events = read_ecd_events(events_path, sensor_size=event_size) if load_events else np.empty(0, EVENT_DTYPE)

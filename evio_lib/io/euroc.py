@@ -407,6 +407,7 @@ def read_euroc(folder: str | Path, *, load_frames: bool = True, camera: str | No
             gt_cam = camera_groundtruth(gt_imu, R_CtoI, p_CinI)
             metadata["groundtruth_camera"] = "derived from groundtruth_imu and R_CtoI/p_CinI"
     check_imu_units(imu.t, imu.gyro, imu.accel, gt_imu, source=rel(imu_csv),
-                    columns="timestamp [ns], w_x w_y w_z [rad/s], a_x a_y a_z [m/s^2]")
+                    columns="timestamp [ns], w_x w_y w_z [rad/s], a_x a_y a_z [m/s^2]",
+                    truth_source=rel(gt_path) if gt_path is not None else "the ground truth")
     return Sequence(name=folder.name, camera=cam, frame_times=frame_times, frames=frames, imu=imu,
                     groundtruth=gt_cam, groundtruth_imu=gt_imu, R_CtoI=R_CtoI, p_CinI=p_CinI, metadata=metadata)

@@ -50,7 +50,7 @@ from evio_lib.io.errors import DataFileError
 __all__ = ["ImuUnitsError", "check_imu_units", "check_bias_values", "check_noise_values", "STANDARD_GRAVITY",
            "DEG_PER_RAD", "GYRO_FULL_SCALE_BOUND", "STILL_GYRO_BOUND", "SUSTAINED_FRACTION", "GRAVITY_ANGLE_TOL_DEG",
            "GYRO_BIAS_BOUND", "ACCEL_BIAS_BOUND", "MIN_GRAVITY_SPAN_S", "MAX_IMU_STEP_S", "ACCEL_AXES_FLOOR", "GYRO_AXES_FLOOR",
-           "AXES_RATIO"]
+           "AXES_RATIO", "MAX_TRUTH_SPEED", "truth_speed_problem"]
 
 #: Standard gravity [m/s^2]: one g.
 STANDARD_GRAVITY = 9.80665
@@ -87,6 +87,8 @@ ACCEL_BIAS_BOUND = 3.0
 #: a sample with |a| or |w| beyond this many times the median, and beyond the floors below, is a glitch (a bit error,
 #: a parser fault) that the unit, axis and gravity checks leave out, when at most GLITCH_MAX_FRACTION of the samples
 #: are such (more are not glitches: the checks see them and say what is wrong)
+#: m/s: a ground truth moving faster (95th percentile) holds its positions in another unit than metres
+MAX_TRUTH_SPEED = 100.0
 GLITCH_FACTOR = 100.0
 GLITCH_ACCEL_FLOOR = 1e3   # m/s^2: ~100 g, beyond any MEMS accelerometer, and beyond 100 g-unit readings
 GLITCH_GYRO_FLOOR = 1e4    # beyond 2000 deg/s read as rad/s, so a gyro in deg/s is still diagnosed
@@ -285,6 +287,45 @@ def _best_order(residuals: np.ndarray) -> tuple[float, int, float]:
     return float(residuals[0]), best, float(residuals[best])
 
 
+def _gyro_windows(t: np.ndarray, gyro: np.ndarray, truth: Any, R_CtoI: Any) -> tuple | None:
+    """Return the windows over the IMU's overlap with the truth (span / 10, 0.05-0.2 s long) and per window the mean
+    gyro and the truth's angular rate in the IMU frame, Log(R_ItoG(t_k)^T R_ItoG(t_k+1)) / length, or None (no
+    checkable overlap, fewer than 3 windows): (t0, length, edges, i_edges, ok, truth at the edges, R_CtoI, mean gyro
+    (M, 3), truth rate (M, 3), moving (M,))."""
+    from scipy.spatial.transform import Rotation
+
+    overlap = _checkable_overlap(t, truth, R_CtoI)
+    if overlap is None:
+        return None
+    t0, t1, R_CtoI = overlap
+    span = t1 - t0
+    length = float(np.clip(span / 10.0, 0.05, 0.2))
+    edges = t0 + length * np.arange(int(span // length) + 1)
+    i_edges = np.searchsorted(t, edges)
+    ok = np.diff(i_edges) >= 3
+    if ok.sum() < 3:
+        return None
+    at = truth.interpolate(edges)
+    R_ItoG = _imu_to_world(at.R_BtoG, truth.body, R_CtoI)
+    cumulative_gyro = np.concatenate([np.zeros((1, 3)), np.cumsum(gyro, axis=0)])
+    counts = np.diff(i_edges)[ok]
+    mean_gyro = (cumulative_gyro[i_edges[1:]] - cumulative_gyro[i_edges[:-1]])[ok] / counts[:, None]
+    dR = np.einsum("nji,njk->nik", R_ItoG[:-1], R_ItoG[1:])[ok]  # R_k^T R_k+1 in the IMU frame
+    truth_rate = Rotation.from_matrix(dR).as_rotvec() / length
+    moving = np.linalg.norm(truth_rate, axis=1) > _TRUTH_MOVING_RATE
+    return t0, length, edges, i_edges, ok, at, R_CtoI, mean_gyro, truth_rate, moving
+
+
+def _gyro_residual(t: np.ndarray, gyro: np.ndarray, truth: Any, R_CtoI: Any) -> float | None:
+    """Return the median |mean gyro - truth angular rate| (rad/s) over the moving windows, or None (too little
+    motion to tell)."""
+    windows = _gyro_windows(t, gyro, truth, R_CtoI)
+    if windows is None or windows[-1].sum() < 3:
+        return None
+    mean_gyro, truth_rate, moving = windows[-3:]
+    return float(np.median(np.linalg.norm(mean_gyro[moving] - truth_rate[moving], axis=1)))
+
+
 def _axes_problem(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, truth: Any, R_CtoI: Any,
                   gravity_G: Any) -> str | None:
     """Return which sensor's axes the truth contradicts (columns swapped or a sign flipped), or None.
@@ -302,28 +343,12 @@ def _axes_problem(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, truth: Any
     better; the message names that order. Without motion every order explains the truth equally and nothing is
     refused.
     """
-    from scipy.spatial.transform import Rotation
-
-    overlap = _checkable_overlap(t, truth, R_CtoI)
-    if overlap is None:
+    windows = _gyro_windows(t, gyro, truth, R_CtoI)
+    if windows is None:
         return None
-    t0, t1, R_CtoI = overlap
-    span = t1 - t0
-    length = float(np.clip(span / 10.0, 0.05, 0.2))
-    edges = t0 + length * np.arange(int(span // length) + 1)
-    i_edges = np.searchsorted(t, edges)
-    ok = np.diff(i_edges) >= 3
-    if ok.sum() < 3:
-        return None
-    at = truth.interpolate(edges)
-    R_ItoG = _imu_to_world(at.R_BtoG, truth.body, R_CtoI)
+    t0, length, edges, i_edges, ok, at, R_CtoI, mean_gyro, truth_rate, moving = windows
     orders = _signed_permutations()
-    cumulative_gyro = np.concatenate([np.zeros((1, 3)), np.cumsum(gyro, axis=0)])
     counts = np.diff(i_edges)[ok]
-    mean_gyro = (cumulative_gyro[i_edges[1:]] - cumulative_gyro[i_edges[:-1]])[ok] / counts[:, None]
-    dR = np.einsum("nji,njk->nik", R_ItoG[:-1], R_ItoG[1:])[ok]  # R_k^T R_k+1 in the IMU frame
-    truth_rate = Rotation.from_matrix(dR).as_rotvec() / length
-    moving = np.linalg.norm(truth_rate, axis=1) > _TRUTH_MOVING_RATE
     problems = []
     if moving.sum() >= 3:
         residual = np.median(np.linalg.norm(np.einsum("pij,nj->pni", orders, mean_gyro[moving])
@@ -362,9 +387,43 @@ def _axes_problem(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, truth: Any
             "axes of the truth, or check the ground truth's frame and the camera-IMU extrinsics")
 
 
+def truth_speed_problem(truth: Any, max_speed: float = None) -> str | None:
+    """Return what is implausible about a ground truth's positions, or None: a body whose positions move faster than
+    ``max_speed`` (default MAX_TRUTH_SPEED; 95th percentile over steps of at least 0.05 s) holds them in another unit (millimetres read as
+    metres move a walking camera at ~1000 m/s)."""
+    if truth is None or len(truth) < 2:
+        return None
+    t, p = np.asarray(truth.t, dtype=np.float64), np.asarray(truth.p_BinG, dtype=np.float64)
+    keep = [0]
+    for i in range(1, len(t)):
+        if t[i] - t[keep[-1]] >= _TRUTH_STEP_S:
+            keep.append(i)
+    if len(keep) < 3:
+        return None
+    k = np.asarray(keep)
+    speed = np.linalg.norm(np.diff(p[k], axis=0), axis=1) / np.diff(t[k])
+    fast = float(np.percentile(speed, 95))
+    max_speed = MAX_TRUTH_SPEED if max_speed is None else float(max_speed)
+    if fast <= max_speed:
+        return None
+    guess = next((f": positions in {unit}? divide them by {factor:g} to get metres"
+                  for unit, factor in (("millimetres", 1e3), ("centimetres", 1e2)) if fast / factor <= 30.0),
+                 ": positions in another unit than metres?")
+    return (f"the positions move at {fast:.4g} m/s (95th percentile over {len(k) - 1} steps), faster than any "
+            f"camera a person, vehicle or drone carries ({max_speed:g} m/s){guess}")
+
+
+def _with_wxyz_read_as_xyzw(truth: Any) -> Any:
+    """Return the truth with its quaternions reordered as if the file held w x y z where x y z w was expected."""
+    import dataclasses
+
+    q = np.asarray(truth.q_GtoB)[:, [1, 2, 3, 0]]
+    return dataclasses.replace(truth, q_GtoB=q / np.linalg.norm(q, axis=1, keepdims=True))
+
+
 def check_imu_units(t: Any, gyro: Any, accel: Any, truth: Any = None, *, source: str = "the IMU",
                     columns: str = "gyro (rad/s) then accelerometer (m/s^2)", R_CtoI: Any = None,
-                    gravity_G: Any = None, speed: float = 1.0) -> str:
+                    gravity_G: Any = None, speed: float = 1.0, truth_source: str = "the ground truth") -> str:
     """Refuse IMU samples that are not gyro [rad/s] and specific force [m/s^2] in the frame the truth says.
 
     Args:
@@ -378,6 +437,9 @@ def check_imu_units(t: Any, gyro: Any, accel: Any, truth: Any = None, *, source:
         gravity_G: gravity in the truth's world frame (default (0, 0, -9.81): z up).
         speed: a simulated motion played this many times faster than people and vehicles move (a preset's
             ``speed``): its accelerations, and so the plausible median |a| (4 g at speed 1), grow with speed^2.
+        truth_source: how a message about the ground truth names it (its file), e.g. "groundtruth.txt". The truth's
+            positions are checked for their unit (:func:`truth_speed_problem`, times ``speed``), and a gravity or
+            axes contradiction that vanishes when the truth's quaternions are read as w x y z is blamed on the truth.
 
     Returns:
         One line saying what was checked (for the dataset notes).
@@ -434,6 +496,9 @@ def check_imu_units(t: Any, gyro: Any, accel: Any, truth: Any = None, *, source:
                             f"more than 34.9 rad/s, beyond the ±2000 deg/s range of any MEMS gyroscope{degs}")
     ratio = None
     if truth is not None and len(truth) >= 2:
+        problem = truth_speed_problem(truth, MAX_TRUTH_SPEED * max(1.0, float(speed)))
+        if problem is not None:
+            raise ImuUnitsError(f"{truth_source}: {problem}")
         ratio = _gyro_truth_ratio(t, gyro, truth)
     if ratio is not None:
         if ratio > _GYRO_RATIO_BOUND:
@@ -454,6 +519,17 @@ def check_imu_units(t: Any, gyro: Any, accel: Any, truth: Any = None, *, source:
         if problem is None:
             problem = _axes_problem(t, gyro, accel, truth, R_CtoI, gravity_G)
         if problem is not None:
+            # the truth's quaternions written w x y z: the truth then contradicts the gyro's rotation axes too (the
+            # rates' magnitudes do not tell: a reordering keeps every dot product), and read as w x y z it agrees
+            reordered = _with_wxyz_read_as_xyzw(truth)
+            as_read, as_wxyz = _gyro_residual(t, gyro, truth, R_CtoI), _gyro_residual(t, gyro, reordered, R_CtoI)
+            if (as_read is not None and as_wxyz is not None and as_read > GYRO_AXES_FLOOR
+                    and as_read > AXES_RATIO * as_wxyz
+                    and _gravity_problem(t, accel, reordered, R_CtoI, gravity_G) is None
+                    and _axes_problem(t, gyro, accel, reordered, R_CtoI, gravity_G) is None):
+                raise ImuUnitsError(f"{truth_source}: the orientations contradict the IMU as written and agree with "
+                                    f"it when each quaternion is read as w x y z: write them as qx qy qz qw (scalar "
+                                    f"last)")
             raise ImuUnitsError(f"{source}: {problem}")
         if _checkable_overlap(t, truth, R_CtoI) is not None:
             done.append("gravity and axes checked against the ground truth")

@@ -417,3 +417,20 @@ def test_imu_times_in_another_unit_are_named(euroc, factor, unit):
     imu = euroc.imu
     message = _refused((imu.t - imu.t[0]) * factor, imu.gyro, imu.accel)
     assert "the IMU times are not seconds: the samples lie" in message and f"they look like {unit}" in message
+
+
+def test_a_ground_truth_in_millimetres_or_wxyz_is_blamed_on_the_ground_truth(boxes):
+    import dataclasses
+
+    truth, imu, g = boxes.groundtruth_imu, boxes.imu, boxes.metadata["gravity_G"]
+    mm = dataclasses.replace(truth, p_BinG=truth.p_BinG * 1000.0)
+    with pytest.raises(ImuUnitsError, match=r"^gt.txt: the positions move at .* m/s .*millimetres\? divide them by "
+                                            r"1000"):
+        check_imu_units(imu.t, imu.gyro, imu.accel, mm, gravity_G=g, source="imu.txt", truth_source="gt.txt")
+    q = truth.q_GtoB                                   # written w x y z, read as x y z w
+    wxyz = dataclasses.replace(truth, q_GtoB=q[:, [3, 0, 1, 2]])
+    with pytest.raises(ImuUnitsError, match=r"^gt.txt: the orientations .* read as w x y z: write them as qx qy qz "
+                                            r"qw"):
+        check_imu_units(imu.t, imu.gyro, imu.accel, wxyz, gravity_G=g, source="imu.txt", truth_source="gt.txt")
+    # a fast preset may move fast: the bound grows with its speed
+    assert "gravity and axes checked" in check_imu_units(imu.t, imu.gyro, imu.accel, truth, gravity_G=g)
