@@ -115,7 +115,24 @@ def _read_sidecar(folder: Path) -> dict | None:
         raise DataFileError(f"{SIDECAR_NAME} line {exc.lineno}: invalid JSON ({exc.msg})") from None
     if not isinstance(raw, dict):
         raise DataFileError(f"{SIDECAR_NAME}: expected a JSON object at the top level; got {type(raw).__name__}")
-    return from_json_value(raw)
+    sidecar = from_json_value(raw)
+    meta = sidecar.get("metadata")
+    if isinstance(meta, dict) and meta.get("gravity_G") is not None:
+        _check_gravity(meta["gravity_G"])
+    return sidecar
+
+
+def _check_gravity(value) -> None:
+    """Refuse a sidecar's gravity_G that is not a 3-vector of about 9.81 m/s^2 (9-10.5), naming the file."""
+    try:
+        g = np.asarray(value, dtype=np.float64).reshape(3)
+    except (TypeError, ValueError):
+        raise DataFileError(f"{SIDECAR_NAME}: metadata.gravity_G must be 3 numbers (m/s^2 in the ground truth's "
+                            f"world frame, e.g. [0, 0, -9.81]); got {value!r}") from None
+    norm = float(np.linalg.norm(g))
+    if not (np.isfinite(norm) and 9.0 <= norm <= 10.5):
+        raise DataFileError(f"{SIDECAR_NAME}: metadata.gravity_G = {g.tolist()} has norm {norm:.4g} m/s^2; gravity is "
+                            f"about 9.81 m/s^2 (e.g. [0, 0, -9.81] for a z-up world)")
 
 
 def _read_image_list(folder: Path) -> tuple[np.ndarray, list[Path]]:
@@ -127,7 +144,7 @@ def _read_image_list(folder: Path) -> tuple[np.ndarray, list[Path]]:
             stripped = line.split("#", 1)[0].strip()
             if not stripped:
                 continue
-            tokens = stripped.split()
+            tokens = stripped.split(maxsplit=1)                 # the path is the rest of the line: it may hold spaces
             if len(tokens) != 2:
                 raise DataFileError(f"images.txt line {number}: expected 2 columns (t image_path), got {len(tokens)}")
             try:

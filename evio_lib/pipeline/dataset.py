@@ -360,6 +360,10 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
     if topics is not None and not _is_bag_or_h5(text):
         raise ValueError("--topics applies to ROS bags and MVSEC HDF5 files (which hold several cameras); "
                          f"{text} is neither")
+    if text in PRESETS and Path(text).exists():
+        raise ValueError(f"DATASET {text!r} names both the simulated preset and the {'folder' if Path(text).is_dir() else 'file'} "
+                         f"{Path(text).resolve()}; write ./{text} for the recording, or run from another folder for "
+                         f"the preset")
     if text in PRESETS:
         if calib is not None:
             raise ValueError(f"--calib applies to recordings; the preset {text} knows its camera")
@@ -452,6 +456,9 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
         if kind == "rosbag":
             raise ValueError(f"{source} has no sensor_msgs/Imu topic (topics read: {seq.metadata['topics']}): the "
                              f"MSCKF needs the IMU")
+        if seq.imu is not None and len(seq.imu.t) == 1:
+            raise ValueError(f"{source} holds one IMU sample (imu.txt / mav0/imu0/data.csv): the MSCKF needs the IMU "
+                             f"over the whole recording (at 100 Hz or more)")
         raise ValueError(f"{source} has no IMU samples (imu.txt / mav0/imu0/data.csv): the MSCKF needs the IMU")
     for gt, name in ((seq.groundtruth, _TRUTH_FILES[kind][0]), (seq.groundtruth_imu, _TRUTH_FILES[kind][1])):
         _check_truth_times(gt, seq.imu.t, f"{source}: {name}")

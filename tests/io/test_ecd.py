@@ -214,6 +214,22 @@ def test_image_list_errors(tmp_path):
         read_ecd(folder)
 
 
+def test_image_paths_with_spaces_and_a_sidecar_gravity_that_is_no_gravity(tmp_path):
+    folder = _folder(tmp_path)
+    (folder / "my images").mkdir()
+    image = (np.arange(180 * 240) % 251).astype(np.uint8).reshape(180, 240)
+    cv2.imwrite(str(folder / "my images" / "frame 0.png"), image)
+    (folder / "images.txt").write_text("0.5 my images/frame 0.png\n")
+    seq = read_ecd(folder)
+    np.testing.assert_array_equal(seq.frames[0], image)
+    (folder / "evio_sim.json").write_text(json.dumps({"metadata": {"gravity_G": [0, 0, 0]}}))
+    with pytest.raises(DataFileError, match=r"^evio_sim.json: metadata.gravity_G = \[0.0, 0.0, 0.0\] has norm 0 m/s"):
+        read_ecd(folder)
+    (folder / "evio_sim.json").write_text(json.dumps({"metadata": {"gravity_G": "down"}}))
+    with pytest.raises(DataFileError, match=r"^evio_sim.json: metadata.gravity_G must be 3 numbers"):
+        read_ecd(folder)
+
+
 def test_missing_files_and_folders(tmp_path):
     with pytest.raises(DataFileError, match="ECD folder not found"):
         read_ecd(tmp_path / "nothing")

@@ -161,6 +161,19 @@ def test_ecd_folder_without_imu_is_refused(boxes_aps, tmp_path):
     (folder / "imu.txt").unlink()
     with pytest.raises(ValueError, match="no IMU samples"):
         load_dataset(folder)
+    (folder / "imu.txt").write_text("0.1 0.0 0.0 9.81 0.0 0.0 0.0\n")
+    with pytest.raises(ValueError, match="holds one IMU sample"):
+        load_dataset(folder)
+
+
+def test_a_folder_named_like_a_preset_is_refused_by_its_bare_name(tmp_path, monkeypatch):
+    (tmp_path / "boxes_like").mkdir()
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(ValueError, match=r"names both the simulated preset and the folder .*boxes_like; write "
+                                         r"./boxes_like for the recording"):
+        load_dataset("boxes_like", duration=1.0)
+    with pytest.raises(ValueError, match="events.txt"):     # ./boxes_like is the folder (an empty one here)
+        load_dataset("./boxes_like")
 
 
 def test_events_asked_of_a_folder_without_events(boxes_aps, tmp_path):
