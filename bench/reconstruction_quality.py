@@ -1,5 +1,6 @@
 """Print the reconstruction quality table: MSE / SSIM of every method on the held-out simulated stretches and the real
-slider_depth frames (see evio_lib.events.reconstruction.evaluation for the protocol and the normalisation).
+slider_depth frames, which both splits report (see evio_lib.events.reconstruction.evaluation for the protocol and the
+normalisation).
 
 Usage:  python bench/reconstruction_quality.py [--methods direct high_pass firenet] [--max-frames 12]
                                               [--split test|val] [--precision auto|float32|bfloat16|int8]
@@ -42,8 +43,8 @@ def main() -> None:
     if args.fractions is not None:
         sweep(args.methods, args.fractions, args.max_frames, seed, args.precision)
         return
-    rows = quality_table(args.methods, max_frames=args.max_frames, seed=seed, with_slider=args.split == "test",
-                         precision=args.precision)
+    rows = quality_table(args.methods, max_frames=args.max_frames, seed=seed, with_slider=True,
+                         precision=args.precision)   # the real slider frames: validation and test alike
     print(f"| {'sequence':32s} | {'method':22s} | {'MSE':>6s} | {'SSIM':>6s} | frames |")
     print(f"|{'-' * 34}|{'-' * 24}|{'-' * 8}|{'-' * 8}|--------|")
     for r in rows:  # a network's row names the precision it computed in (the default "auto" picks int8 on x86 CPUs)

@@ -469,6 +469,17 @@ def _still_window(cfg: MsckfConfig, t_first: float, t_last: float) -> float:
     return float(min(cfg.static_init_duration, max(0.1, 0.5 * (t_last - t_first))))
 
 
+def _plain_motion(imu: Any, t0: float, window: float, error: Exception) -> str:
+    """Return in words what moved in the IMU window [t0, t0 + window] (the largest spread of the gyro and the
+    accelerometer), or the static test's own reason where the window is too short to say."""
+    sel = (imu.t >= t0) & (imu.t <= t0 + window)
+    if np.count_nonzero(sel) < 10:
+        return str(error)
+    gyro = float(np.max(np.ptp(imu.gyro[sel], axis=0)))
+    accel = float(np.max(np.ptp(imu.accel[sel], axis=0)))
+    return f"the gyro ranges over {gyro:.2f} rad/s and the accelerometer over {accel:.2f} m/s^2"
+
+
 def _still_start(data: LoadedDataset, cfg: MsckfConfig, t_first: float) -> tuple[bool, str]:
     """Return (still, why): whether the recording starts still over the static-initialisation window.
 
@@ -483,7 +494,7 @@ def _still_start(data: LoadedDataset, cfg: MsckfConfig, t_first: float) -> tuple
         static_initialization(imu.t, imu.gyro, imu.accel, window, float(np.linalg.norm(cfg.gravity)),
                               t_start=t_first)
     except ValueError as error:
-        return False, f"the IMU is not still over the first {window:g} s ({str(error).split(':', 1)[-1].strip()})"
+        return False, f"the recording moves in its first {window:g} s ({_plain_motion(imu, t_first, window, error)})"
     gt = _groundtruth(data)
     if gt is not None:
         a, b = max(t_first, float(gt.t[0])), min(t_first + window, float(gt.t[-1]))
@@ -494,7 +505,7 @@ def _still_start(data: LoadedDataset, cfg: MsckfConfig, t_first: float) -> tuple
             if speed > _STILL_TRUTH_SPEED:
                 return False, (f"the IMU looks still over the first {window:g} s but the ground truth moves at up to "
                                f"{speed:.2f} m/s (a constant velocity)")
-    return True, f"the IMU is still over the first {window:g} s"
+    return True, f"the IMU rests over the first {window:g} s"
 
 
 def _anchor_to_truth(state: Any, truth: dict[str, np.ndarray], t: float) -> Any:
@@ -670,7 +681,10 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
     if init == "auto":
         still, why = _still_start(data, msckf_cfg, t_first)
         init = "static" if still or not has_truth else "groundtruth"
-        notes.append(f"init auto: {why}; {'static' if init == 'static' else 'ground-truth'} initialisation")
+        start = ("the filter starts from gravity and the resting gyro" if still else
+                 "no ground truth to start from, so the filter starts from gravity and the gyro's mean anyway"
+                 if init == "static" else "the filter starts from the ground truth's pose and velocity")
+        notes.append(f"start: {why}: {start}")
 
     if init == "groundtruth":
         t_first = max(t_first, float(_groundtruth(data).t[0]) + 0.025)
