@@ -276,7 +276,8 @@ _TRUTH_FILES = {"preset": ("the simulated camera ground truth", "the simulated I
                 "aedat4": ("the ground truth", "the ground truth"),
                 "rosbag": ("the pose topic", "the pose topic"),
                 "cache": ("the ground truth of sequence.npz", "the IMU ground truth of sequence.npz"),
-                "hdf5": ("the ground truth (pose, pose_ts)", "the ground truth (pose, pose_ts)")}
+                "hdf5": ("the ground truth (pose, pose_ts)", "the ground truth (pose, pose_ts)"),
+                "sequence": ("the Sequence's groundtruth", "the Sequence's groundtruth_imu")}
 #: File suffixes of HDF5 recordings.
 HDF5_SUFFIXES = (".h5", ".hdf5")
 
@@ -314,7 +315,17 @@ def _is_euroc(folder: Path) -> bool:
     return (folder / "mav0").is_dir() or (folder.name == "mav0" and (folder / "imu0").is_dir())
 
 
-def load_dataset(dataset: str | Path | None = None, *, duration: float | None = None, seed: int = 0,
+def _motion_speed(seq: Any, kind: str, speed: float | None) -> float:
+    """Return how many times faster than people and vehicles the recording's motion plays: a preset's ``speed``, a
+    simulated Sequence's ``metadata["speed"]``, else 1 (the IMU checks scale their bounds with it)."""
+    if kind == "preset":
+        return 1.0 if speed is None else float(speed)
+    if kind == "sequence" and isinstance(seq.metadata, dict):
+        return float(seq.metadata.get("speed") or 1.0)
+    return 1.0
+
+
+def load_dataset(dataset: "str | Path | Sequence | None" = None, *, duration: float | None = None, seed: int = 0,
                  need_events: bool = False, need_frames: bool = True, extrinsics: str | Path | None = None,
                  progress: bool = False, calib: str | Path | None = None, start: float = 0.0,
                  aps_exposure_s: float | None = None, speed: float | None = None,
@@ -322,7 +333,9 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
     """Return the recording named by ``dataset`` (a preset name, a folder or a file; None: ``boxes_like``).
 
     Args:
-        dataset: 'boxes_like', 'aerial_like', an ECD folder, a EuRoC ASL folder or an AEDAT4 file (``.aedat4``:
+        dataset: a :class:`~evio_lib.sequence.Sequence` in memory (e.g. from
+            :func:`evio_lib.sim.presets.simulate_sequence`; checked like a recording read from disk), or
+            'boxes_like', 'aerial_like', an ECD folder, a EuRoC ASL folder or an AEDAT4 file (``.aedat4``:
             events, APS frames and IMU, converted from g and deg/s; no ground truth, so the run starts static).
         duration: presets only: seconds simulated (default: the preset's whole 60 / 40 s, or what is left after
             ``start``).
@@ -349,7 +362,21 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
     """
     notes: list[str] = []
     dataset = "boxes_like" if dataset is None else dataset
-    text = str(dataset)
+    from evio_lib.sequence import Sequence
+
+    given = isinstance(dataset, Sequence)
+    if given:                                        # a recording in memory (simulate_sequence, a reader, a slice)
+        for option, value in (("duration", duration), ("start", start), ("aps_exposure_s", aps_exposure_s),
+                              ("speed", speed), ("topics", topics)):
+            if value:
+                raise ValueError(f"{option} applies to presets and recordings on disk; a Sequence is used as it is "
+                                 f"(cut it with sequence.slice_time(t0, t1))")
+    elif not isinstance(dataset, (str, Path)):
+        raise TypeError(f"dataset must be a preset name, a recording's path or a Sequence; got "
+                        f"{type(dataset).__name__}")
+    text = dataset.name if given else str(dataset)
+    if given:
+        text = ""                                     # none of the name checks below applies
     if start and text not in PRESETS:
         raise ValueError("--start applies to simulated presets; a recording is processed from its beginning")
     if aps_exposure_s is not None and text not in PRESETS and Path(text).exists():  # else: 'neither a preset ...'
@@ -360,11 +387,13 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
     if topics is not None and not _is_bag_or_h5(text):
         raise ValueError("--topics applies to ROS bags and MVSEC HDF5 files (which hold several cameras); "
                          f"{text} is neither")
-    if text in PRESETS and Path(text).exists():
+    if text in PRESETS and Path(text).exists() and not given:
         raise ValueError(f"DATASET {text!r} names both the simulated preset and the {'folder' if Path(text).is_dir() else 'file'} "
                          f"{Path(text).resolve()}; write ./{text} for the recording, or run from another folder for "
                          f"the preset")
-    if text in PRESETS:
+    if given:
+        seq, kind, source = dataset, "sequence", dataset.name
+    elif text in PRESETS:
         if calib is not None:
             raise ValueError(f"--calib applies to recordings; the preset {text} knows its camera")
         seq = simulate_preset(text, duration, seed, with_events=need_events, progress=progress, start=start,
@@ -473,7 +502,8 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
         R_CtoI, p_CinI = np.asarray(seq.R_CtoI, float), np.asarray(seq.p_CinI, float)
         notes.append("extrinsics: from the recording (" + {"preset": "simulator", "ecd": "evio_sim.json",
                                                            "euroc": "sensor.yaml", "aedat4": "file", "rosbag": "bag",
-                                                           "hdf5": "file", "cache": "sequence.npz"}[kind] + ")")
+                                                           "hdf5": "file", "cache": "sequence.npz",
+                                                           "sequence": "Sequence"}[kind] + ")")
     else:
         R_CtoI, p_CinI = np.eye(3), np.zeros(3)
         notes.append("extrinsics: none in the recording; assumed camera = IMU frame (the DAVIS's own IMU); "
@@ -483,7 +513,7 @@ def load_dataset(dataset: str | Path | None = None, *, duration: float | None = 
     gravity_G = seq.metadata.get("gravity_G") if isinstance(seq.metadata, dict) else None
     try:  # the readers checked already; presets, --extrinsics and the assumed extrinsics are checked here
         check_imu_units(seq.imu.t, seq.imu.gyro, seq.imu.accel, truth, source=f"{source} IMU", R_CtoI=R_CtoI,
-                        gravity_G=gravity_G, speed=1.0 if speed is None or kind != "preset" else speed)
+                        gravity_G=gravity_G, speed=_motion_speed(seq, kind, speed))
     except ImuUnitsError as error:
         if not (assumed and truth is not None and truth.body == "camera"):
             raise

@@ -650,12 +650,14 @@ def _span(data: LoadedDataset, config: PipelineConfig) -> tuple[float, float]:
 
 
 # ==================================================================================================== the run
-def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, progress: bool = False,
+def run_pipeline(data: "LoadedDataset | Sequence | str | Path", config: PipelineConfig | None = None, progress: bool = False,
                  detector: Any = None) -> PipelineResult:
     """Return the result of running frames -> front-end -> MSCKF on a recording (module docstring).
 
     Args:
-        data: the recording (:func:`evio_lib.pipeline.dataset.load_dataset`).
+        data: the recording: a :class:`~evio_lib.pipeline.dataset.LoadedDataset`, or what
+            :func:`~evio_lib.pipeline.dataset.load_dataset` takes (a Sequence in memory, a preset name, a path),
+            loaded with its checks and the preset's defaults.
         config: the run's choices (default ``PipelineConfig()``: SIFT on APS frames).
         progress: show a progress bar over the processed seconds.
         detector: an already created feature detector to use instead of ``config.features`` (e.g. a loaded CNN), by
@@ -667,6 +669,15 @@ def run_pipeline(data: LoadedDataset, config: PipelineConfig | None = None, prog
     config = PipelineConfig() if config is None else config
     if not isinstance(config, PipelineConfig):
         raise ValueError(f"config must be a PipelineConfig; got {type(config).__name__}")
+    if data is None or isinstance(data, (bytes, int, float, dict, list, tuple)):
+        raise TypeError(f"data must be a LoadedDataset, a Sequence, a preset name or a recording's path; got "
+                        f"{type(data).__name__}")
+    if not isinstance(data, LoadedDataset):          # a Sequence, a preset name or a path: the checks of load_dataset
+        from evio_lib.pipeline.dataset import load_dataset
+
+        uses = config.frames.split("+")
+        data = load_dataset(data, need_events=not config.imu_only and any(s != "aps" for s in uses),
+                            need_frames=config.imu_only or "aps" in uses)
     seq = data.sequence
     notes = list(data.notes)
     has_truth = _groundtruth(data) is not None

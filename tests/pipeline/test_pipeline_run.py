@@ -550,3 +550,19 @@ def test_reconstructor_precision_reaches_the_network(boxes_events):
     assert imu_only.reconstructor_precision is None and not any("computed in" in n for n in imu_only.notes)
     with pytest.raises(ValueError, match="reconstructor_precision must be one of auto, float32, bfloat16, int8; got 'int4'"):
         PipelineConfig(frames="events", reconstructor_precision="int4")
+
+
+def test_a_sequence_in_memory_runs_as_its_loaded_recording(boxes_aps):
+    config = PipelineConfig(tracker="klt", features="fast", max_duration=1.0)
+    loaded = run_pipeline(boxes_aps, config)
+    direct = run_pipeline(boxes_aps.sequence, config)      # the same recording, given as the Sequence itself
+    np.testing.assert_array_equal(direct.p_IinG, loaded.p_IinG)
+    np.testing.assert_array_equal(direct.t, loaded.t)
+    assert any("extrinsics: from the recording (Sequence)" in note for note in direct.notes)
+    for bad in (None, 3, b"boxes_like"):
+        with pytest.raises(TypeError, match="data must be a LoadedDataset, a Sequence, a preset name"):
+            run_pipeline(bad, config)
+    with pytest.raises(ValueError, match="duration applies to presets and recordings on disk"):
+        from evio_lib.pipeline.dataset import load_dataset
+
+        load_dataset(boxes_aps.sequence, duration=2.0)
