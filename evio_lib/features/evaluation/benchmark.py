@@ -9,6 +9,8 @@ Data sets (lists of ``ImagePair``, each image 1, image 2 and the homography H of
 * ``event_frame_pairs``: event frames and warped copies with small random rotations and translations, like the
   thesis's aerial event-frame set (§3.2.3); split "event_frames".
 * ``evio_lib.features.evaluation.hpatches.iter_hpatches_pairs``: the real HPatches folder layout, for anyone who has it.
+* ``evio_lib.features.evaluation.photos.photo_pairs``: ``heldout_pairs`` of the held-out natural photographs of a photo
+  folder (``--dataset photos``), cropped to 3:4 and resized to 480 x 640.
 
 ``run_benchmark(detector, pairs, settings)`` runs one detector over the pairs with the thesis's settings
 (repeatability at 240 x 320 with the best 300 points and NMS 4; homography estimation at 480 x 640 with the best 1000
@@ -842,7 +844,20 @@ def _benchmark_pairs(args: argparse.Namespace) -> tuple[Iterable[ImagePair], dic
         pairs: Iterable[ImagePair] = _LazyPairs(lambda: iter_hpatches_pairs(root, "all", max_scenes=n_images))
         first = [p.image1 for _, p in zip(range(1), pairs)]  # time the detectors on the first reference image
         return pairs, counts, first
-    if args.dataset == "events":
+    if args.dataset == "photos":
+        from evio_lib.features.evaluation.photos import photo_pairs
+        from evio_lib.sim.photos import resolve_photo_option
+
+        given = getattr(args, "photos", "auto")
+        folder = resolve_photo_option(given)
+        if folder is None:
+            why = ("--photos none names no folder" if str(given) == "none"
+                   else "no photo folder found at ../shared/data/photos or $EVIO_PHOTOS")
+            raise ValueError(f"--dataset photos needs photographs ({why}): give --photos DIR, a folder of .jpg/.png "
+                             f"photographs")
+        listed = photo_pairs(folder, getattr(args, "photo_split", "test"), args.seed, n_images=n_images,
+                             pairs_per_image=per_image)
+    elif args.dataset == "events":
         if args.event_frames is None:
             raise ValueError("--dataset events needs --event-frames (an .npy/.npz stack of event frames)")
         frames = _load_event_frames(args.event_frames)[:n_images]
@@ -894,8 +909,15 @@ def main_benchmark(args: argparse.Namespace | Sequence[str] | None = None) -> in
     try:  # every check before the first pair is evaluated
         if args.out is not None:
             weights_file = weights if weights is not None and Path(str(weights)).exists() else None  # or a shipped name
+            photos = None  # the photo folder, so that --out is not written inside it
+            if args.dataset == "photos" and str(getattr(args, "photos", "auto")) != "none":
+                from evio_lib.sim.photos import default_photo_folder
+
+                given = getattr(args, "photos", "auto")
+                photos = default_photo_folder() if given is None or str(given) == "auto" else given
             check_output_dir(args.out, force, name="--out", inputs=[
                 ("the --hpatches-root folder", args.hpatches_root), ("the --event-frames file", args.event_frames),
+                ("the --photos folder", photos),
                 ("the --weights checkpoint", weights_file)])
         shapes = [_parse_shape(text) for text in args.speed_shapes]
         if weights is not None:

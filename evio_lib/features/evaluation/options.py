@@ -17,9 +17,17 @@ def add_benchmark_arguments(parser: argparse.ArgumentParser) -> argparse.Argumen
                              "that fails ends the command with an error unless --keep-going")
     parser.add_argument("--keep-going", action="store_true",
                         help="skip a detector that fails (report it) instead of stopping with an error")
-    parser.add_argument("--dataset", choices=["heldout", "events", "hpatches"], default="heldout",
+    parser.add_argument("--dataset", choices=["heldout", "events", "hpatches", "photos"], default="heldout",
                         help="heldout: HPatches-style pairs of the held-out test images (default); events: event "
-                             "frames from --event-frames and warped copies; hpatches: the real HPatches folder")
+                             "frames from --event-frames and warped copies; hpatches: the real HPatches folder; "
+                             "photos: the same pairs of the held-out photographs of --photos, centre-cropped to 3:4 "
+                             "and resized to 480 x 640")
+    parser.add_argument("--photos", default="auto", metavar="DIR",
+                        help="folder of photographs for --dataset photos, split by name hash into train/val/test "
+                             "(default auto: ../shared/data/photos or $EVIO_PHOTOS where present)")
+    parser.add_argument("--photo-split", choices=["test", "val"], default="test",
+                        help="which held-out photographs --dataset photos uses: test (default) or val (to choose "
+                             "networks without looking at the test photographs)")
     parser.add_argument("--hpatches-root", type=Path, help="HPatches folder with i_*/v_* scenes (--dataset hpatches)")
     parser.add_argument("--event-frames", type=Path,
                         help=".npy (N, H, W) or .npz (array 'frames') of event frames (--dataset events)")
