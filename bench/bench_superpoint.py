@@ -33,6 +33,7 @@ import numpy as np
 import torch
 
 from evio_lib.features import network as sp
+from evio_lib.features.network.inference import _auto_mode
 
 
 def _test_image(height: int, width: int) -> np.ndarray:
@@ -95,7 +96,7 @@ def main() -> None:
         weights = sp.DEFAULT_WEIGHTS
     source = weights if weights is not None else "untrained (random init, seed 0; no shipped weights yet)"
     print(f"SuperPoint benchmark: weights = {source}; torch {torch.__version__}, {args.threads} threads, "
-          f"{os.cpu_count()} CPUs, {args.clock} clock; auto mode here = {sp._auto_mode(torch.device('cpu'))}")
+          f"{os.cpu_count()} CPUs, {args.clock} clock; auto mode here = {_auto_mode(torch.device('cpu'))}")
 
     def make(mode: str, config: str = "full") -> sp.SuperPointDetector:
         common = dict(max_keypoints=args.max_keypoints, nms_radius=4, inference=mode)

@@ -22,17 +22,3 @@ def real_data_dir() -> Path:
     if not REAL_DATA_DIR.is_dir():
         pytest.skip(f"real recordings not found at {REAL_DATA_DIR} (only present beside a CI checkout)")
     return REAL_DATA_DIR
-
-
-@pytest.fixture
-def check_former_module_name() -> Callable[[str, str], None]:
-    """A check that a module's former name (left behind by a move) imports as the same module object as its new name,
-    offering every name of its ``__all__``."""
-
-    def check(former_name: str, current_name: str) -> None:
-        former = importlib.import_module(former_name)
-        current = importlib.import_module(current_name)
-        assert former is current
-        assert former.__all__ and all(hasattr(current, name) for name in former.__all__)
-
-    return check

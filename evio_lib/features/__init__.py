@@ -16,9 +16,6 @@ Layout:
 - :mod:`evio_lib.features.training`: its training data, augmentation, losses and staged training
   (``features-train``; configs in ``evio_lib/features/configs/``);
 - :mod:`evio_lib.features.evaluation`: detector and descriptor metrics and the benchmark (``features-benchmark``).
-
-The former flat module names (``evio_lib.features.superpoint``, ``.train``, ``.benchmark``, ...) still import, as
-aliases of the modules that took their place.
 """
 from evio_lib.lazy_exports import lazy_exports
 

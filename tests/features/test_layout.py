@@ -1,5 +1,5 @@
-"""The features package's layout (issue 26): the former flat module names still import, as the same module objects,
-with every name they offered; the registry, the configs, the weights and the caches are found where they were."""
+"""The features package's layout: one name per module (the former flat names are gone, not aliased), the network's
+public names offered by its package; the registry, the configs, the weights and the caches are found where they were."""
 import importlib
 from pathlib import Path
 
@@ -11,33 +11,26 @@ FORMER = {"superpoint": "network", "train": "training.train", "train_options": "
           "benchmark": "evaluation.benchmark", "benchmark_options": "evaluation.options",
           "evaluate": "evaluation.evaluate", "hpatches": "evaluation.hpatches"}
 
-# evio_lib.features.superpoint, now split over the modules of evio_lib.features.network: its __all__ and its private
-# helpers (tests and benches use a few), all still reachable from the former name.
-SUPERPOINT_ALL = ["CELL", "MODEL_CONFIGS", "DEFAULT_WEIGHTS", "WEIGHTS_DIR", "TRAINING_COMMAND", "INFERENCE_MODES",
-                  "SuperPointNet", "build_model", "count_parameters", "pad_to_cells", "logits_to_heatmap",
-                  "nms_heatmap", "extract_keypoints", "refine_keypoints", "sample_descriptors", "postprocess",
-                  "calibration_images", "quantize_int8", "inference_model", "save_checkpoint", "load_checkpoint",
-                  "load_model", "resolve_weights", "shipped_weights", "SuperPointDetector"]
-SUPERPOINT_PRIVATE = ["_POOL_AFTER", "_CHECKPOINT_FORMAT", "_check_input", "_conv_block", "_check_config",
-                      "_check_logits", "_nms_numpy", "_nms_torch", "_check_tensor", "_quantization_modules",
-                      "_cpu_flags", "_int8_engine", "_bf16_native", "_auto_mode", "_Int8SuperPoint", "_FastSuperPoint",
-                      "_register_shipped_variants", "_check_count", "_check_real", "_check_image_shape",
-                      "_check_device"]
+# the public names of evio_lib.features.network (the former single module's __all__)
+NETWORK_ALL = ["CELL", "MODEL_CONFIGS", "DEFAULT_WEIGHTS", "WEIGHTS_DIR", "TRAINING_COMMAND", "INFERENCE_MODES",
+               "SuperPointNet", "build_model", "count_parameters", "pad_to_cells", "logits_to_heatmap",
+               "nms_heatmap", "extract_keypoints", "refine_keypoints", "sample_descriptors", "postprocess",
+               "calibration_images", "quantize_int8", "inference_model", "save_checkpoint", "load_checkpoint",
+               "load_model", "resolve_weights", "shipped_weights", "SuperPointDetector"]
 
 
 @pytest.mark.parametrize("old,new", sorted(FORMER.items()))
-def test_former_module_name_is_an_alias(old, new, check_former_module_name):
-    check_former_module_name(f"evio_lib.features.{old}", f"evio_lib.features.{new}")
+def test_a_module_has_one_name(old, new):
+    importlib.import_module(f"evio_lib.features.{new}")
+    with pytest.raises(ModuleNotFoundError):
+        importlib.import_module(f"evio_lib.features.{old}")
 
 
-def test_the_split_superpoint_module_keeps_every_name():
-    former = importlib.import_module("evio_lib.features.superpoint")
-    assert sorted(former.__all__) == sorted(SUPERPOINT_ALL)
-    missing = [name for name in SUPERPOINT_ALL + SUPERPOINT_PRIVATE if not hasattr(former, name)]
-    assert not missing
-    # each name is the object of the module that now defines it, not a copy
-    assert former.SuperPointDetector is importlib.import_module("evio_lib.features.network.detector").SuperPointDetector
-    assert former._auto_mode is importlib.import_module("evio_lib.features.network.inference")._auto_mode
+def test_the_network_package_offers_its_public_names_only():
+    network = importlib.import_module("evio_lib.features.network")
+    assert sorted(network.__all__) == sorted(NETWORK_ALL)
+    assert network.SuperPointDetector is importlib.import_module("evio_lib.features.network.detector").SuperPointDetector
+    assert not [name for name in vars(network) if name.startswith("_") and not name.startswith("__")]
 
 
 def test_the_registry_names_the_new_modules():

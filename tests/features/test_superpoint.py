@@ -10,6 +10,9 @@ import torch
 from scipy.special import softmax
 
 from evio_lib.features import network as sp
+from evio_lib.features.network.detector import _register_shipped_variants
+from evio_lib.features.network.inference import _bf16_native
+from evio_lib.features.network.postprocessing import _nms_torch
 from evio_lib.features import base as features_base
 from evio_lib.features.base import Features, create_detector, nms_keypoints
 from evio_lib.features.network import model as sp_model  # where WEIGHTS_DIR is read
@@ -173,7 +176,7 @@ def test_nms_dense_map_and_radius_zero(rng: np.random.Generator) -> None:
     out = sp.nms_heatmap(torch.from_numpy(scores), 3).numpy()
     np.testing.assert_array_equal(out, _greedy_nms_reference(scores, 3))
     # the max-pool version used on GPUs gives the same result (run here on the CPU)
-    pooled = sp._nms_torch(torch.from_numpy(scores)[None, None], 3)[0, 0].numpy()
+    pooled = _nms_torch(torch.from_numpy(scores)[None, None], 3)[0, 0].numpy()
     np.testing.assert_array_equal(pooled, out)
     assert torch.equal(sp.nms_heatmap(torch.from_numpy(scores), 0), torch.from_numpy(scores))
     with pytest.raises(ValueError, match="radius must be an integer >= 0"):
@@ -399,7 +402,7 @@ def test_shipped_name_resolves_and_registers(tmp_path, monkeypatch) -> None:
     sp.save_checkpoint(_model("narrow"), tmp_path / "test_variant_xyz.pt")
     assert sp.shipped_weights() == ["test_variant_xyz"]
     assert sp.resolve_weights("test_variant_xyz") == tmp_path / "test_variant_xyz.pt"
-    sp._register_shipped_variants()
+    _register_shipped_variants()
     det = create_detector("test_variant_xyz", inference="fused", max_keypoints=10)
     assert isinstance(det, sp.SuperPointDetector) and det.weights_path == tmp_path / "test_variant_xyz.pt"
     assert det.model.config == _model("narrow").config
@@ -438,7 +441,7 @@ def test_detector_any_size_uint8_equals_float(rng: np.random.Generator) -> None:
 
 def test_detector_auto_and_int8_modes() -> None:
     auto = sp.SuperPointDetector(weights=None, allow_random=True, model_config="narrow")
-    assert auto.inference == ("bf16" if sp._bf16_native() else "int8")  # the fast path of this CPU
+    assert auto.inference == ("bf16" if _bf16_native() else "int8")  # the fast path of this CPU
     det = sp.SuperPointDetector(weights=None, allow_random=True, model_config="narrow", max_keypoints=5,
                                 inference="int8", calibration=sp.calibration_images((32, 32), count=1))
     assert det.inference == "int8" and det.descriptor_dim == 256

@@ -10,6 +10,5 @@
 - :mod:`~evio_lib.events.reconstruction.evaluation`: the held-out stretches and their scores;
 - :mod:`~evio_lib.events.reconstruction.command`: the ``reconstruct`` command.
 
-The reconstructors themselves (``create_reconstructor``) live in :mod:`evio_lib.events.reconstruct`. The former flat
-module names (``evio_lib.events.reconstruction_nets`` and so on) still import, as aliases of these modules.
+The reconstructors themselves (``create_reconstructor``) live in :mod:`evio_lib.events.reconstruct`.
 """

@@ -10,6 +10,5 @@
 - :mod:`~evio_lib.features.training.datasets`: the real training images (split by source), event frames, label caches;
 - :mod:`~evio_lib.features.training.augment`: photometric and homographic augmentation, keypoint <-> label maps.
 
-Nothing is imported here (the options module must stay free of torch); import the modules. The former flat module
-names (``evio_lib.features.train``, ``evio_lib.features.losses``, ...) still import, as aliases of these modules.
+Nothing is imported here (the options module must stay free of torch); import the modules.
 """
