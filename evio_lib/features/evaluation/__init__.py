@@ -9,7 +9,5 @@
   (``--dataset photos``);
 - :mod:`~evio_lib.features.evaluation.options`: the options of ``features-benchmark`` alone (fast ``--help``).
 
-Nothing is imported here (the options module must stay free of OpenCV and torch); import the modules. The former
-flat module names (``evio_lib.features.benchmark``, ``evio_lib.features.evaluate``, ...) still import, as aliases of
-these modules.
+Nothing is imported here (the options module must stay free of OpenCV and torch); import the modules.
 """
