@@ -29,8 +29,8 @@
 #
 # The code lives in `evio_lib.frontend` (the tracker) and `evio_lib.pipeline` (`load_dataset`, `PipelineConfig`,
 # `run_pipeline`, `run_table`); the same runs are one command away: `python -m evio_lib run` and
-# `python -m evio_lib table`. Every number below is from one run of one simulated seed unless a table says
-# otherwise.
+# `python -m evio_lib table`. Every number below is from one run (of one seed, on simulated data) unless a table
+# says otherwise.
 
 # %%
 import os
@@ -60,6 +60,7 @@ from evio_lib.frontend import camera_rotation_priors, create_tracker, match_mutu
 from evio_lib.frontend.two_point_ransac import two_point_ransac
 from evio_lib.geometry.rotation import so3_log
 from evio_lib.pipeline import PipelineConfig, load_dataset, run_pipeline, run_pipelines
+from evio_lib.pipeline.dataset import PRESET_DURATIONS
 from evio_lib.pipeline.run import msckf_config_for
 
 cv2.setNumThreads(1)
@@ -128,15 +129,17 @@ if HAVE_EUROC:
     assert euroc_images[0].shape == (480, 752) and abs(np.median(np.diff(euroc.frame_times)) - 0.05) < 1e-3  # 20 Hz
     euroc_tracks = create_tracker(euroc.camera, frontend_config).track(euroc_images, euroc_times, rotations)
     euroc_stats = stats_table(euroc_tracks)
-    plot_tracks(euroc_images[-1], euroc_tracks, title="EuRoC V1_01_easy: tracks over 8 frames (0.35 s)")
+    plot_tracks(euroc_images[-1], euroc_tracks, title=f"EuRoC V1_01_easy: tracks over {len(euroc_images)} frames "
+                f"({euroc_times[-1] - euroc_times[0]:.2f} s)")
     plt.show()
     first, final = euroc_tracks[0], euroc_tracks[-1]
     kept = np.isin(final.ids, first.ids)  # tracks alive from the first frame to the last
     drift_px = np.linalg.norm(final.pixels[kept] - first.pixels[np.searchsorted(first.ids, final.ids[kept])], axis=1)
-    print(f"{len(euroc.frames)} frames in the slice; tracked per frame (after the first): "
+    print(f"{len(euroc.frames)} frames of {euroc_images.shape[2]} x {euroc_images.shape[1]} px in the slice, "
+          f"{1 / np.median(np.diff(euroc.frame_times)):.0f} Hz; tracked per frame (after the first): "
           f"{euroc_stats['tracked'][1:].mean():.1f} of {euroc_stats['total'][1:].mean():.1f}; "
           f"{kept.sum()} tracks span all 8 frames, median motion {np.median(drift_px):.2f} px; "
-          f"RANSAC degenerate in {euroc_stats['ransac_degenerate'][1:].sum()} of 7 frames")
+          f"RANSAC degenerate in {euroc_stats['ransac_degenerate'][1:].sum()} of {len(euroc_tracks) - 1} frame pairs")
     assert euroc_stats["tracked"][1:].mean() > 40
     assert kept.sum() > 0.5 * len(final) and np.median(drift_px) < 2.0
     assert euroc_stats["ransac_degenerate"][1:].sum() >= 5
@@ -144,7 +147,8 @@ if HAVE_EUROC:
         f"At the start of V1_01_easy the drone still sits on the floor: {kept.sum()} of the {len(final)} features of "
         f"the last frame were tracked through all eight frames, and they moved a median {np.median(drift_px):.2f} px. "
         f"With no translation there is no epipolar geometry to test, and two-point RANSAC says so: in "
-        f"{euroc_stats['ransac_degenerate'][1:].sum()} of the 7 frame pairs it finds the translation **unobservable** "
+        f"{euroc_stats['ransac_degenerate'][1:].sum()} of the {len(euroc_tracks) - 1} frame pairs it finds the "
+        f"translation **unobservable** "
         f"(degenerate) and falls back to checking each match's displacement after the gyro's rotation is removed. "
         f"This is the situation of a filter's static start; parallax, and with it depth, only comes once the camera "
         f"moves."))
@@ -172,7 +176,8 @@ if (SLIDER / "images.txt").is_file():
     kept = np.isin(final.ids, first.ids)
     slide_px = np.linalg.norm(final.pixels[kept] - first.pixels[np.searchsorted(first.ids, final.ids[kept])], axis=1)
     slider_ratio = slider_stats["tracked"][1:].mean() / slider_stats["total"][1:].mean()
-    print(f"tracked per frame {slider_stats['tracked'][1:].mean():.1f} of {slider_stats['total'][1:].mean():.1f} "
+    print(f"{slider.frames.shape[2]} x {slider.frames.shape[1]} px frames; "
+          f"tracked per frame {slider_stats['tracked'][1:].mean():.1f} of {slider_stats['total'][1:].mean():.1f} "
           f"({100 * slider_ratio:.0f} %); {kept.sum()} tracks span all 8 frames, median motion "
           f"{np.median(slide_px):.1f} px")
     assert slider.frames.shape[1:] == (180, 240) and slider_ratio > 0.6 and np.median(slide_px) > 5
@@ -187,9 +192,9 @@ else:
 # %% [markdown]
 # ### 1b. Simulated frames: the `boxes_like` room
 #
-# The course's simulated DAVIS240C (240 x 180) in a textured room, hand-held motion that starts gently and ends
-# violently over 60 s. `load_dataset` simulates the first `D_APS` seconds of it. The tracker runs over eight frames
-# from t = 3 s:
+# The course's simulated DAVIS240C in a textured room, hand-held motion that starts gently and ends violently (its
+# size, length and the frames' spacing are printed below). `load_dataset` simulates the first `D_APS` seconds of it.
+# The tracker runs over eight frames from t = 3 s:
 
 # %%
 data = load_dataset("boxes_like", duration=D_APS)
@@ -202,8 +207,12 @@ box_images, box_times = seq.frames[k], seq.frame_times[k]
 box_rotations = camera_rotation_priors(seq.imu.t, seq.imu.gyro, box_times, seq.R_CtoI)
 box_tracks = create_tracker(seq.camera, frontend_config).track(box_images, box_times, box_rotations)
 box_stats = stats_table(box_tracks)
-plot_tracks(box_images[-1], box_tracks, title="boxes_like (APS frames): tracks over the last 8 frames")
+frame_gap_ms = 1e3 * float(np.median(np.diff(box_times)))  # the frames' spacing
+plot_tracks(box_images[-1], box_tracks,
+            title=f"boxes_like (APS frames): tracks over {len(box_images)} frames from t = {box_times[0]:.1f} s")
 plt.show()
+print(f"{seq.camera.width} x {seq.camera.height} px; the preset's motion lasts {PRESET_DURATIONS['boxes_like']:g} s; "
+      f"these frames start at t = {box_times[0]:.2f} s, {frame_gap_ms:.1f} ms apart")
 print(f"per frame after the first: {box_stats['detected'][1:].mean():.0f} detections, "
       f"{box_stats['tracked'][1:].mean():.1f} tracked, {box_stats['new'][1:].mean():.1f} new, "
       f"{box_stats['rejected_ransac'][1:].mean():.1f} rejected by RANSAC")
@@ -274,17 +283,18 @@ display(Markdown(
     f"matches it keeps agree with the true geometry to better than its 1.5 px threshold (median {inlier_px:.2f} px), "
     f"while {100 * rejected_off:.0f} % of those it rejects are off by more: wrong correspondences between "
     f"similar-looking places of the room. (The red segments join each rejected candidate to the feature it claimed "
-    f"to continue.) But between two frames 40 ms apart the camera moved only {100 * np.linalg.norm(t_true):.1f} cm, "
+    f"to continue.) But between two frames {frame_gap_ms:.0f} ms apart the camera moved only "
+    f"{100 * np.linalg.norm(t_true):.1f} cm, "
     f"and RANSAC called the translation unobservable (`degenerate: True`): it classified the matches by their "
     f"displacement after the rotation was removed, and never used its two-point model."))
 
 # %% [markdown]
 # ### 1c. The two-point model, with translation
 #
-# To see the model at work, take two frames **0.42 s apart** (t = 2.5 s and 2.9 s), where the camera moved several
-# centimetres. With the rotation $R = R_{C_1\to C_2}$ known from the gyroscope, rotate each previous bearing into the
-# current camera, $g_1 = R f_1$ (scaled so that its third entry is 1). What is left between $g_1$ and $f_2$ is a pure
-# translation, and the epipolar constraint becomes **linear in t**:
+# To see the model at work, take two frames ten apart (frames 60 and 70, their times printed below), where the
+# camera moved several centimetres. With the rotation $R = R_{C_1\to C_2}$ known from the gyroscope, rotate each
+# previous bearing into the current camera, $g_1 = R f_1$ (scaled so that its third entry is 1). What is left
+# between $g_1$ and $f_2$ is a pure translation, and the epipolar constraint becomes **linear in t**:
 #
 # $$ f_2^T [t]_\times g_1 = t \cdot (g_1 \times f_2) = c^T t = 0, \qquad c = g_1 \times f_2 . $$
 #
@@ -292,11 +302,11 @@ display(Markdown(
 # $t \propto c_1 \times c_2$. RANSAC draws pairs, scores each hypothesis by the distance of every $f_2$ to its
 # epipolar line $l = t \times g_1$ (in pixels), keeps the best-supported one and refits $t$ on its inliers by least
 # squares ($\min |C t|$ with $|t| = 1$: the last right singular vector of the stacked $c^T$). The gyro's rotation
-# here is corrected by the simulator's true gyro bias (the filter learns it within seconds, section 2): over 0.4 s an
-# uncorrected bias of 0.05 rad/s turns the view by about 1°, several pixels.
+# here is corrected by the simulator's true gyro bias (the filter learns it within seconds, section 2): left in, the
+# bias alone would turn the view between the two frames by the angle printed below, several pixels.
 
 # %%
-i, j = 60, 70  # frames 0.42 s apart
+i, j = 60, 70  # ten frames apart
 t_i, t_j = seq.frame_times[i], seq.frame_times[j]
 b_g_true = seq.groundtruth_imu.interpolate(seq.imu.t).bias_gyro
 R_gyro = camera_rotation_priors(seq.imu.t, seq.imu.gyro - b_g_true, [t_i, t_j], seq.R_CtoI)[1]  # R_C1toC2
@@ -308,6 +318,10 @@ f2 = np.c_[x2, np.ones(len(x2))]
 g1 = np.c_[x1, np.ones(len(x1))] @ R_gyro.T
 g1 /= g1[:, 2:]  # g1 = R f1, the rotation removed
 c = np.cross(g1, f2)  # one linear constraint c_k . t = 0 per match
+bias_turn = np.linalg.norm(b_g_true[np.searchsorted(seq.imu.t, t_i)]) * (t_j - t_i)  # rad, the bias over the gap
+print(f"frames {i} and {j}: t = {t_i:.2f} s and {t_j:.2f} s, {t_j - t_i:.2f} s apart; the true gyro bias, "
+      f"{np.linalg.norm(b_g_true[np.searchsorted(seq.imu.t, t_i)]):.3f} rad/s, would turn the view by "
+      f"{np.degrees(bias_turn):.1f} deg, {bias_turn * seq.camera.fx:.1f} px at the image centre")
 
 
 def epipolar_distance_px(t):
@@ -345,11 +359,13 @@ print(f"{len(pairs_ij)} matches; the camera moved {100 * np.linalg.norm(t_true_i
       f"library: {library.inliers.sum()} inliers (degenerate: {library.degenerate}), t "
       f"{angle_deg(library.t_dir, t_true_ij):.1f} deg from the truth, {angle_deg(library.t_dir, t_ours):.1f} deg from "
       f"ours; the same decision on {100 * np.mean(our_inliers == library.inliers):.0f} % of the matches")
+sideways_deg = 90 - angle_deg(t_true_ij, np.array([0.0, 0.0, 1.0]))  # the true translation's angle to the image plane
+print(f"the true translation is {sideways_deg:.0f} deg out of the image plane (0: purely sideways)")
 to_pixels = lambda xy: seq.camera.project(np.c_[xy, np.ones(len(xy))])  # noqa: E731  normalised -> pixels
 derotated = np.stack([to_pixels(g1[:, :2]), to_pixels(x2)], axis=1)
 plot_tracks(seq.frames[j], {k: derotated[k] for k in np.flatnonzero(library.inliers)},
             rejected=derotated[~library.inliers], track_label="inliers, rotation removed",
-            title="frames 0.42 s apart: motion left after removing the gyro's rotation")
+            title=f"frames {t_j - t_i:.2f} s apart: motion left after removing the gyro's rotation")
 plt.show()
 assert not library.degenerate and np.linalg.norm(t_true_ij) > 0.05
 assert angle_deg(library.t_dir, t_true_ij) < 5 and angle_deg(t_ours, t_true_ij) < 5
@@ -363,10 +379,12 @@ display(Markdown(
     f"$\\sum_k \\min(d_k, 1.5\\,\\text{{px}})^2$, Torr & Zisserman 2000, instead of the inlier count.) In the "
     f"figure, each green segment joins a previous feature, its rotation removed, to its match: what remains is the "
     f"translation's parallax, segments along lines through the epipole (here far outside the image, since the "
-    f"camera moved mostly sideways), longer for nearer points. In the consecutive pair of section 1b the kept "
+    f"camera moved mostly sideways: {sideways_deg:.0f}° out of the image plane), longer for nearer points. In the "
+    f"consecutive pair of section 1b the kept "
     f"matches moved a median {np.median(ransac.residuals_px[ransac.inliers]):.2f} px after the rotation was removed, "
     f"under the {3 * frontend_config.ransac_threshold_px:g} px below which `two_point_ransac` does not trust a "
-    f"segment's direction (3 times its threshold: the line's direction is then uncertain by 20° or more); too few "
+    f"segment's direction (3 times its threshold: an end point off by the threshold then turns the segment by "
+    f"1/3 rad, {np.degrees(1 / 3):.0f}°, or more); too few "
     f"longer ones agreed, hence the degenerate case there."))
 
 # %% [markdown]
@@ -426,7 +444,7 @@ def pyramidal_lucas_kanade(I0, I1, point, levels=3):
 
 
 # %% [markdown]
-# One corner of the room, at least 40 px from the border, followed to the next frame and to the third frame after,
+# One corner of the room, at least 40 px from the border, followed to the next frame and to the fourth frame on,
 # with one level and with the pyramid, against OpenCV:
 
 # %%
@@ -436,7 +454,7 @@ corner = corners[np.all((corners > 40) & (corners < [200, 140]), axis=1)][0].ast
 criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, frontend_config.klt_max_iterations,
             frontend_config.klt_epsilon)
 flow = {}
-for k in (73, 76):  # the next frame, and 3 frames later
+for k in (73, 76):  # the next frame, and 4 frames on
     single, G = lucas_kanade(frame0.astype(float), seq.frames[k].astype(float), corner, np.zeros(2))
     pyramid = pyramidal_lucas_kanade(frame0.astype(float), seq.frames[k].astype(float), corner,
                                      levels=frontend_config.klt_levels)
@@ -448,7 +466,9 @@ for k in (73, 76):  # the next frame, and 3 frames later
     print(f"frame {k}: one level {single.round(2)} px (OpenCV one level {opencv[0].round(2)}); pyramid "
           f"{pyramid.round(2)} px (OpenCV, {frontend_config.klt_levels} levels: "
           f"{opencv[frontend_config.klt_levels].round(2)})")
-print(f"structure tensor eigenvalues at the corner: {np.linalg.eigvalsh(G).round(0)}")
+print(f"structure tensor eigenvalues at the corner: {np.linalg.eigvalsh(G).round(0)}; the library's window "
+      f"{frontend_config.klt_window} x {frontend_config.klt_window} px, {frontend_config.klt_levels} pyramid levels, "
+      f"iterations until the step is below {frontend_config.klt_epsilon:g} px")
 assert (frontend_config.klt_window, frontend_config.klt_levels) == (15, 3)
 assert np.abs(flow[73][0] - flow[73][2][0]).max() < 0.05 and np.abs(flow[73][1] - flow[73][2][3]).max() < 0.05
 assert 3 < np.linalg.norm(flow[73][1]) < 7  # about 5 px to the next frame
@@ -458,16 +478,17 @@ assert np.linalg.eigvalsh(G)[0] > 0.2 * np.linalg.eigvalsh(G)[1]
 off = lambda a, b: float(np.abs(a - b).max())  # noqa: E731  largest difference of two displacements, px
 low, high = np.linalg.eigvalsh(G)
 display(Markdown(
-    f"To the next frame the corner moved {np.linalg.norm(flow[73][1]):.1f} px: one level is enough, and the ten lines "
+    f"To the next frame the corner moved {np.linalg.norm(flow[73][1]):.1f} px: one level is enough, and the few lines "
     f"above agree with OpenCV to {off(flow[73][0], flow[73][2][0]):.3f} px (one level) and "
-    f"{off(flow[73][1], flow[73][2][3]):.3f} px (pyramid). Three frames later it has moved "
+    f"{off(flow[73][1], flow[73][2][3]):.3f} px (pyramid). {76 - 72} frames on it has moved "
     f"{np.linalg.norm(flow[76][1]):.1f} px, more than twice the window's half-width (7 px): one level then converges "
     f"to a wrong place ({np.linalg.norm(flow[76][0] - flow[76][1]):.1f} px from the pyramid's answer; OpenCV's one "
     f"level {np.linalg.norm(flow[76][2][0] - flow[76][1]):.1f} px), while the pyramid again agrees with OpenCV's three "
     f"levels to {off(flow[76][1], flow[76][2][3]):.3f} px. The eigenvalues of $G$, {low:.0f} and {high:.0f}, are of "
     f"the same order: a corner, as a KLT feature must be. The library adds what a tracker needs around this core: "
     f"the gyro's rotation as the starting guess $d$, a forward-backward check (track back, drop what does not return "
-    f"within 1 px) and the same two-point RANSAC and grid as the descriptor tracker."))
+    f"within {frontend_config.klt_backward_check_px:g} px) and the same two-point RANSAC and grid as the descriptor "
+    f"tracker."))
 
 # %% [markdown]
 # ## 2. The whole pipeline on APS frames
@@ -513,8 +534,9 @@ display(Markdown(
     f"error over the run) of IMU only is {rmse['IMU only'] / rmse['SIFT']:.0f} times SIFT's and "
     f"{rmse['IMU only'] / rmse['KLT + FAST']:.0f} times KLT's. The gap grows with the length of the run: IMU-only's "
     f"error over the second half is {imu_halves[1] / imu_halves[0]:.0f} times that over the first (under a gyro bias "
-    f"the tilt error grows linearly, the misread gravity integrates twice: the position error grows like $t^3$). "
-    f"SIFT ends at {results['SIFT'].metrics['percent_of_distance']:.2f} % of the distance travelled and KLT at "
+    f"the tilt error grows linearly, the misread gravity integrates twice: the position error grows like $t^3$, "
+    f"for which this ratio would be $\\sqrt{{2^7 - 1}}$ = {np.sqrt(2 ** 7 - 1):.1f}). "
+    f"SIFT's error is {results['SIFT'].metrics['percent_of_distance']:.2f} % of the distance travelled and KLT's "
     f"{results['KLT + FAST'].metrics['percent_of_distance']:.2f} % over these first {D_APS:g} s of gentle motion. "
     f"The thesis's unit, **% of distance**, is the mean position error divided by the distance travelled; it "
     f"flatters long runs and punishes short ones, so compare it only between runs over the same stretch."))
@@ -612,22 +634,28 @@ display(Markdown(
     f"nothing measures the heading, while gravity bounds the tilt."))
 
 # %% [markdown]
-# The IMU biases start at zero; the simulator knows the true ones, drawn dashed (the thesis's bias figures, Appendix
-# C, Figs. 49-58, show the estimates alone: its recordings have no true biases):
+# The IMU biases start at zero; the simulator knows the true ones, drawn black dashed (the thesis's bias figures,
+# Appendix C, Figs. 49-58, show the estimates alone: its recordings have no true biases):
 
 # %%
 plot_bias_estimates(t, sift_run.b_g, sigma[:, 3:6], truth["b_g"], kind="gyro", title="SIFT: gyroscope bias")
 plot_bias_estimates(t, sift_run.b_a, sigma[:, 9:12], truth["b_a"], kind="accel", title="SIFT: accelerometer bias")
 plt.show()
 gyro_bias_error = np.linalg.norm(truth["b_g"] - sift_run.b_g, axis=1)
-print(f"|b_g true - estimate|: {gyro_bias_error[0]:.4f} rad/s at the start, {gyro_bias_error[-1]:.4f} rad/s at the end")
+halved = t[np.argmax(gyro_bias_error < 0.5 * gyro_bias_error[0])]  # first time under half the start's error
+tenth = np.flatnonzero(gyro_bias_error < 0.1 * gyro_bias_error[0])
+learned_in = f"under half of that after {halved:.1f} s" + (f", under a tenth after {t[tenth[0]]:.1f} s" if tenth.size
+                                                           else "")
+print(f"|b_g true - estimate|: {gyro_bias_error[0]:.4f} rad/s at the start ({learned_in}), "
+      f"{gyro_bias_error[-1]:.4f} rad/s at the end")
 accel_band_end = 3 * sigma[-1, 9:12]
 print(f"accelerometer bias ±3σ at the end (x_I, y_I, z_I): {accel_band_end.round(3)} m/s^2")
 assert gyro_bias_error[-1] < 0.5 * gyro_bias_error[0]
 assert accel_band_end[1] < min(accel_band_end[0], accel_band_end[2])  # along the vertical y_I: the narrowest
 display(Markdown(
-    f"The gyroscope bias is learned within seconds (its error falls from {1e3 * gyro_bias_error[0]:.1f} to "
-    f"{1e3 * gyro_bias_error[-1]:.1f} mrad/s): every tracked feature constrains the rotation between views. The "
+    f"The gyroscope bias is learned within seconds (its error starts at {1e3 * gyro_bias_error[0]:.1f} mrad/s, is "
+    f"{learned_in} and ends at {1e3 * gyro_bias_error[-1]:.1f} mrad/s): every tracked feature constrains the "
+    f"rotation between views. The "
     f"accelerometer bias is learned unevenly: its ±3σ band ends the narrowest along the vertical $y_I$ "
     f"({accel_band_end[1]:.3f} m/s² against {accel_band_end[0]:.3f} and {accel_band_end[2]:.3f}), where a bias "
     f"changes the measured size of gravity, which no tilt can mimic; across the vertical a bias looks like a small "
@@ -652,8 +680,8 @@ display(Markdown(
     f"The two front-ends differ most in how long they keep a feature: optical flow follows a patch from frame to frame "
     f"and keeps it for {track_length['KLT + FAST']:.1f} frames on average (its longest track: "
     f"{longest['KLT + FAST']} frames), while SIFT's tracks last {track_length['SIFT']:.1f} frames (its longest: "
-    f"{longest['SIFT']}); the histograms' log axes show both ends. Long tracks give the MSCKF more views per feature and therefore more parallax per "
-    f"update."))
+    f"{longest['SIFT']}); the histograms' log axes show both ends. Long tracks give the MSCKF more views per feature "
+    f"and therefore more parallax per update."))
 
 # %% [markdown]
 # Why are SIFT's tracks shorter? A descriptor tracker can only continue a feature that the detector finds *again*
@@ -687,8 +715,8 @@ display(Markdown(
     f"detector does not show here."
     + ("" if slider_ratio is None else
        f" On the real slider frames of section 1a SIFT continued {100 * slider_ratio:.0f} % of its features from "
-       f"frame to frame, in the simulated room {100 * box_ratio:.0f} %: the simulator's APS noise is matched to those "
-       f"real frames.")))
+       f"frame to frame, in the simulated room {100 * box_ratio:.0f} %: for this front-end the simulated frames "
+       f"behave much like real ones.")))
 
 # %% [markdown]
 # A tracker can also keep looking for a point it missed: `PipelineConfig(track_gap=2)` (`run --track-gap 2`) keeps a
@@ -722,7 +750,7 @@ assert all(aerial_rmse[name] > rmse[name] for name in configs)
 display(Markdown(
     f"Over sparse terrain both visual front-ends still beat dead reckoning: IMU only's RMSE is "
     f"{aerial_rmse['IMU only'] / aerial_rmse['SIFT']:.1f} times SIFT's and "
-    f"{aerial_rmse['IMU only'] / aerial_rmse['KLT + FAST']:.1f} times KLT's, and they end at "
+    f"{aerial_rmse['IMU only'] / aerial_rmse['KLT + FAST']:.1f} times KLT's, and their errors are "
     f"{aerial_results['SIFT'].metrics['percent_of_distance']:.2f} % and "
     f"{aerial_results['KLT + FAST'].metrics['percent_of_distance']:.2f} % of the distance flown. The flight covers "
     f"{distance['aerial_like'] / distance['boxes_like']:.0f} times the room's distance in the same time, and every "
@@ -733,8 +761,8 @@ display(Markdown(
 # ### 2c. Standing still: static start and zero-velocity updates
 #
 # Both presets start in motion, so the runs above start from the ground truth. A real recording often starts with
-# the platform on the ground: the EuRoC slice is the first 4.7 s of V1_01, the MAV still on the floor with its rotors
-# spinning. Two things go wrong there if the filter is not told:
+# the platform on the ground: the EuRoC slice is the first seconds of V1_01 (its length is printed below), the MAV
+# still on the floor with its rotors spinning. Two things go wrong there if the filter is not told:
 #
 # - **Initialisation.** With `init="auto"` (the default) the pipeline tests the first second of IMU: if it is still
 #   (the 50 ms means of gyro and accelerometer barely change, and |a| is about g), it starts as OpenVINS does: roll
@@ -764,9 +792,14 @@ from evio_lib.msckf.zero_velocity import ZeroVelocityConfig
 
 still_test = ZeroVelocityConfig()  # the thresholds named above: 0.5 px of median track motion, 0.25 s, 0.1 m/s
 assert (still_test.max_disparity_px, still_test.imu_window, still_test.max_velocity) == (0.5, 0.25, 0.1)
-D_STILL = 2.0 if FAST else None  # seconds of the EuRoC slice (None: all 4.7 s)
+print(f"still: median track motion under {still_test.max_disparity_px:g} px, IMU still over the last "
+      f"{still_test.imu_window:g} s, filter speed under {still_test.max_velocity:g} m/s")
+D_STILL = 2.0 if FAST else None  # seconds of the EuRoC slice (None: all of it)
 if HAVE_EUROC:
     euroc_data = load_dataset(EUROC)
+    slice_s = euroc_data.sequence.frame_times[-1] - euroc_data.sequence.frame_times[0]
+    print(f"the EuRoC slice: {slice_s:.1f} s; the runs below use "
+          + (f"its first {D_STILL:g} s" if D_STILL else "all of it"))
     still_runs = {label: run_pipeline(euroc_data, PipelineConfig(tracker="klt", features="fast", zupt=zupt,
                                                                  max_duration=D_STILL))
                   for label, zupt in (("with zero-velocity updates", True), ("without", False))}
@@ -778,6 +811,8 @@ if HAVE_EUROC:
                           log=True, title="EuRoC V1_01, the MAV on the ground: position error")
     plt.show()
     held, free = still_runs.values()
+    drawn = {label: float(np.sqrt(np.mean(np.sum((r.truth["p_IinG"] - r.p_IinG) ** 2, axis=1)))) for label, r
+             in still_runs.items()}  # the RMSE of the error the figure draws, before any alignment
     print(f"still frames: {held.metrics['zupt_frames']} of {held.metrics['frames']}; "
           f"ATE {held.metrics['ate_se3_m']:.4f} m "
           f"with the updates, {free.metrics['ate_se3_m']:.4f} m without; ground-truth path "
@@ -789,9 +824,12 @@ if HAVE_EUROC:
     display(Markdown(
         f"Both runs start statically. With the zero-velocity updates {held.metrics['zupt_frames']} of the "
         f"{held.metrics['frames']} frames are declared still and the error stays at "
-        f"{1e3 * held.metrics['ate_se3_m']:.1f} mm (ATE); without them the same filter drifts to "
+        f"{1e3 * held.metrics['ate_se3_m']:.1f} mm (ATE; the figure draws the error before alignment, whose RMSE is "
+        f"{1e3 * drawn['with zero-velocity updates']:.1f} mm); without them the same filter drifts to "
         f"{1e3 * free.metrics['ate_se3_m']:.0f} mm, {free.metrics['ate_se3_m'] / held.metrics['ate_se3_m']:.0f} times "
-        f"further, while the MAV does not move. The ground truth's path is {1e3 * held.metrics['distance_m']:.0f} mm "
+        f"further (before alignment: {1e3 * drawn['without']:.0f} mm RMSE, "
+        f"{1e3 * np.linalg.norm(free.truth['p_IinG'][-1] - free.p_IinG[-1]):.0f} mm at the end), "
+        f"while the MAV does not move. The ground truth's path is {1e3 * held.metrics['distance_m']:.0f} mm "
         f"here (the MAV vibrating on the floor), so no % of distance is reported: divided by almost nothing it would "
         f"only measure noise."))
 else:
@@ -835,7 +873,8 @@ display(Markdown(
 
 # %% [markdown]
 # Whether the visual rows overtake it over the whole recordings is what the full sweep measures: every row, both
-# presets, the whole 60 s room and 40 s flight, three seeds (`python -m evio_lib table`, hours on a 2-core CPU). Its
+# presets, the whole room and flight, three seeds (`python -m evio_lib table`, hours of computing; its data line below
+# gives the lengths and seeds). Its
 # APS rows, as the project recorded them (the command and the commit it ran at are printed with the table), beside
 # the thesis's grayscale rows on its real recordings (boxes_6dof, 69.8 m, and the Camp Atterbury flight, 1 077 m):
 
@@ -866,13 +905,19 @@ for row, label in (("sift_aps", "SIFT, APS frames"), ("cnn_aps", "CNN, APS frame
 display(Markdown("\n".join(lines)))
 print(f"the full sweep's numbers: {sweep['data']}\ncommand: {sweep['command']}\nat commit {sweep['commit']}")
 assert values["boxes_like.sift_aps.mean"] < 1.0 and values["boxes_like.klt_aps.mean"] < 1.0
+assert values["boxes_like.cnn_aps.std"] > max(values["boxes_like.sift_aps.std"], values["boxes_like.klt_aps.std"])
+display(Markdown(
+    f"Over the whole recordings SIFT and KLT stay under 1 % of the distance in the room "
+    f"({values['boxes_like.sift_aps.mean']:.2f} and {values['boxes_like.klt_aps.mean']:.2f} %), as the thesis's "
+    f"SIFT and CNN rows on its real Boxes recording do ({THESIS_GRAYSCALE['sift_aps'][1]} and "
+    f"{THESIS_GRAYSCALE['cnn_aps'][1]} %). The CNN's row is the least steady of the three on these simulated frames: "
+    f"{sweep_cell('boxes_like', 'cnn_aps')} % in the room, and over the flight "
+    f"{sweep_cell('aerial_like', 'cnn_aps')}{'' if 'diverged' in sweep_cell('aerial_like', 'cnn_aps') else ' %'}."))
 
 # %% [markdown]
-# Over the whole recordings both visual front-ends stay under 1 % of the distance in the room, as the thesis's rows
-# on its real Boxes recording do; the CNN is the least reliable of the three on these simulated frames. The thesis's
-# numbers come from other sensors, scenes and durations: read them for orientation, not as a like-for-like
-# comparison. One run of one configuration, with its output folder (the trajectory in the TUM format, per-frame
-# states, figures): `python -m evio_lib run boxes_like --duration 10 --out runs/boxes`.
+# The thesis's numbers come from other sensors, scenes and durations: read them for orientation, not as a
+# like-for-like comparison. One run of one configuration, with its output folder (the trajectory in the TUM format,
+# per-frame states, figures): `python -m evio_lib run boxes_like --duration 10 --out runs/boxes`.
 #
 # ## Summary
 #

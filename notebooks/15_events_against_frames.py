@@ -49,6 +49,7 @@ from evio_lib.evaluation.plots_events import plot_image_grid
 from evio_lib.evaluation.plots_pipeline import plot_blur_schematic, plot_error_comparison, plot_error_ratio_vs_blur
 from evio_lib.evaluation.trajectory_metrics import camera_motion, format_table
 from evio_lib.pipeline import PipelineConfig, run_pipelines
+from evio_lib.pipeline.dataset import preset_length
 from evio_lib.pipeline.stretches import (Stretch, error_ratios, rotation_blur_px, run_stretches, simulate_stretches,
                                          stretch_record, stretch_run)
 
@@ -75,19 +76,37 @@ print(f"seeds {list(SEEDS)}; {GENTLE.label}: {GENTLE.duration:g} s from {GENTLE.
 # the **rotation blur**. Events need no exposure: each pixel reports its own change when it happens, and a frame made
 # of a window of events spans only the window's few milliseconds. Counted as they come, the events still draw an edge
 # as a band (its sweep during the window); moved back along the gyroscope's rotation to one time before counting, they
-# draw it as a line. Left, the two sensors on a time line; right, one edge across the image, for a turn of 4.5 rad/s
-# (the room's violent end played twice as fast), a 20 ms exposure, the 10 ms windows and the simulated DAVIS240C's
-# $f$ = 199 px:
+# draw it as a line. Left, the two sensors on a time line; right, one edge across the image, for the mean turn rate
+# of the room's violent end played twice as fast (measured on its simulated gyroscope), a long exposure, the event
+# windows the pipeline makes there (section 2) and the simulated DAVIS240C's focal length; the figure's titles give
+# the numbers:
 
 # %%
-fig = plot_blur_schematic(rate_rad_s=4.5, exposure_s=LONG_EXPOSURE, focal_px=199.0, window_s=0.01)
+from evio_lib.pipeline.frames import MC_MIN_WINDOW_S
+from evio_lib.sim.aps import ApsParams
+
+DEFAULT_EXPOSURE = ApsParams().exposure_s  # s: the simulator's APS exposure
+data_gentle, data_violent = GENTLE.load(SEEDS[0]), VIOLENT.load(SEEDS[0], LONG_EXPOSURE)  # events, IMU, APS frames
+seq_g, seq_v = data_gentle.sequence, data_violent.sequence
+focal = seq_v.camera.fx
+rate_gentle = rotation_blur_px(data_gentle, 1.0) / seq_g.camera.fx  # mean bias-corrected rate, rad/s
+rate_violent = rotation_blur_px(data_violent, 1.0) / focal
+aps_period = float(np.median(np.diff(seq_v.frame_times)))  # s between two APS frames
+rate_drawn, focal_drawn = round(rate_violent, 1), round(focal)  # as the figure's titles print them
+fig = plot_blur_schematic(rate_rad_s=rate_drawn, exposure_s=LONG_EXPOSURE, focal_px=focal_drawn,
+                          window_s=MC_MIN_WINDOW_S, frame_rate_hz=1 / aps_period)
 plt.show()
 
+# %%
+display(Markdown(
+    f"So the question is not \"events or frames\" but \"how much blur\": at the gentle start the camera turns at "
+    f"{rate_gentle:.2f} rad/s on average, and with the simulator's {1e3 * DEFAULT_EXPOSURE:g} ms exposure the APS "
+    f"frame's smear is {rate_gentle * DEFAULT_EXPOSURE * focal:.1f} px: an event frame has nothing to offer that the "
+    f"sharp frame lacks (it is rebuilt from noisy changes). At the violent end twice as fast, "
+    f"{rate_drawn:g} rad/s, a {1e3 * LONG_EXPOSURE:g} ms exposure smears every edge over "
+    f"{rate_drawn * LONG_EXPOSURE * focal_drawn:.0f} px, as drawn. Section 5 measures where the crossover lies."))
+
 # %% [markdown]
-# So the question is not "events or frames" but "how much blur": at 0.3 rad/s and 10 ms the APS frame's smear is
-# 0.6 px, and an event frame has nothing to offer that the sharp frame lacks (it is rebuilt from noisy changes); at
-# 4.5 rad/s and 20 ms the smear is 18 px, as drawn. Section 5 measures where the crossover lies.
-#
 # ## 1. Event frames reconstructed by FireNet, at gentle speed
 #
 # `PipelineConfig(frames="events")` replaces the APS frames by frames reconstructed from windows of $N_e = n H W$
@@ -98,10 +117,9 @@ plt.show()
 # %%
 from evio_lib.pipeline.frames import default_window_fraction
 
-data_gentle = GENTLE.load(SEEDS[0])
-seq_g = data_gentle.sequence
 assert default_window_fraction(seq_g.name) == 0.7
-print(f"{len(seq_g.events):,} events over {GENTLE.duration:g} s of the {seq_g.name} room")
+print(f"{len(seq_g.events):,} events over {GENTLE.duration:g} s of the {seq_g.name} room; FireNet's windows hold "
+      f"n = {default_window_fraction(seq_g.name):g} events per pixel")
 gentle_configs = {
     "IMU only": PipelineConfig(imu_only=True),
     "SIFT, APS frames": PipelineConfig(features="sift"),
@@ -191,10 +209,8 @@ assert contrast_first < 0.8 * contrast_k  # the first window: a network that has
 # %%
 from evio_lib.events.motion_compensation import accumulate_bilinear, motion_compensated_frame, warp_events
 from evio_lib.events.representations import bounded_count_windows, window_size_from_fraction
-from evio_lib.pipeline.frames import MC_MAX_WINDOW_S, MC_MIN_WINDOW_S, MC_WINDOW_FRACTION
+from evio_lib.pipeline.frames import MC_MAX_WINDOW_S, MC_WINDOW_FRACTION
 
-data_violent = VIOLENT.load(SEEDS[0], LONG_EXPOSURE)  # its events, and APS frames exposed 20 ms
-seq_v = data_violent.sequence
 t_mid = float(seq_v.events["t"][0] + seq_v.events["t"][-1]) / 2
 a, b = np.searchsorted(seq_v.events["t"], [t_mid - 0.02, t_mid + 0.02])
 window = seq_v.events[a:b]
@@ -208,13 +224,12 @@ width, height = seq_v.camera.width, seq_v.camera.height
 contrast = {name: float(accumulate_bilinear(warp_events(window, seq_v.camera, t_mid, seq_v.imu.t, gyro,
                                                         data_violent.R_CtoI), width, height).var())
             for name, gyro in gyros.items()}
-rate_gentle = rotation_blur_px(data_gentle, 1.0) / seq_g.camera.fx  # mean bias-corrected rate, rad/s
-rate_violent = rotation_blur_px(data_violent, 1.0) / seq_v.camera.fx
 bounds, ends = bounded_count_windows(seq_v.events, window_size_from_fraction(MC_WINDOW_FRACTION, width, height),
                                      MC_MIN_WINDOW_S, MC_MAX_WINDOW_S)
 lasts = float(np.median(np.diff(ends)))
 print(f"angular rate: {GENTLE.label} {rate_gentle:.2f} rad/s, {VIOLENT.label} {rate_violent:.2f} rad/s; the "
-      f"pipeline's windows here last {1e3 * lasts:.1f} ms (median)")
+      f"pipeline's windows (N_e = {MC_WINDOW_FRACTION:g} H W events, held {1e3 * MC_MIN_WINDOW_S:g}-"
+      f"{1e3 * MC_MAX_WINDOW_S:g} ms) here last {1e3 * lasts:.1f} ms (median)")
 print("contrast: " + ", ".join(f"{k} {v:.1f}" for k, v in contrast.items()))
 assert rate_violent > 5 * rate_gentle and abs(lasts - MC_MIN_WINDOW_S) < 0.001
 assert contrast["motion-compensated (gyro)"] > 2 * contrast["counted as they come"]
@@ -310,6 +325,8 @@ smear_px = float(np.interp(t_k, t_motion, rate_v)) * LONG_EXPOSURE * seq_v.camer
 print(f"{len(seq_v.events) / VIOLENT.duration / 1e6:.1f} M events/s; camera {speed_v.mean():.2f} m/s and "
       f"{rate_v.mean():.2f} rad/s on average; at t = {t_k:.3f} s the rotation moves the image {smear_px:.0f} px during "
       f"the exposure; the event frame holds {window_v.size:,} events of {window_ms:.1f} ms (N_e = {n_e:,})")
+print(f"at speed {VIOLENT.speed:g} the whole room lasts {preset_length('boxes_like', VIOLENT.speed):g} s; the "
+      f"simulator's APS exposure is {1e3 * DEFAULT_EXPOSURE:g} ms unless a run sets `aps_exposure_s`")
 assert smear_px > 10 and abs(window_ms - 1e3 * MC_MIN_WINDOW_S) < 1.0 and window_v.size > n_e
 
 # %% [markdown]
@@ -318,15 +335,20 @@ assert smear_px > 10 and abs(window_ms - 1e3 * MC_MIN_WINDOW_S) < 1.0 and window
 # thin edges. Now three KLT runs over the stretch: on the APS frames, on the motion-compensated frames, and on both
 # streams in one filter (`frames="aps+mc-events"`). In that third run each stream has its own KLT tracker, and every
 # frame of either stream is a camera clone with its own update. The filter gives the event tracks three times the APS
-# tracks' pixel noise (3 px against 1 px, `FUSED_EVENT_NOISE_FACTOR`): on the project's measurements their pixel
-# errors are about twice as large, and they come several times as often with errors that persist from one frame to
-# the next, so more of them do not average the errors out, and at equal noise they would outvote the APS tracks. So
-# an APS observation weighs nine times an event observation.
+# tracks' pixel noise (`FUSED_EVENT_NOISE_FACTOR`; the σ's are printed below): measured against the simulator's
+# world (`bench/track_accuracy.py`; `PipelineConfig`'s docstring gives the figures), their observations lie farther
+# from their true points than the APS tracks', and they come several times as often with errors that persist from
+# one frame to the next, so more of them do not average the errors out, and at equal noise they would outvote the
+# APS tracks. An observation's weight goes with $1/\sigma^2$.
 
 # %%
 from evio_lib.pipeline.run import FUSED_EVENT_NOISE_FACTOR
 
 assert FUSED_EVENT_NOISE_FACTOR == 3.0 and PipelineConfig().pixel_noise_px == 1.0  # 3 px against 1 px
+sigma_aps = PipelineConfig().pixel_noise_px
+print(f"σ of an APS observation {sigma_aps:g} px, of an event observation "
+      f"{FUSED_EVENT_NOISE_FACTOR * sigma_aps:g} px: an APS observation weighs {FUSED_EVENT_NOISE_FACTOR ** 2:g} "
+      f"times an event observation")
 violent_configs = {
     "KLT, APS frames": PipelineConfig(seed=SEEDS[0], **KLT),
     "KLT, motion-compensated frames": PipelineConfig(frames="mc-events", seed=SEEDS[0], **KLT),
@@ -353,7 +375,7 @@ plot_error_comparison({name: r.t for name, r in violent.items()},
 plt.show()
 aps_v, mc_v = stats["KLT, APS frames"], stats["KLT, motion-compensated frames"]
 both_v = stats["KLT, APS + motion-compensated frames"]
-between_px = rate_v.mean() / 24.0 * seq_v.camera.fx  # image motion of the mean rotation between two APS frames
+between_px = rate_v.mean() * aps_period * seq_v.camera.fx  # the mean rotation's image motion between two APS frames
 print(f"between two APS frames the rotation moves the image {between_px:.0f} px on average")
 assert mc_v["per_second"] > 3 * aps_v["per_second"] and mc_v["track_length"] > aps_v["track_length"]
 assert mc_v["features_used"] > aps_v["features_used"]
@@ -366,11 +388,13 @@ def verdict(a, b):
 
 display(Markdown(
     f"The fast motion costs the APS frames their tracks (the smear, and an image that moves {between_px:.0f} px "
-    f"between two frames 42 ms apart): KLT keeps an APS corner for {aps_v['track_length']:.1f} frames on average, and "
-    f"the filter uses {aps_v['features_used']:.1f} features per frame. The event frames, "
+    f"between two frames {1e3 * aps_period:.0f} ms apart): KLT keeps an APS corner for "
+    f"{aps_v['track_length']:.1f} frames on average, and the filter uses {aps_v['features_used']:.1f} features per "
+    f"frame. The event frames, "
     f"{mc_v['per_second']:.0f} a second, give the filter {mc_v['features_used']:.1f} features per frame over "
-    f"{mc_v['track_length']:.1f} frames; in time, though, their tracks last {mc_v['track_ms']:.0f} ms against the APS "
-    f"tracks' {aps_v['track_ms']:.0f} ms. On this seed the event frames' error is "
+    f"{mc_v['track_length']:.1f} frames; in time"
+    f"{', though,' if mc_v['track_ms'] < aps_v['track_ms'] else ' too'} their tracks last {mc_v['track_ms']:.0f} ms "
+    f"against the APS tracks' {aps_v['track_ms']:.0f} ms. On this seed the event frames' error is "
     f"{verdict('KLT, motion-compensated frames', 'KLT, APS frames')} the APS frames' "
     f"({mc_v['percent_of_distance']:.2f} against {aps_v['percent_of_distance']:.2f} % of the distance), and both "
     f"streams together have {both_v['percent_of_distance']:.2f} %, "
@@ -416,7 +440,8 @@ def cell(stretch, frames):
 
 
 THESIS_BOXES = {"aps": "0.989 % (SIFT, grayscale)", "events": "0.447 % (SIFT, event frames)"}  # Table 6, boxes_6dof
-lines = [f"| frames (KLT + FAST) | {GENTLE.label}, 10 ms [% of distance] | {VIOLENT.label}, "
+lines = [f"| frames (KLT + FAST) | {GENTLE.label}, {1e3 * DEFAULT_EXPOSURE:g} ms [% of distance] | "
+         f"{VIOLENT.label}, "
          f"{1e3 * LONG_EXPOSURE:g} ms | thesis, boxes_6dof, whole recording |", "|---|---|---|---|"]
 lines += [f"| {label} | {cell(GENTLE.label, frames)} | {cell(VIOLENT.label, frames)} | "
           f"{THESIS_BOXES.get(frames, '-')} |" for frames, label in FRAME_SOURCES.items()]
@@ -461,12 +486,15 @@ def beats_aps(stretch):
     return ", ".join(f"{FRAME_SOURCES[f]} {n}" for f, n in won.items())
 
 
+spread_note = " (the table's brackets)" if len(SEEDS) > 1 else ""  # one seed: the table has no per-seed brackets
+
 display(Markdown(
     f"In the lesson's runs the lowest mean error at the gentle start is that of the "
-    f"**{FRAME_SOURCES[wins[GENTLE.label]]}**, and at the violent end with 20 ms frames that of the "
-    f"**{FRAME_SOURCES[wins[VIOLENT.label]]}**. Seed by seed, the sources with events beat the APS frames on this many "
-    f"of the {len(SEEDS)} seeds: at the gentle start {beats_aps(GENTLE)}; at the violent end {beats_aps(VIOLENT)}. "
-    f"A mean over few seeds hides the spread (the table's brackets): one run that drifts moves it. The full "
+    f"**{FRAME_SOURCES[wins[GENTLE.label]]}**, and at the violent end with {1e3 * LONG_EXPOSURE:g} ms frames that of "
+    f"the **{FRAME_SOURCES[wins[VIOLENT.label]]}**. Seed by seed, the sources with events beat the APS frames on this "
+    f"many of the {len(SEEDS)} seed{'s' if len(SEEDS) > 1 else ''}: at the gentle start {beats_aps(GENTLE)}; at the "
+    f"violent end {beats_aps(VIOLENT)}. A mean over few seeds hides the spread"
+    f"{spread_note}: one run that drifts moves it. The full "
     f"sweep's 4 s of the violent end put the motion-compensated frames at {fast4['mc_events_percent']:.2f} % against "
     f"the APS frames' {fast4['aps_percent']:.2f} %, a ratio of {fast4['mc_events_percent'] / fast4['aps_percent']:.2f} "
     f"beside the thesis's {0.447 / 0.989:.2f} (0.447 against 0.989 %), while over the whole room, mostly gentle, KLT "
@@ -543,7 +571,9 @@ display(Markdown(
     f"{max(c['blur_px'] for c in summary if c['name'].startswith(VIOLENT.label)):.0f} px (ratios "
     f"{min(c['ratio'] for c in summary if c['name'].startswith(VIOLENT.label)):.2f}-"
     f"{max(c['ratio'] for c in summary if c['name'].startswith(VIOLENT.label)):.2f}). The stretches are short and "
-    f"the seeds few, so read the crossover as a range, not a threshold."))
+    f"the seeds few, so "
+    + ("read the crossover as a range, not a threshold." if won else
+       "this does not rule out a crossover at more blur or over longer stretches.")))
 
 # %% [markdown]
 # Two limits of this measurement. The blur counts the rotation only: the translation adds $f|v|/Z$ to the APS frames'
@@ -560,7 +590,8 @@ display(Markdown(
 #   and keeps edges where the scene has them.
 # - At gentle speed the APS frames are sharp, and they beat FireNet's reconstructions with SIFT and with KLT.
 # - The rotation blur $b = |\omega| T f$ of an APS frame grows with the angular rate and the exposure; fast motion and
-#   a long exposure shorten the APS tracks, while the event frames come many times a second and keep theirs.
+#   a long exposure shorten the APS tracks, while the event frames come many times a second and give the filter
+#   more features per frame (section 3 compares the tracks' lengths in frames and in milliseconds).
 # - Fusing both streams in one filter needs each weighted by its accuracy: the event tracks get three times the APS
 #   tracks' pixel noise, since they come more often with errors that persist.
 # - The error ratio against the blur says when events win on this simulator (section 5 renders the measured range);
