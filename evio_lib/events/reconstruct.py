@@ -28,16 +28,16 @@ import numpy as np
 
 from evio_lib.events.array import EVENT_DTYPE
 from evio_lib.events.representations import check_sensor_pixels, voxel_grid
+from evio_lib.events.reconstruction.precision import PRECISIONS  # torch-free: the commands' --help stays light
 
 __all__ = ["PRECISIONS", "Reconstructor", "LogIntegrator", "LearnedReconstructor", "available_reconstructors",
            "create_reconstructor", "reconstructor_by_name_or_file", "shipped_checkpoint", "reconstruct_windows",
            "reconstruct_at_times"]
 
-#: A network's arithmetic (``precision=`` of the learned reconstructors; the classical ones have none to choose).
-#: ``auto`` (the default): int8 for a FireNet on a CPU that runs PyTorch's x86 int8 convolutions and Numba's kernels
-#: (2.4-3x float32's frames per second, SSIM within 0.005 on the held-out stretches), else float32; see
-#: :func:`evio_lib.events.reconstruction.nets.resolve_precision`. A reconstructor's ``precision`` says which it chose.
-PRECISIONS = ("auto", "float32", "bfloat16", "int8")
+# PRECISIONS: a network's arithmetic (``precision=`` of the learned reconstructors; the classical ones have none to
+# choose). ``auto`` (the default): int8 for a FireNet on a CPU that runs PyTorch's x86 int8 convolutions and Numba's
+# kernels, else float32 (:func:`evio_lib.events.reconstruction.precision.resolve_precision`). A reconstructor's
+# ``precision`` says which it chose.
 
 WEIGHTS_DIR = Path(__file__).resolve().parents[1] / "weights"
 #: Shipped learned reconstructors: name -> checkpoint file in evio_lib/weights/.
@@ -149,7 +149,8 @@ class LearnedReconstructor(Reconstructor):
         super().__init__(width, height)
         import torch
 
-        from evio_lib.events.reconstruction.nets import build_network, inference_network, resolve_precision
+        from evio_lib.events.reconstruction.nets import build_network
+        from evio_lib.events.reconstruction.precision import inference_network, resolve_precision
 
         _check_precision(precision)  # before the checkpoint loads and the thread count changes
 

@@ -47,13 +47,10 @@ _BUILTIN_DETECTORS: dict[str, tuple[str, str]] = {
     "sift": ("evio_lib.features.classical", "SiftDetector"),
     "orb": ("evio_lib.features.classical", "OrbDetector"),
     "fast_freak": ("evio_lib.features.classical", "FastFreakDetector"),
-    "superpoint": ("evio_lib.features.base", "_create_superpoint"),
+    "superpoint": ("evio_lib.features.network.detector", "SuperPointDetector"),   # default weights: below
 }
-#: Shipped weights behind the name "superpoint": the best network measured so far (README, "Measured results"):
-#: pre-trained DetDesc Round 1 trained on a GPU, test viewpoint homography correctness 0.210 at eps = 3 against
-#: 0.121 for the other shipped network (pretrained_detdesc_round2_cpu), validation viewpoint 0.20 against 0.17,
-#: matching score 0.211 / 0.580 against 0.156 / 0.563 (viewpoint / illumination). It does not reach SIFT on the
-#: viewpoint split (0.545), so it is the best shipped network, not one that meets every target.
+#: Shipped weights behind the name "superpoint" (and SuperPointDetector()'s default): the best shipped network on the
+#: held-out benchmark (docs/results/features.md), pre-trained DetDesc Round 1; ``weights=`` picks another.
 SUPERPOINT_DEFAULT_WEIGHTS = "pretrained_detdesc_round1_gpu"
 # Modules that register trained variants (register_detector) when imported; loaded on a registry miss.
 _PLUGIN_MODULES: tuple[str, ...] = ("evio_lib.features.network.detector",)
@@ -435,19 +432,6 @@ def create_detector(name: str, **options: Any) -> FeatureDetector:
     if not isinstance(detector, FeatureDetector):
         raise TypeError(f"the factory registered as {key!r} returned {type(detector).__name__}, not a FeatureDetector")
     return detector
-
-
-def _create_superpoint(**options: Any) -> FeatureDetector:
-    """Return a SuperPointDetector with the best shipped weights (``SUPERPOINT_DEFAULT_WEIGHTS``) unless given.
-
-    ``create_detector("superpoint")`` loads ``evio_lib/weights/pretrained_detdesc_round1_gpu.pt``; pass
-    ``weights=PATH`` (a checkpoint) or ``weights=NAME`` (shipped weights) for another network, or ``weights=None,
-    allow_random=True`` for an untrained one. Imported on demand: only this name pulls in torch.
-    """
-    from evio_lib.features.network.detector import SuperPointDetector
-
-    options.setdefault("weights", SUPERPOINT_DEFAULT_WEIGHTS)
-    return SuperPointDetector(**options)
 
 
 # ---------------------------------------------------------------------------------------------- small checks

@@ -7,7 +7,8 @@ import torch
 
 from evio_lib.events.array import make_events
 from evio_lib.events.reconstruct import create_reconstructor
-from evio_lib.events.reconstruction.nets import FireNet, FireNetInference, E2VIDRecurrent, inference_network
+from evio_lib.events.reconstruction.nets import E2VIDRecurrent, FireNet, FireNetInference
+from evio_lib.events.reconstruction.precision import inference_network
 from evio_lib.events.representations import count_windows, voxel_grid
 from evio_lib.io.ecd import read_ecd_events
 

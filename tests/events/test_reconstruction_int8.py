@@ -255,7 +255,7 @@ def test_auto_chooses_int8_where_it_runs_and_float32_elsewhere(firenet, monkeypa
     network, on another quantised engine, or without the kernels; the reconstructor says which it chose."""
     from evio_lib.events.reconstruct import PRECISIONS
     from evio_lib.events.reconstruction import quantized
-    from evio_lib.events.reconstruction.nets import resolve_precision
+    from evio_lib.events.reconstruction.precision import resolve_precision
 
     assert PRECISIONS[0] == "auto"
     assert quantized.int8_unavailable() == ""                          # this CPU (x86, numba installed)
