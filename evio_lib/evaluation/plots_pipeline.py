@@ -350,7 +350,6 @@ def plot_tracking_statistics(stats: Mapping[str, ArrayLike], *, track_lengths: A
     for key, style in (("total", "k-"), ("tracked", "C0-"), ("new", "C2-")):
         top.plot(t, columns[key], style, lw=1.2, label=f"{key} (mean {columns[key].mean():.1f})")
     top.set_ylabel("features per frame")
-    top.set_ylim(bottom=0.0)
     bottom.sharex(top)
     bottom.plot(t, columns["rejected_ransac"], "C3-", lw=1.2,
                 label=f"rejected by RANSAC (mean {columns['rejected_ransac'].mean():.1f})")
@@ -358,10 +357,11 @@ def plot_tracking_statistics(stats: Mapping[str, ArrayLike], *, track_lengths: A
         bottom.plot(t, columns["lost"], "C1:", lw=1.2, label=f"lost (mean {columns['lost'].mean():.1f})")
     bottom.set_ylabel("tracks per frame")
     bottom.set_xlabel("time [s]")
-    bottom.set_ylim(bottom=0.0)
-    for ax in (top, bottom):
+    for ax, curves in ((top, ("total", "tracked", "new")), (bottom, ("rejected_ransac", "lost"))):
         ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=8, loc="upper right")
+        highest = max(float(columns[k].max()) for k in curves if k in columns)
+        ax.set_ylim(0.0, 1.45 * max(highest, 1.0))            # headroom: the legend sits above the curves
+        ax.legend(fontsize=8, loc="upper left", ncol=3, frameon=False)
     if lengths is not None:
         hist = axes[2]
         hist.hist(lengths, bins=track_length_bins(lengths), color="C0", alpha=0.8)

@@ -474,8 +474,10 @@ def plot_pipeline_schematic() -> "Figure":
 
     Events become frames by windows of N_e = n H W events and a reconstruction (lesson 04), or the APS frames are
     used directly; features (classical or CNN, lessons 05-08) are tracked from frame to frame (KLT or descriptor
-    matching, two-point RANSAC with the gyroscope's rotation); the MSCKF (lessons 09-13) propagates with the IMU
-    and updates with finished tracks; the trajectory is scored against the ground truth (thesis Chapter IV §4.5).
+    matching, two-point RANSAC with the gyroscope's rotation: lesson 14); the MSCKF (the IMU in lesson 09, the Kalman
+    filter in 10, the MSCKF in 11-13) propagates with the IMU
+    and updates with finished tracks; the trajectory is scored against the ground truth (lesson 14; thesis Chapter
+    IV §4.5).
 
     >>> import matplotlib; matplotlib.use("Agg")
     >>> fig = plot_pipeline_schematic()
@@ -494,12 +496,12 @@ def plot_pipeline_schematic() -> "Figure":
     truth = _box(ax, 0.1, 0.0, 2.2, 0.8, "ground truth", _SENSOR, fontsize=8.5)
     recon = _box(ax, 3.0, 4.2, 2.6, 1.2, "windows N_e = n H W\n-> reconstruction\n(04)", _PROCESS, fontsize=8.5)
     frames = _box(ax, 6.3, 3.2, 2.0, 1.4, "frames\n(APS or\nfrom events)", _STATE)
-    front = _box(ax, 9.0, 3.0, 2.9, 1.8, "features (05-08)\n+ tracker: KLT / matching,\ntwo-point RANSAC (13)",
+    front = _box(ax, 9.0, 3.0, 2.9, 1.8, "features (05-08)\n+ tracker: KLT / matching,\ntwo-point RANSAC (14)",
                  _PROCESS, fontsize=8.5)
-    msckf = _box(ax, 9.0, 0.6, 2.9, 1.6, "MSCKF (10-12)\npropagate with the IMU,\nupdate with tracks", _PROCESS,
+    msckf = _box(ax, 9.0, 0.6, 2.9, 1.6, "MSCKF (10-13)\npropagate with the IMU,\nupdate with tracks", _PROCESS,
                  fontsize=8.5)
     trajectory = _box(ax, 12.8, 0.7, 1.6, 1.4, "trajectory\n(TUM file)", _STATE, fontsize=8.5)
-    metrics = _box(ax, 14.8, 0.7, 1.6, 1.4, "metrics\nATE, RMSE\n(13)", _STATE, fontsize=8.5)
+    metrics = _box(ax, 14.8, 0.7, 1.6, 1.4, "metrics\nATE, RMSE\n(14)", _STATE, fontsize=8.5)
     _arrow(ax, _right(events), _left(recon))
     _arrow(ax, _right(recon), (6.3, 4.2), connection="arc3,rad=-0.15")
     _arrow(ax, _right(aps), (6.3, 3.6), "or", connection="arc3,rad=0.1")
