@@ -419,7 +419,7 @@ class Msckf:
                 k = int(np.flatnonzero(bad)[0])
                 self._warn(key, int(np.count_nonzero(bad)),
                            f"feed_imu dropped {int(np.count_nonzero(bad))} IMU sample(s) beyond {what}, the first "
-                           f"at t = {t[k]:.6g} s ({values[k].tolist()}){hint}; the IMU signal is interpolated "
+                           f"at t = {t[k]:.3f} s ({values[k].tolist()}){hint}; the IMU signal is interpolated "
                            "across the hole")
         return ~(bad_w | bad_a)
 
@@ -530,7 +530,7 @@ class Msckf:
         if far.any():  # outside any plausible field of view: drop these observations
             k = int(np.flatnonzero(far)[0])
             self._warn("observation_out_of_view", int(np.count_nonzero(far)),
-                       f"process_image(t = {t:.6g} s) dropped {int(np.count_nonzero(far))} observation(s) beyond "
+                       f"process_image(t = {t:.3f} s) dropped {int(np.count_nonzero(far))} observation(s) beyond "
                        f"max_normalized_coordinate = {self.config.max_normalized_coordinate:g}, e.g. feature "
                        f"{int(ids[k])} at {xy[k].tolist()}; xy must be undistorted normalised coordinates")
             ids, xy = ids[~far], xy[~far]
@@ -652,8 +652,8 @@ class Msckf:
         if problem is not None:
             self.faults["propagation_refused"] += 1
             raise StepRefusedError(
-                f"propagation from t = {t0:.6g} s to t = {t:.6g} s refused: {problem}; the filter keeps its state at "
-                f"t = {t0:.6g} s. Check the IMU samples and the image time in between"
+                f"propagation from t = {t0:.3f} s to t = {t:.3f} s refused: {problem}; the filter keeps its state at "
+                f"t = {t0:.3f} s. Check the IMU samples and the image time in between"
             )
         assert state is not None
         self._state = state
@@ -662,7 +662,7 @@ class Msckf:
             if start > self._last_gap_end:  # a new gap, not the rest of one counted by the previous call
                 self._warn("imu_gaps", 1,
                            f"IMU gap of {end - start:.3g} s > imu_max_gap = {cfg.imu_max_gap:g} s (no samples from "
-                           f"t = {start:.6g} s to t = {end:.6g} s): bridged by interpolation, covariance inflated "
+                           f"t = {start:.3f} s to t = {end:.3f} s): bridged by interpolation, covariance inflated "
                            f"for the unseen motion (imu_gap_accel_sigma = {cfg.imu_gap_accel_sigma:g} m/s^2, "
                            f"imu_gap_gyro_sigma = {cfg.imu_gap_gyro_sigma:g} rad/s)")
             self._last_gap_end = max(self._last_gap_end, float(end))
@@ -1069,7 +1069,7 @@ class Msckf:
 
     def _refuse_update(self, reason: str) -> bool:
         """Count and warn about a refused update (the state stays as before it); return False."""
-        self._warn("update_refused", 1, f"update at t = {self._state.timestamp:.6g} s refused and rolled back: "
+        self._warn("update_refused", 1, f"update at t = {self._state.timestamp:.3f} s refused and rolled back: "
                                         f"{reason}; its features are dropped")
         return False
 

@@ -548,10 +548,10 @@ def imu_gaps(imu_t: ArrayLike, t0: float, t_target: float, max_gap: float) -> ND
 def _gap_description(start: float, end: float, first_sample: float, last_sample: float) -> str:
     """Return where a gap lies, in words (for messages)."""
     if start < first_sample:
-        return f"the IMU data start late: first sample at t = {first_sample:.6g} s, state at t = {start:.6g} s"
+        return f"the IMU data start late: first sample at t = {first_sample:.3f} s, state at t = {start:.3f} s"
     if end > last_sample:
-        return f"the IMU data end early: last sample at t = {last_sample:.6g} s, propagating to t = {end:.6g} s"
-    return f"no IMU samples between t = {start:.6g} s and t = {end:.6g} s"
+        return f"the IMU data end early: last sample at t = {last_sample:.3f} s, propagating to t = {end:.3f} s"
+    return f"no IMU samples between t = {start:.3f} s and t = {end:.3f} s"
 
 
 # ------------------------------------------------------------------------------------------------------ propagate
@@ -647,7 +647,7 @@ def propagate(
             k = int(np.flatnonzero(beyond.any(axis=1))[0])
             raise ValueError(
                 f"{name} holds {int(np.count_nonzero(beyond.any(axis=1)))} samples beyond the IMU's full scale "
-                f"±{limit:.4g} ({field}) around [state.timestamp, t_target], the first at t = {win_t[k]:.6g} s "
+                f"±{limit:.4g} ({field}) around [state.timestamp, t_target], the first at t = {win_t[k]:.3f} s "
                 f"({values[k].tolist()}); drop them (Msckf.feed_imu does) or check the units (m/s^2, rad/s)"
             )
     t_nodes = np.concatenate(([t0], t_imu[j0:j1], [t_target]))
@@ -659,7 +659,7 @@ def propagate(
                                  float(t_imu[-1]))
         raise ImuGapError(
             f"IMU gap of {gap[k_long]:.3g} s > imu_max_bridged_gap = {config.imu_max_bridged_gap:g} s ({where}): "
-            f"the motion over it is unknown, so the state stays at t = {t0:.6g} s. Feed IMU samples covering the "
+            f"the motion over it is unknown, so the state stays at t = {t0:.3f} s. Feed IMU samples covering the "
             "gap, restart the filter after it, or raise imu_max_bridged_gap",
             float(gap_start[k_long]), float(gap_end[k_long]),
         )

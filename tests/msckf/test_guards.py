@@ -199,8 +199,8 @@ def test_a_propagation_that_would_leave_a_non_finite_state_is_refused(sim):
     f.feed_imu(imu.t, imu.gyro, accel)
     outputs = [f.process_image(fr.t, fr.ids, fr.xy) for fr in data.frames[:19]]
     before = f.state
-    with pytest.raises(StepRefusedError, match=r"propagation from t = 0.95 s to t = 1 s refused: .*non-finite.*keeps "
-                                               r"its state at t = 0.95 s"):
+    with pytest.raises(StepRefusedError, match=r"propagation from t = 0.950 s to t = 1.000 s refused: .*non-finite.*keeps "
+                                               r"its state at t = 0.950 s"):
         f.process_image(data.frames[19].t, data.frames[19].ids, data.frames[19].xy)
     assert f.state is before and f.faults == {"propagation_refused": 1}
     assert_usable(outputs, f)
@@ -279,12 +279,12 @@ def test_a_gap_beyond_the_bridged_limit_raises_naming_the_gap():
     t = np.concatenate([np.arange(0.0, 0.2, 0.001), np.arange(1.2, 2.0, 0.001)])
     w, a = np.zeros((len(t), 3)), np.tile([0.0, 0.0, 9.81], (len(t), 1))
     with pytest.raises(ImuGapError, match=r"IMU gap of 1 s > imu_max_bridged_gap = 0.3 s \(no IMU samples between "
-                                          r"t = 0.199 s and t = 1.2 s\): .*state stays at t = 0 s") as info:
+                                          r"t = 0.199 s and t = 1.200 s\): .*state stays at t = 0.000 s") as info:
         propagate(state, t, w, a, 1.5, cfg)
     assert (info.value.start, info.value.end) == (pytest.approx(0.199), pytest.approx(1.2))
     with pytest.raises(ImuGapError, match=r"the IMU data end early: last sample at t = 0.199 s"):
         propagate(state, t[:200], w[:200], a[:200], 1.0, cfg)
-    with pytest.raises(ImuGapError, match=r"the IMU data start late: first sample at t = 1.2 s"):
+    with pytest.raises(ImuGapError, match=r"the IMU data start late: first sample at t = 1.200 s"):
         propagate(state, t[200:], w[200:], a[200:], 1.3, cfg)
     propagate(state, t, w, a, 1.5, dataclasses.replace(cfg, imu_max_bridged_gap=1.5))  # a raised limit bridges it
 
@@ -294,7 +294,7 @@ def test_the_filter_counts_and_warns_about_a_gap_once_even_across_two_images(sim
     keep = (imu.t <= 1.02) | (imu.t >= 1.18)  # images at 1.05, 1.1, 1.15 fall inside the gap
     outputs, f, caught = run(sim, t=imu.t[keep], gyro=imu.gyro[keep], accel=imu.accel[keep])
     assert f.faults == {"imu_gaps": 1} and len(caught) == 1
-    assert "IMU gap of 0.16 s > imu_max_gap = 0.05 s (no samples from t = 1.02 s to t = 1.18 s)" in str(
+    assert "IMU gap of 0.16 s > imu_max_gap = 0.05 s (no samples from t = 1.020 s to t = 1.180 s)" in str(
         caught[0].message)
     assert outputs[20].counters["imu_gaps"] == 1 and "imu_gaps" not in outputs[22].counters
     assert_usable(outputs, f)
@@ -331,8 +331,8 @@ def test_across_a_bridged_gap_the_error_stays_within_three_sigma_and_without_inf
 
 def test_a_gap_beyond_the_limit_stops_the_filter_with_a_message(sim):
     imu = sim[0].imu
-    for keep, message in (((imu.t <= 1.0) | (imu.t >= 2.0), r"no IMU samples between t = 1 s and t = 2 s"),
-                          (imu.t <= 1.0, r"the IMU data end early: last sample at t = 1 s")):
+    for keep, message in (((imu.t <= 1.0) | (imu.t >= 2.0), r"no IMU samples between t = 1.000 s and t = 2.000 s"),
+                          (imu.t <= 1.0, r"the IMU data end early: last sample at t = 1.000 s")):
         with pytest.raises(ImuGapError, match=message):
             run(sim, t=imu.t[keep], gyro=imu.gyro[keep], accel=imu.accel[keep])
 
@@ -414,3 +414,10 @@ def test_bad_input_table_never_leaves_a_non_finite_state(sim):
     assert f.faults["imu_accel_out_of_range"] == 11 and f.faults["imu_gyro_out_of_range"] == 1
     assert f.faults["imu_gaps"] == 1 and f.faults["observation_out_of_view"] == 1
     assert np.linalg.norm(position_error(sim, outputs)[-1]) < 1.0
+
+
+def test_gap_times_of_a_recording_on_a_unix_clock_keep_their_digits():
+    from evio_lib.msckf.propagation import _gap_description
+
+    text = _gap_description(1403715273.2, 1403715274.5, 1403715000.0, 1403716000.0)
+    assert text == "no IMU samples between t = 1403715273.200 s and t = 1403715274.500 s"   # not 1.40372e+09 twice
