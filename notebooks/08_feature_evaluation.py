@@ -818,10 +818,10 @@ display(Markdown(text))
 from evio_lib.msckf.config import MsckfConfig
 
 filter_config = MsckfConfig()
-sigma = filter_config.pixel_noise_sigma
+sigma = filter_config.pixel_noise_px
 print(f"a track is used after >= {filter_config.min_track_length} observations; assumed noise sigma = {sigma:g} px "
       f"per axis at f = {filter_config.focal_length_px:g} px (mean error length {sigma * np.sqrt(np.pi / 2):.2f} px)")
-assert filter_config.min_track_length == 3 and filter_config.pixel_noise_sigma == 1.0
+assert filter_config.min_track_length == 3 and filter_config.pixel_noise_px == 1.0
 
 # %% [markdown]
 # ## Summary

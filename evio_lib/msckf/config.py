@@ -34,7 +34,7 @@ _NON_NEGATIVE = (
     "triangulation_min_baseline_ratio", "static_init_duration", "far_point_scene_depth",
 )
 _POSITIVE = (
-    "pixel_noise_sigma", "focal_length_px", "triangulation_tolerance", "triangulation_min_depth",
+    "pixel_noise_px", "focal_length_px", "triangulation_tolerance", "triangulation_min_depth",
     "triangulation_max_depth", "triangulation_max_reprojection_px",
 )
 # > 0, and math.inf allowed (switches the guard off)
@@ -66,7 +66,7 @@ class MsckfConfig:
             the third vs 10.0 with the two-way rule at N_max = 20 (95 % band [4.58, 7.61]); with N_max = 40 and the
             third, 60 s boxes_like runs end at 0.12 % / 0.11 % of distance (seeds 0, 1) vs 0.40 % / 0.51 % at 20.
         keyframe_*: S-MSCKF's two-way keyframe selection thresholds (rotation, translation, tracking rate).
-        pixel_noise_sigma, focal_length_px: feature measurement noise in pixels and the focal length that converts
+        pixel_noise_px, focal_length_px: feature measurement noise in pixels and the focal length that converts
             it to normalised image coordinates (``feature_noise_sigma``).
         observation_outlier_px: per-observation outlier test [None: off]. After a track is triangulated, its
             observations reprojecting farther than this many pixels from the point are dropped (the worst first,
@@ -174,7 +174,7 @@ class MsckfConfig:
     keyframe_translation_threshold: float = _param(0.4, "m", "keyframe selection: relative translation")
     keyframe_tracking_rate_threshold: float = _param(0.5, "", "keyframe selection: fraction of tracks kept")
     # measurement model and gating
-    pixel_noise_sigma: float = _param(1.0, "px", "feature measurement noise std")
+    pixel_noise_px: float = _param(1.0, "px", "feature measurement noise std")
     focal_length_px: float = _param(199.0, "px", "focal length converting pixel noise to normalised units")
     chi2_gating: bool = _param(True, "", "reject features failing the chi-square test")
     chi2_probability: float = _param(0.95, "", "chi-square gating probability (quantile)")
@@ -302,8 +302,8 @@ class MsckfConfig:
 
     @property
     def feature_noise_sigma(self) -> float:
-        """Return the feature noise std in normalised image coordinates: pixel_noise_sigma / focal_length_px."""
-        return self.pixel_noise_sigma / self.focal_length_px
+        """Return the feature noise std in normalised image coordinates: pixel_noise_px / focal_length_px."""
+        return self.pixel_noise_px / self.focal_length_px
 
     def triangulation_settings(self) -> dict[str, Any]:
         """Return the keyword arguments of ``triangulation.triangulate_inverse_depth`` that this config sets.

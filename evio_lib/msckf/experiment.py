@@ -99,7 +99,7 @@ class VioSimConfig:
         oc: observability-constrained EKF on/off (thesis §3.3.8).
         imu_only: run the filter in IMU-only mode (no updates).
         pixel_noise_px: std of the Gaussian pixel noise added to the tracks, pixels (also the filter's
-            ``pixel_noise_sigma``, floored at 0.1 px).
+            ``pixel_noise_px``, floored at 0.1 px).
         imu_rate_hz, frame_rate_hz: IMU and image rates, Hz.
         trajectory_seed: seed of the preset trajectory's random phases / turbulence.
         max_track_length: end simulated tracks after this many images (None: only when they leave the view).
@@ -307,10 +307,10 @@ def experiment_msckf_config(config: VioSimConfig, noise: ImuNoiseParams | None =
     The simulated noise is added to the DISTORTED pixels; the filter sees undistorted normalised coordinates, where
     undistortion (DAVIS240C, k1 = -0.37) stretches it by 1.03x at the centre and up to 1.49x at the border.
     With ``noise_model`` 'per_observation' (default) the filter receives each observation's own covariance
-    (:func:`observation_covariance`, passed by :func:`run_vio_sim_config`) and pixel_noise_sigma is the simulated
+    (:func:`observation_covariance`, passed by :func:`run_vio_sim_config`) and pixel_noise_px is the simulated
     one; 'global_factor' scales the isotropic pixel noise by the RMS stretch over the image
     (:func:`undistortion_noise_factor`, 1.19 for the DAVIS240C); 'nominal' uses the simulated pixel noise as is.
-    pixel_noise_sigma is floored at 0.1 px so that noise-free runs keep a proper measurement covariance.
+    pixel_noise_px is floored at 0.1 px so that noise-free runs keep a proper measurement covariance.
     ``msckf_overrides`` are applied last. Measured figures: see :func:`run_vio_sim_config`.
     """
     noise = ImuNoiseParams() if noise is None else noise
@@ -319,7 +319,7 @@ def experiment_msckf_config(config: VioSimConfig, noise: ImuNoiseParams | None =
     cfg = MsckfConfig().with_imu_noise(noise)
     factor = undistortion_noise_factor(camera) if config.noise_model == "global_factor" else 1.0
     sigma_px = max(config.pixel_noise_px * factor, 0.1)
-    cfg = dataclasses.replace(cfg, pixel_noise_sigma=sigma_px, focal_length_px=focal,
+    cfg = dataclasses.replace(cfg, pixel_noise_px=sigma_px, focal_length_px=focal,
                               observability_constrained=config.oc, imu_only=config.imu_only,
                               chi2_probability=config.gate_probability)
     return dataclasses.replace(cfg, **dict(config.msckf_overrides)) if config.msckf_overrides else cfg
@@ -482,13 +482,13 @@ def _run_filter(msckf_config: MsckfConfig, state: FilterState, data: SimulatedDa
     """Return (outputs, filter, cpu_s, wall_s): the filter fed with all IMU samples and all frames.
 
     With ``per_observation`` each frame's observations carry their own covariance (:func:`observation_covariance`
-    at the noisy pixels, σ = msckf_config.pixel_noise_sigma); its cost is included in the timing."""
+    at the noisy pixels, σ = msckf_config.pixel_noise_px); its cost is included in the timing."""
     imu = data.imu
     wall0, cpu0 = time.perf_counter(), time.process_time()
     f = Msckf(msckf_config, state)
     f.feed_imu(imu.t, imu.gyro, imu.accel)
     if per_observation and not msckf_config.imu_only:
-        sigma_px = msckf_config.pixel_noise_sigma
+        sigma_px = msckf_config.pixel_noise_px
         outputs = [f.process_image(fr.t, fr.ids, fr.xy, observation_covariance(data.camera, fr.uv, sigma_px))
                    for fr in data.frames]
     else:

@@ -566,7 +566,7 @@ def msckf_config_for(config: PipelineConfig, data: LoadedDataset) -> MsckfConfig
     cam = data.sequence.camera
     gravity = data.sequence.metadata.get("gravity_G")  # Sequence.metadata is always a dict
     cfg = MsckfConfig().with_imu_noise(data.noise)
-    changes: dict[str, Any] = dict(pixel_noise_sigma=config.pixel_noise_px, focal_length_px=math.sqrt(cam.fx * cam.fy),
+    changes: dict[str, Any] = dict(pixel_noise_px=config.pixel_noise_px, focal_length_px=math.sqrt(cam.fx * cam.fy),
                                    observability_constrained=config.oc, imu_only=config.imu_only,
                                    observation_outlier_px=config.observation_outlier_px,
                                    far_point_fallback=config.far_points != "off",

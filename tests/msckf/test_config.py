@@ -23,7 +23,7 @@ def test_defaults_are_valid_and_the_measured_choices():
 
 
 def test_str_prints_every_parameter_one_per_line_with_its_value():
-    cfg = MsckfConfig(max_camera_states=11, pixel_noise_sigma=0.7)
+    cfg = MsckfConfig(max_camera_states=11, pixel_noise_px=0.7)
     lines = str(cfg).splitlines()
     names = [f.name for f in dataclasses.fields(MsckfConfig)]
     assert lines[0] == "MsckfConfig"
@@ -31,7 +31,7 @@ def test_str_prints_every_parameter_one_per_line_with_its_value():
     for line, name in zip(lines[1:], names):
         assert line.split()[0] == name and " = " in line
     assert any(line.split()[:3] == ["max_camera_states", "=", "11"] for line in lines)
-    assert any(line.split()[:3] == ["pixel_noise_sigma", "=", "0.7"] for line in lines)
+    assert any(line.split()[:3] == ["pixel_noise_px", "=", "0.7"] for line in lines)
 
 
 def test_continuous_noise_psd_follows_the_noise_vector_order():
@@ -50,7 +50,7 @@ def test_initial_imu_covariance_follows_the_error_state_order():
 
 
 def test_feature_noise_sigma_is_pixels_over_focal_length():
-    assert MsckfConfig(pixel_noise_sigma=2.0, focal_length_px=400.0).feature_noise_sigma == pytest.approx(0.005)
+    assert MsckfConfig(pixel_noise_px=2.0, focal_length_px=400.0).feature_noise_sigma == pytest.approx(0.005)
 
 
 def test_chi2_threshold_is_the_upper_quantile_from_scipy():
@@ -67,7 +67,7 @@ def test_chi2_threshold_is_the_upper_quantile_from_scipy():
     [
         ({"gyro_noise_density": -1e-3}, "gyro_noise_density must be >= 0"),
         ({"accel_random_walk": float("nan")}, "accel_random_walk must be finite"),
-        ({"pixel_noise_sigma": 0.0}, "pixel_noise_sigma must be > 0"),
+        ({"pixel_noise_px": 0.0}, "pixel_noise_px must be > 0"),
         ({"chi2_probability": 1.0}, r"chi2_probability must lie in \(0, 1\)"),
         ({"keyframe_tracking_rate_threshold": 1.5}, r"keyframe_tracking_rate_threshold must lie in \[0, 1\]"),
         ({"max_camera_states": 1}, "max_camera_states must be an integer >= 2"),

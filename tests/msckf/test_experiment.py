@@ -152,11 +152,11 @@ def test_undistortion_noise_factor_matches_a_monte_carlo_estimate():
     flat = dataclasses.replace(cam, k1=0.0, k2=0.0, p1=0.0, p2=0.0, k3=0.0, fy=cam.fx)
     assert undistortion_noise_factor(flat) == pytest.approx(1.0, abs=1e-6)
     cfg = experiment_msckf_config(VioSimConfig(pixel_noise_px=2.0, noise_model="global_factor"), camera=cam)
-    assert cfg.pixel_noise_sigma == pytest.approx(2.0 * undistortion_noise_factor(cam))
+    assert cfg.pixel_noise_px == pytest.approx(2.0 * undistortion_noise_factor(cam))
     for model in ("per_observation", "nominal"):  # the default passes per-observation covariances instead
-        assert experiment_msckf_config(VioSimConfig(pixel_noise_px=2.0, noise_model=model)).pixel_noise_sigma == 2.0
+        assert experiment_msckf_config(VioSimConfig(pixel_noise_px=2.0, noise_model=model)).pixel_noise_px == 2.0
     cfg0 = experiment_msckf_config(VioSimConfig(pixel_noise_px=0.0, msckf_overrides={"max_camera_states": 10}))
-    assert cfg0.pixel_noise_sigma == 0.1 and cfg0.max_camera_states == 10
+    assert cfg0.pixel_noise_px == 0.1 and cfg0.max_camera_states == 10
 
 
 def test_observation_covariance_against_finite_differences_and_the_simulator_noise_monte_carlo():

@@ -297,7 +297,7 @@ def test_whitening_matrices_whiten_and_match_numpy_cholesky(rng):
 
 def test_isotropic_covariances_give_the_same_run_as_the_default_noise():
     """xy_cov = σ² I for every observation is the default isotropic model (to rounding), and (kσ)² I is the same
-    run as pixel_noise_sigma scaled by k: the covariances are used, and used as covariances."""
+    run as pixel_noise_px scaled by k: the covariances are used, and used as covariances."""
     traj, imu, frames, cfg, state = simulation(seed=2, duration=3.0)
     base = Msckf(cfg, state)
     out_none = base.run(imu.t, imu.gyro, imu.accel, frames)
@@ -311,7 +311,7 @@ def test_isotropic_covariances_give_the_same_run_as_the_default_noise():
         np.testing.assert_allclose(b.P_imu, a.P_imu, rtol=1e-7, atol=1e-15)
     assert base.rejections == iso.rejections and base.rejections["chi2"] > 0
     k = 1.7
-    scaled = Msckf(dataclasses.replace(cfg, pixel_noise_sigma=k * cfg.pixel_noise_sigma), state)
+    scaled = Msckf(dataclasses.replace(cfg, pixel_noise_px=k * cfg.pixel_noise_px), state)
     out_scaled = scaled.run(imu.t, imu.gyro, imu.accel, frames)
     cov_scaled = Msckf(cfg, state)
     out_cov = cov_scaled.run(imu.t, imu.gyro, imu.accel, [(t, ids, xy, np.tile(k * k * sig2 * np.eye(2),

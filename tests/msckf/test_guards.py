@@ -317,7 +317,7 @@ def test_across_a_bridged_gap_the_error_stays_within_three_sigma_and_without_inf
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", MsckfWarning)
             f.feed_imu(imu.t[keep], imu.gyro[keep], imu.accel[keep])
-            out = [f.process_image(fr.t, fr.ids, fr.xy, observation_covariance(data.camera, fr.uv, c.pixel_noise_sigma))
+            out = [f.process_image(fr.t, fr.ids, fr.xy, observation_covariance(data.camera, fr.uv, c.pixel_noise_px))
                    for fr in data.frames]
         t = np.array([o.t for o in out])
         e = np.array([o.p_IinG for o in out]) - data.trajectory.evaluate(t).p_IinG
