@@ -41,8 +41,8 @@ CONFIGS = {
     "sift": PipelineConfig(features="sift"),
     "cnn": PipelineConfig(features="superpoint"),
     "klt": PipelineConfig(tracker="klt", features="fast"),
-    "sift_gap2": PipelineConfig(features="sift", track_gap=2),
-    "cnn_gap2": PipelineConfig(features="superpoint", track_gap=2),
+    "sift_gap2": PipelineConfig(features="sift", max_track_gap=2),
+    "cnn_gap2": PipelineConfig(features="superpoint", max_track_gap=2),
 }
 
 

@@ -719,7 +719,7 @@ display(Markdown(
        f"behave much like real ones.")))
 
 # %% [markdown]
-# A tracker can also keep looking for a point it missed: `PipelineConfig(track_gap=2)` (`run --track-gap 2`) keeps a
+# A tracker can also keep looking for a point it missed: `PipelineConfig(max_track_gap=2)` (`run --max-track-gap 2`) keeps a
 # lost track for two frames, predicts where its point went with the gyro's rotation and continues the track, with
 # its id, when its last descriptor is matched again; the filter keeps such a track open meanwhile. It is off by
 # default (`PipelineConfig`'s docstring says what it gave on whole recordings); exercise 3 tries it here.
@@ -947,7 +947,7 @@ display(Markdown(
 #
 #    *Hint:* `pixel_noise_px` is the noise the filter assumes, not the noise of the tracks; compare
 #    `result.sigma[:, 12:15]` and the share of errors inside ±3σ.
-# 3. Run SIFT with `PipelineConfig(features="sift", track_gap=2)` over section 2's stretch. How much longer do its
+# 3. Run SIFT with `PipelineConfig(features="sift", max_track_gap=2)` over section 2's stretch. How much longer do its
 #    tracks get, and does the error follow?
 #
 #    *Hint:* `np.mean(result.track_lengths)` and `result.metrics["rmse_m"]` beside section 2's SIFT run, and the

@@ -59,7 +59,7 @@ class FrontendConfig:
     klt_max_iterations: int = _param(30, "", "KLT iterations per level")
     klt_epsilon: float = _param(0.01, "px", "KLT convergence threshold")
     klt_backward_check_px: float | None = _param(1.0, "px", "forward-backward KLT consistency (None: off)")
-    max_gap_frames: int = _param(0, "", "descriptor method: frames a lost track is kept and searched for (0: none)")
+    max_track_gap: int = _param(0, "", "descriptor method: frames a lost track is kept and searched for (0: none)")
     border_px: float = _param(1.0, "px", "tracked points closer than this to the image edge are dropped")
     seed: int = _param(0, "", "seed of RANSAC's hypothesis sampling")
 
@@ -78,13 +78,13 @@ class FrontendConfig:
         for name, minimum in (("max_features", 1), ("grid_rows", 1), ("grid_cols", 1), ("detector_max_keypoints", 1),
                               ("nms_radius", 0), ("ransac_iterations", 1), ("klt_window", 3), ("klt_levels", 0),
                               ("klt_max_iterations", 1), ("seed", 0),
-                              ("max_gap_frames", 0)):
+                              ("max_track_gap", 0)):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, Integral) or value < minimum:
                 raise ValueError(f"{name} must be an integer >= {minimum}; got {value!r}")
-        if self.max_gap_frames and self.method != "descriptor":
-            raise ValueError(f"max_gap_frames applies to the descriptor method (KLT follows each patch and never "
-                             f"searches for a lost one); got {self.max_gap_frames} with method {self.method!r}")
+        if self.max_track_gap and self.method != "descriptor":
+            raise ValueError(f"max_track_gap applies to the descriptor method (KLT follows each patch and never "
+                             f"searches for a lost one); got {self.max_track_gap} with method {self.method!r}")
         if self.klt_window % 2 == 0:
             raise ValueError(f"klt_window must be odd (a window centred on the point); got {self.klt_window}")
         if self.max_features < self.grid_rows * self.grid_cols:

@@ -14,7 +14,7 @@ Per frame, :class:`DescriptorTracker` (the thesis's front-end)
    ``min_distance_px`` from every tracked feature.
 
 Track ids are int64, start at 0 and are never reused. By default a feature that is lost and detected again becomes a
-new track (the MSCKF uses a lost track's observations once and forgets it). With ``max_gap_frames = g > 0`` the
+new track (the MSCKF uses a lost track's observations once and forgets it). With ``max_track_gap = g > 0`` the
 descriptor tracker keeps a lost track for g frames ("dormant": its last descriptor, its last position and the
 gyroscope's rotation since then) and matches it like the others: predicted by that rotation, within the same
 ``match_radius_px`` (a radius that grew with the gap, as the translation's flow adds up, let more wrong matches
@@ -68,7 +68,7 @@ class FrameStats:
         new: tracks started in this frame.
         total: features output, tracked + new.
         ransac_degenerate: RANSAC found the translation unobservable (pure rotation) and classified by displacement.
-        revived: tracks continued after they were missing from 1 to ``max_gap_frames`` frames (counted in tracked).
+        revived: tracks continued after they were missing from 1 to ``max_track_gap`` frames (counted in tracked).
         time_detect_s, time_match_s, time_ransac_s: wall-clock seconds of detection (with undistortion of the
             keypoints), matching (descriptor matching or optical flow) and RANSAC.
     """
@@ -308,7 +308,7 @@ class DescriptorTracker(FeatureTracker):
     def reset(self) -> None:
         super().reset()
         self._descriptors: NDArray[Any] | None = None
-        # dormant tracks (max_gap_frames > 0): lost, still searched for; _dormant_R maps their last frame's camera
+        # dormant tracks (max_track_gap > 0): lost, still searched for; _dormant_R maps their last frame's camera
         # to the last processed frame's (R_C_last_seen_to_C_prev)
         self._dormant_ids = np.zeros(0, np.int64)
         self._dormant_descriptors: NDArray[Any] | None = None
@@ -387,7 +387,7 @@ class DescriptorTracker(FeatureTracker):
         good = good[keep]
 
         prev_index, det_index = good[:, 0], good[:, 1]
-        if self.config.max_gap_frames:
+        if self.config.max_track_gap:
             self._update_dormant(prev_index, n_active, R, dormant_R)
         unused = np.ones(len(features), bool)
         unused[det_index] = False
@@ -411,11 +411,11 @@ class DescriptorTracker(FeatureTracker):
     def _update_dormant(self, prev_index: NDArray[np.int64], n_active: int, R: NDArray[np.float64] | None,
                         dormant_R: NDArray[np.float64]) -> None:
         """Make the previous frame's tracks that were not continued dormant, age the dormant ones that were not
-        revived, and forget those missing for more than ``max_gap_frames`` frames."""
+        revived, and forget those missing for more than ``max_track_gap`` frames."""
         continued = np.zeros(n_active + self._dormant_ids.shape[0], bool)
         continued[prev_index] = True
         lost = np.flatnonzero(~continued[:n_active])
-        still = np.flatnonzero(~continued[n_active:] & (self._dormant_missed + 1 <= self.config.max_gap_frames))
+        still = np.flatnonzero(~continued[n_active:] & (self._dormant_missed + 1 <= self.config.max_track_gap))
         step = np.eye(3) if R is None else R
         descriptors = [] if self._descriptors is None else [self._descriptors[lost]]
         if self._dormant_descriptors is not None:

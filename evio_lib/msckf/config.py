@@ -101,10 +101,10 @@ class MsckfConfig:
         max_track_gap: images of its stream a track may miss and still continue [0]. With 0 a track ends at the first
             image without it and is used then; with g > 0 it is kept (its observations need not come from
             consecutive clones) until more than g images in a row lack it, so a front-end that finds a feature
-            again after a missed detection (``FrontendConfig.max_gap_frames``) continues one track instead of two
+            again after a missed detection (``FrontendConfig.max_track_gap``) continues one track instead of two
             short ones. The update of such a track comes g images later. A tuple gives each frame stream its own g
             (index = the ``stream`` of ``Msckf.process_image``; e.g. ``(2, 0)``: descriptor tracks with gaps on
-            stream 0, KLT tracks, which never come back, on stream 1); :meth:`track_gap` reads it.
+            stream 0, KLT tracks, which never come back, on stream 1); :meth:`track_gap_of` reads it.
         chi2_gating, chi2_probability: per-feature chi-square (Mahalanobis) gating and its probability [0.95],
             applied to ALL of a feature's observations in the window (dof 2M - 3) even when a prune uses only
             some. A gate also throws away correct data, and which data depends on the residual: the kept
@@ -288,10 +288,10 @@ class MsckfConfig:
         """Return g_G (3,) as a new float64 array, m/s^2."""
         return np.array(self.gravity_G, dtype=np.float64)
 
-    def track_gap(self, stream: int = 0) -> int:
+    def track_gap_of(self, stream: int = 0) -> int:
         """Return the images a track of frame stream ``stream`` may miss and continue (``max_track_gap``).
 
-        >>> MsckfConfig(max_track_gap=(2, 0)).track_gap(1), MsckfConfig(max_track_gap=2).track_gap(1)
+        >>> MsckfConfig(max_track_gap=(2, 0)).track_gap_of(1), MsckfConfig(max_track_gap=2).track_gap_of(1)
         (0, 2)
         """
         if not isinstance(self.max_track_gap, tuple):

@@ -695,12 +695,12 @@ class Msckf:
         self._tracking_rate = tracked / ids.shape[0] if ids.shape[0] else 0.0
 
     def _collect_lost_features(self, ids: NDArray[np.int64], stream: int = 0) -> list[_FeatureUse]:
-        """Remove the tracks of ``stream`` that ended (missing from more than ``config.track_gap(stream)`` of its
+        """Remove the tracks of ``stream`` that ended (missing from more than ``config.track_gap_of(stream)`` of its
         images in a row: with 0, not in ``ids``); return those long enough to be used (all their observations)."""
         current = set(ids.tolist())
         streams = self._track_stream
         last_image = self._track_last_image
-        oldest = self._stream_images[stream] - self.config.track_gap(stream)  # last seen before this image: ended
+        oldest = self._stream_images[stream] - self.config.track_gap_of(stream)  # last seen before this image: ended
         lost = [fid for fid in self.tracks
                 if fid not in current and streams[fid] == stream and last_image[fid] < oldest]
         if not lost:

@@ -38,7 +38,7 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="descriptor: detect + match + two-point RANSAC (thesis); klt: optical flow (msckf_vio)")
     p.add_argument("--event-tracker", choices=["descriptor", "klt"], default=None,
                    help="--frames aps+mc-events or aps+events: the event stream's own tracker (default: --tracker "
-                        "for both streams; klt with --features sift detects FAST corners; --track-gap applies to "
+                        "for both streams; klt with --features sift detects FAST corners; --max-track-gap applies to "
                         "the descriptor stream)")
     p.add_argument("--max-features", type=integer(minimum=20), default=60, help="N, features per frame (default 60)")
     p.add_argument("--reconstructor", default="firenet",
@@ -101,7 +101,7 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="grow each APS frame's feature noise with its rotation blur: sigma = sqrt(PX^2 + (C |w| T "
                         "f)^2), the gyro rate |w| over the exposure T, focal length f (default: off; 0.5 measured in "
                         "docs/archive.md; needs a recording that gives T: the presets)")
-    p.add_argument("--track-gap", type=integer(minimum=0), default=0, metavar="FRAMES",
+    p.add_argument("--max-track-gap", type=integer(minimum=0), default=0, metavar="FRAMES",
                    help="descriptor tracker: keep a lost track for FRAMES frames and continue it, with its id, when "
                         "the feature is matched again (default 0: a missed detection ends the track, as in the "
                         "thesis; 2 measured best for SIFT, docs/archive.md; not with --tracker klt)")
@@ -193,7 +193,7 @@ def main_run(args: argparse.Namespace) -> int:
                                 min_window_s=args.min_window, max_window_s=args.max_window, init=args.init,
                                 bias_init=_bias(args.bias_init), imu_only=args.imu_only, oc=not args.no_oc,
                                 zupt=not args.no_zupt, max_duration=args.max_duration, seed=args.seed,
-                                observation_outlier_px=args.outlier_px, track_gap=args.track_gap,
+                                observation_outlier_px=args.outlier_px, max_track_gap=args.max_track_gap,
                                 far_points=args.far_points,
                                 pixel_noise_px=args.pixel_noise, event_pixel_noise_px=args.event_pixel_noise,
                                 aps_blur_noise=args.aps_blur_noise)
@@ -269,7 +269,7 @@ _OPTIONS = {"reconstructor": "--reconstructor", "reconstructor_precision": "--re
             "min_window_s": "--min-window", "max_window_s": "--max-window",
             "max_features": "--max-features", "init": "--init", "frames": "--frames", "seed": "--seed",
             "method": "--tracker", "observation_outlier_px": "--outlier-px",
-            "track_gap": "--track-gap", "pixel_noise_px": "--pixel-noise",
+            "max_track_gap": "--max-track-gap", "pixel_noise_px": "--pixel-noise",
             "event_pixel_noise_px": "--event-pixel-noise", "event_tracker": "--event-tracker",
             "aps_exposure_s": "--aps-exposure", "aps_blur_noise": "--aps-blur-noise", "far_points": "--far-points"}
 

@@ -114,7 +114,7 @@ class PipelineConfig:
         tracker: 'descriptor' (the thesis's front-end) or 'klt' (optical flow; ``features`` then detects new ones).
         event_tracker: a run that fuses APS frames with an event stream ('aps+mc-events', 'aps+events'): the event
             stream's tracker, 'descriptor' or 'klt' (None: ``tracker``, one front-end for both streams). KLT with the
-            default ``features`` 'sift' detects FAST corners, as a lone KLT run does; ``track_gap`` applies to the
+            default ``features`` 'sift' detects FAST corners, as a lone KLT run does; ``max_track_gap`` applies to the
             descriptor stream only.
         max_features: N, features kept per frame (thesis 60).
         match_ratio: Lowe's ratio test of the descriptor matches (None: off, the pipeline's default). Measured on 10 s
@@ -164,8 +164,8 @@ class PipelineConfig:
             and 'off'. None of the three is the default: 'always' costs SIFT and KLT accuracy in the room,
             'starved' made the CNN diverge there on a test seed, and 'far-scene' left the CNN's mean over fresh
             terrain seeds slightly worse (docs/archive.md, the far-point rows).
-        track_gap: frames a descriptor track may miss and still continue with its id
-            (``FrontendConfig.max_gap_frames`` and ``MsckfConfig.max_track_gap``; 0: a missed detection ends the
+        max_track_gap: frames a descriptor track may miss and still continue with its id
+            (``FrontendConfig.max_track_gap`` and ``MsckfConfig.max_track_gap``; 0: a missed detection ends the
             track, the thesis's tracker and the default). KLT never searches for a lost patch: with KLT on every
             stream the gap must be 0, and with ``event_tracker`` 'klt' it applies to the APS stream only (front-end
             and filter). Measured on the validation seeds 3-5 of both whole presets (docs/archive.md): 2 gives SIFT
@@ -198,7 +198,7 @@ class PipelineConfig:
     seed: int = 0
     zupt: bool = True
     observation_outlier_px: float | None = None
-    track_gap: int = 0
+    max_track_gap: int = 0
     far_points: str = "off"
 
     def __post_init__(self) -> None:
@@ -270,9 +270,9 @@ class PipelineConfig:
                              f"(use 'mc-events', 'events' or 'aps+mc-events')")
         FrontendConfig(method=self.tracker, max_features=self.max_features, ratio=self.match_ratio,
                        seed=self.seed)  # validates those
-        if isinstance(self.track_gap, bool) or not isinstance(self.track_gap, (int, np.integer)) or self.track_gap < 0:
-            raise ValueError(f"track_gap must be an integer >= 0 (frames); got {self.track_gap!r}")
-        object.__setattr__(self, "track_gap", int(self.track_gap))
+        if isinstance(self.max_track_gap, bool) or not isinstance(self.max_track_gap, (int, np.integer)) or self.max_track_gap < 0:
+            raise ValueError(f"max_track_gap must be an integer >= 0 (frames); got {self.max_track_gap!r}")
+        object.__setattr__(self, "max_track_gap", int(self.max_track_gap))
         streams = frame_streams(self.frames)
         if self.event_tracker is not None:
             if self.event_tracker not in ("descriptor", "klt"):
@@ -282,9 +282,9 @@ class PipelineConfig:
                                  f"('aps+mc-events', 'aps+events'); frames {self.frames!r} is one stream: set its "
                                  f"tracker with tracker (--tracker)")
         trackers = {self.stream_tracker(name) for name in streams}
-        if self.track_gap and "descriptor" not in trackers:
-            raise ValueError(f"track_gap applies to the descriptor tracker (KLT follows each patch and never "
-                             f"searches for a lost one); got {self.track_gap} with tracker {self.tracker!r}")
+        if self.max_track_gap and "descriptor" not in trackers:
+            raise ValueError(f"max_track_gap applies to the descriptor tracker (KLT follows each patch and never "
+                             f"searches for a lost one); got {self.max_track_gap} with tracker {self.tracker!r}")
 
     def window_bounds(self) -> tuple[float, float | None]:
         """Return (least, greatest) window duration in s of the event source (the source's defaults for None)."""
@@ -321,7 +321,7 @@ class PipelineConfig:
         detector = self.features if tracker == "descriptor" or self.features != "sift" else None
         return FrontendConfig(method=tracker, detector=detector, detector_options=self.detector_options,
                               max_features=self.max_features, ratio=self.match_ratio, seed=self.seed,
-                              max_gap_frames=self.track_gap if tracker == "descriptor" else 0)
+                              max_track_gap=self.max_track_gap if tracker == "descriptor" else 0)
 
     def label(self) -> str:
         """Return a short name, e.g. 'SIFT on APS frames' or 'IMU only'."""
@@ -345,7 +345,7 @@ class PipelineConfig:
             noise = f", event noise {self.event_pixel_noise_px:g} px"  # only when set: the default is in the docs
         if self.aps_blur_noise is not None:
             noise += f", APS blur noise {self.aps_blur_noise:g}"
-        return (label + (f", track gap {self.track_gap}" if self.track_gap else "") + noise
+        return (label + (f", track gap {self.max_track_gap}" if self.max_track_gap else "") + noise
                 + {"off": "", "starved": ", far points when starved", "far-scene": ", far points when starved far away",
                    "always": ", far points always"}[self.far_points])
 
@@ -583,12 +583,12 @@ def msckf_config_for(config: PipelineConfig, data: LoadedDataset) -> MsckfConfig
 
 
 def _filter_track_gaps(config: PipelineConfig) -> int | tuple[int, ...]:
-    """Return the filter's ``max_track_gap``: ``track_gap``, or with several frame streams one gap per stream (a KLT
+    """Return the filter's ``max_track_gap``: ``max_track_gap``, or with several frame streams one gap per stream (a KLT
     stream's tracks never come back, so its gap is 0 and its ended tracks are used at once)."""
     streams = frame_streams(config.frames)
     if len(streams) == 1:
-        return config.track_gap
-    return tuple(config.frontend_config(name).max_gap_frames for name in streams)
+        return config.max_track_gap
+    return tuple(config.frontend_config(name).max_track_gap for name in streams)
 
 
 def _event_reconstructor(data: LoadedDataset, config: PipelineConfig) -> Reconstructor | None:

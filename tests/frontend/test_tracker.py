@@ -152,14 +152,14 @@ def _blanked(rec, blank):
 
 
 def test_a_track_gap_revives_tracks_after_a_missed_frame_with_their_ids(gentle):
-    """One black frame (every detection missed): with max_gap_frames = 2 the next frame continues the tracks of the
+    """One black frame (every detection missed): with max_track_gap = 2 the next frame continues the tracks of the
     frame before it with their ids and ages, at the true positions (the earlier points, placed with the simulator's
     depth and moved with the true pose, reproject onto them); without a gap every track after the blank is new."""
     cam = gentle["camera"]
     errors = []
     for blank in (3, 5, 7, 9):
         frames = _blanked(gentle, [blank])
-        runs = {gap: DescriptorTracker(cam, FrontendConfig(max_gap_frames=gap)).track(
+        runs = {gap: DescriptorTracker(cam, FrontendConfig(max_track_gap=gap)).track(
             frames, gentle["times"], gentle["priors"]) for gap in (0, 2)}
         assert runs[0][blank + 1].stats.tracked == 0 and runs[0][blank + 1].stats.revived == 0
         before, after = runs[2][blank - 1], runs[2][blank + 1]
@@ -184,11 +184,11 @@ def test_a_track_gap_revives_tracks_after_a_missed_frame_with_their_ids(gentle):
 
 
 def test_a_dormant_track_is_forgotten_after_max_gap_frames(gentle):
-    """Frames 5 and 6 black: with max_gap_frames = 1 no track of frame 4 comes back in frame 7; with 2 some do."""
+    """Frames 5 and 6 black: with max_track_gap = 1 no track of frame 4 comes back in frame 7; with 2 some do."""
     frames = _blanked(gentle, [5, 6])
     ids4 = {}
     for gap in (1, 2):
-        out = DescriptorTracker(gentle["camera"], FrontendConfig(max_gap_frames=gap)).track(
+        out = DescriptorTracker(gentle["camera"], FrontendConfig(max_track_gap=gap)).track(
             frames, gentle["times"], gentle["priors"])
         ids4[gap] = len(np.intersect1d(out[4].ids, out[7].ids))
         table = stats_table(out)  # the statistics still add up with revived tracks
@@ -224,7 +224,7 @@ def test_a_rotation_that_turns_tracks_behind_the_camera_ends_them_also_with_dorm
     cam = PinholeRadtan(fx=100.0, fy=100.0, cx=31.5, cy=23.5, width=64, height=48)
     a, b = ([30.0, 20.0], [1.0, 0.0]), ([10.0, 10.0], [0.0, 1.0])
     script = [([a[0], b[0]], [a[1], b[1]]), ([a[0]], [a[1]]), ([a[0], b[0]], [a[1], b[1]])]
-    tracker = DescriptorTracker(cam, FrontendConfig(max_gap_frames=2, max_features=20),
+    tracker = DescriptorTracker(cam, FrontendConfig(max_track_gap=2, max_features=20),
                                 detector=_ScriptedDetector(script))
     turn = np.array([[np.cos(2.6), 0.0, np.sin(2.6)], [0.0, 1.0, 0.0], [-np.sin(2.6), 0.0, np.cos(2.6)]])
     frames = [tracker.process(np.zeros((48, 64), np.float32), 0.1 * k, R)
@@ -320,10 +320,10 @@ def test_bad_input_raises_a_clear_error(gentle, method):
         DescriptorTracker(gentle["camera"], {"max_features": 60})
     with pytest.raises(ValueError, match="unknown detector"):
         DescriptorTracker(gentle["camera"], FrontendConfig(detector="nope"))
-    with pytest.raises(ValueError, match="max_gap_frames must be an integer >= 0"):
-        FrontendConfig(max_gap_frames=-1)
-    with pytest.raises(ValueError, match="max_gap_frames applies to the descriptor method"):
-        FrontendConfig(method="klt", max_gap_frames=2)
+    with pytest.raises(ValueError, match="max_track_gap must be an integer >= 0"):
+        FrontendConfig(max_track_gap=-1)
+    with pytest.raises(ValueError, match="max_track_gap applies to the descriptor method"):
+        FrontendConfig(method="klt", max_track_gap=2)
 
 
 def test_uint8_images_are_accepted(gentle):

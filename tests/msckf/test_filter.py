@@ -680,7 +680,7 @@ def test_a_track_gap_keeps_tracks_whole_across_missed_observations():
         with pytest.raises(ValueError, match="max_track_gap must be an integer >= 0, or a tuple of them"):
             MsckfConfig(max_track_gap=bad)
     with pytest.raises(ValueError, match=r"max_track_gap \(2, 0\) has no entry for frame stream 2"):
-        MsckfConfig(max_track_gap=(2, 0)).track_gap(2)
+        MsckfConfig(max_track_gap=(2, 0)).track_gap_of(2)
 
 
 # ---------------------------------------------------------------- per-observation outliers

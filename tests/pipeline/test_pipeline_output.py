@@ -101,8 +101,8 @@ def test_pixel_noise_options_reach_the_config(pipeline_cache, boxes_aps, monkeyp
     assert "--event-pixel-noise applies to event frame streams" in capsys.readouterr().err
     fused = ["run", "boxes_like", "--duration", "3", "--max-duration", "0.3", "--frames", "aps+mc-events", "--quiet",
              "--no-figures"]
-    assert main(fused + ["--event-tracker", "klt", "--track-gap", "2"]) == 0
-    assert (configs[-1].tracker, configs[-1].event_tracker, configs[-1].track_gap) == ("descriptor", "klt", 2)
+    assert main(fused + ["--event-tracker", "klt", "--max-track-gap", "2"]) == 0
+    assert (configs[-1].tracker, configs[-1].event_tracker, configs[-1].max_track_gap) == ("descriptor", "klt", 2)
     assert main(fused) == 0 and configs[-1].event_tracker is None
     assert main(fused + ["--aps-blur-noise", "0.5"]) == 0 and configs[-1].aps_blur_noise == 0.5
 

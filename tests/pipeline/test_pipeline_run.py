@@ -127,13 +127,13 @@ def test_static_initialisation_refuses_a_moving_start(boxes_aps):
     (dict(tracker="sift"), "method must be one of"),
     (dict(frames="events", reconstructor="learned"), r"reconstructor must be one of \['direct', 'high_pass'"),
     (dict(frames="events", reconstructor="no/such.pt"), "or a reconstruct-train checkpoint file; got 'no/such.pt'"),
-    (dict(track_gap=-1), r"track_gap must be an integer >= 0 \(frames\); got -1"),
-    (dict(track_gap=1.0), "track_gap must be an integer"),
+    (dict(max_track_gap=-1), r"max_track_gap must be an integer >= 0 \(frames\); got -1"),
+    (dict(max_track_gap=1.0), "max_track_gap must be an integer"),
     (dict(far_points=1), r"far_points must be one of off, starved, far-scene, always \(or True / False for 'always' / 'off'\); got 1"),
     (dict(far_points="sometimes"), "far_points must be one of off, starved, far-scene, always"),
-    (dict(tracker="klt", features="fast", track_gap=2), "track_gap applies to the descriptor tracker"),
-    (dict(frames="aps+mc-events", tracker="klt", event_tracker="klt", track_gap=1),
-     "track_gap applies to the descriptor tracker"),
+    (dict(tracker="klt", features="fast", max_track_gap=2), "max_track_gap applies to the descriptor tracker"),
+    (dict(frames="aps+mc-events", tracker="klt", event_tracker="klt", max_track_gap=1),
+     "max_track_gap applies to the descriptor tracker"),
     (dict(frames="aps+mc-events", event_tracker="flow"),
      "event_tracker must be None, 'descriptor' or 'klt'; got 'flow'"),
     (dict(event_tracker="klt"), "event_tracker applies to a run that fuses APS frames with an event stream"),
@@ -280,16 +280,16 @@ def test_event_frames_with_a_time_cap_give_frames_in_a_still_stretch(boxes_event
 
 
 def test_a_track_gap_reaches_the_tracker_and_the_filter(boxes_aps):
-    """track_gap = 2: the descriptor tracker revives tracks and the filter keeps them whole, so tracks get longer;
+    """max_track_gap = 2: the descriptor tracker revives tracks and the filter keeps them whole, so tracks get longer;
     the label says so; KLT refuses it (it never searches for a lost patch: test_bad_configs_are_refused)."""
     plain = run_pipeline(boxes_aps, PipelineConfig(features="sift"))
-    gap = run_pipeline(boxes_aps, PipelineConfig(features="sift", track_gap=2))
-    assert plain.config.track_gap == 0  # the default
+    gap = run_pipeline(boxes_aps, PipelineConfig(features="sift", max_track_gap=2))
+    assert plain.config.max_track_gap == 0  # the default
     assert plain.tracking["revived"].sum() == 0 and gap.tracking["revived"].mean() > 3
     assert np.mean(gap.track_lengths) > np.mean(plain.track_lengths)
     assert gap.metrics["rmse_m"] < 0.3 and np.isfinite(gap.p_IinG).all()
     assert msckf_config_for(gap.config, boxes_aps).max_track_gap == 2  # the filter keeps the tracks open
-    assert gap.config.frontend_config().max_gap_frames == 2
+    assert gap.config.frontend_config().max_track_gap == 2
     assert gap.config.label() == "SIFT on APS frames, track gap 2" and plain.config.label() == "SIFT on APS frames"
 
 
@@ -364,12 +364,12 @@ def test_each_frame_stream_gets_its_own_front_end(boxes_events, monkeypatch):
         return tracker
 
     monkeypatch.setattr(run_module, "create_tracker", recording)
-    config = PipelineConfig(frames="aps+mc-events", event_tracker="klt", track_gap=2, max_duration=0.8)
+    config = PipelineConfig(frames="aps+mc-events", event_tracker="klt", max_track_gap=2, max_duration=0.8)
     assert config.label() == "SIFT on APS frames and KLT + FAST on motion-compensated event frames, track gap 2"
     result = run_pipeline(boxes_events, config)
     (aps_config, aps_calls), (mc_config, mc_calls) = made
-    assert (aps_config.method, aps_config.detector_name, aps_config.max_gap_frames) == ("descriptor", "sift", 2)
-    assert (mc_config.method, mc_config.detector_name, mc_config.max_gap_frames) == ("klt", "fast", 0)
+    assert (aps_config.method, aps_config.detector_name, aps_config.max_track_gap) == ("descriptor", "sift", 2)
+    assert (mc_config.method, mc_config.detector_name, mc_config.max_track_gap) == ("klt", "fast", 0)
     frame_times = boxes_events.sequence.frame_times
     assert set(np.round(aps_calls, 9)) <= set(np.round(frame_times, 9)) and len(aps_calls) >= 15
     assert not set(np.round(mc_calls, 9)) & set(np.round(frame_times, 9)) and len(mc_calls) >= 5
