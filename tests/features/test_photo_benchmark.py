@@ -12,7 +12,8 @@ import pytest
 
 from evio_lib import cli
 from evio_lib.features.evaluation.benchmark import heldout_pairs
-from evio_lib.features.evaluation.photos import fit_photo, photo_images, photo_pairs
+from evio_lib.features.evaluation.benchmark import photo_pairs
+from evio_lib.features.evaluation.photos import fit_photo, photo_images
 from evio_lib.sim import photos as sim_photos
 from evio_lib.sim.photos import photo_split
 

@@ -9,7 +9,7 @@ Data sets (lists of ``ImagePair``, each image 1, image 2 and the homography H of
 * ``event_frame_pairs``: event frames and warped copies with small random rotations and translations, like the
   thesis's aerial event-frame set (§3.2.3); split "event_frames".
 * ``evio_lib.features.evaluation.hpatches.iter_hpatches_pairs``: the real HPatches folder layout, for anyone who has it.
-* ``evio_lib.features.evaluation.photos.photo_pairs``: ``heldout_pairs`` of the held-out natural photographs of a photo
+* ``photo_pairs``: ``heldout_pairs`` of the held-out natural photographs of a photo
   folder (``--dataset photos``), cropped to 3:4 and resized to 480 x 640.
 
 ``run_benchmark(detector, pairs, settings)`` runs one detector over the pairs with the thesis's settings
@@ -67,6 +67,7 @@ __all__ = [
     "viewpoint_pairs",
     "illumination_pairs",
     "heldout_pairs",
+    "photo_pairs",
     "event_frame_pairs",
     "run_benchmark",
     "diagnose_pairs",
@@ -387,6 +388,28 @@ def heldout_pairs(
         pairs += illumination_pairs(imgs, seed, pairs_per_image)
     return pairs
 
+
+
+def photo_pairs(
+    folder: str | Path,
+    split: str = "test",
+    seed: int = 0,
+    *,
+    n_images: int | None = None,
+    pairs_per_image: int = 5,
+    splits: Sequence[str] = ("viewpoint", "illumination"),
+    size: tuple[int, int] = (480, 640),
+) -> list:
+    """Return viewpoint and illumination pairs (``ImagePair``) of the held-out photographs of ``folder``.
+
+    ``heldout_pairs(seed, images=photo_images(folder, split, n_images=n_images, size=size),
+    pairs_per_image=pairs_per_image, splits=splits)``: pair k of photograph i has the generator seeded by
+    (seed, benchmark split, i, k), as in the built-in benchmark; the viewpoint split comes first.
+    """
+    from evio_lib.features.evaluation.photos import photo_images
+
+    images = photo_images(folder, split, n_images=n_images, size=size)
+    return heldout_pairs(seed, images=images, pairs_per_image=pairs_per_image, splits=splits)
 
 def event_frame_pairs(
     frames: Sequence[np.ndarray], seed: int, pairs_per_frame: int = 1, **homography_options: Any
@@ -845,7 +868,6 @@ def _benchmark_pairs(args: argparse.Namespace) -> tuple[Iterable[ImagePair], dic
         first = [p.image1 for _, p in zip(range(1), pairs)]  # time the detectors on the first reference image
         return pairs, counts, first
     if args.dataset == "photos":
-        from evio_lib.features.evaluation.photos import photo_pairs
         from evio_lib.sim.photos import resolve_photo_option
 
         given = getattr(args, "photos", "auto")

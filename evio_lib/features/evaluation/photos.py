@@ -3,7 +3,7 @@
 ``photo_images(folder, split)`` reads the photographs of one held-out split of a photo folder
 (:func:`evio_lib.sim.photos.list_photos`: the split follows a hash of each relative path, so the ``test`` photographs
 are never trained on, and ``val`` chooses networks without looking at them) and fits each to (height, width) =
-(480, 640) without distorting it (:func:`fit_photo`). ``photo_pairs`` passes them to
+(480, 640) without distorting it (:func:`fit_photo`). ``benchmark.photo_pairs`` passes them to
 :func:`evio_lib.features.evaluation.benchmark.heldout_pairs` (``images=``), so the viewpoint (random homographies)
 and illumination (photometric change, H = I) pairs come from the same generators and seeds as the built-in
 benchmark. ``python -m evio_lib features-benchmark --dataset photos [--photos DIR] [--photo-split val]`` runs it.
@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["PHOTO_BENCHMARK_SPLITS", "fit_photo", "photo_images", "photo_pairs"]
+__all__ = ["PHOTO_BENCHMARK_SPLITS", "fit_photo", "photo_images"]
 
 #: splits of the photo folder a benchmark may use (the training split never is one)
 PHOTO_BENCHMARK_SPLITS = ("test", "val")
@@ -93,25 +93,3 @@ def photo_images(
             raise ValueError(f"n_images must be a positive integer; got {n_images!r}")
         paths = paths[:n_images]
     return [fit_photo(load_photo(path), size) for path in paths]
-
-
-def photo_pairs(
-    folder: str | Path,
-    split: str = "test",
-    seed: int = 0,
-    *,
-    n_images: int | None = None,
-    pairs_per_image: int = 5,
-    splits: Sequence[str] = ("viewpoint", "illumination"),
-    size: tuple[int, int] = (480, 640),
-) -> list:
-    """Return viewpoint and illumination pairs (``ImagePair``) of the held-out photographs of ``folder``.
-
-    ``heldout_pairs(seed, images=photo_images(folder, split, n_images=n_images, size=size),
-    pairs_per_image=pairs_per_image, splits=splits)``: pair k of photograph i has the generator seeded by
-    (seed, benchmark split, i, k), as in the built-in benchmark; the viewpoint split comes first.
-    """
-    from evio_lib.features.evaluation.benchmark import heldout_pairs
-
-    images = photo_images(folder, split, n_images=n_images, size=size)
-    return heldout_pairs(seed, images=images, pairs_per_image=pairs_per_image, splits=splits)
