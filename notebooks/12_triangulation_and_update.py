@@ -52,7 +52,8 @@ from evio_lib.geometry.camera import PinholeRadtan
 from evio_lib.geometry.rotation import quat_to_rot, so3_exp
 from evio_lib.msckf.augmentation import augment_state
 from evio_lib.msckf.config import MsckfConfig
-from evio_lib.msckf.experiment import VioSimConfig, observation_covariance
+from evio_lib.geometry.pixel_noise import observation_covariance
+from evio_lib.msckf.experiment import VioSimConfig
 from evio_lib.msckf.filter import Msckf, whitening_matrices
 from evio_lib.msckf.initialization import initial_state_from_truth
 from evio_lib.msckf.propagation import propagate

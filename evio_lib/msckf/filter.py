@@ -496,7 +496,7 @@ class Msckf:
             ids: (K,) unique integer feature (track) ids.
             xy: (K, 2) undistorted normalised image coordinates (x, y) of the features.
             xy_cov: (K, 2, 2) noise covariance of each observation in normalised coordinates (e.g. σ_px² J J^T with
-                J = d(xy)/d(pixel), ``experiment.observation_covariance``), or None for the isotropic
+                J = d(xy)/d(pixel), ``geometry.pixel_noise.observation_covariance``), or None for the isotropic
                 ``config.feature_noise_sigma``² I. The update whitens each observation by its own covariance.
             stream: which frame stream the image comes from (0 when there is one). An image ends only the tracks
                 of its stream; the ids of different streams must differ (an id seen in another stream is refused).

@@ -51,7 +51,7 @@ from evio_lib.evaluation.trajectory_metrics import orientation_errors, relative_
 from evio_lib.frontend import FrontendConfig, camera_rotation_prior, create_tracker, stats_table
 from evio_lib.geometry.rotation import quat_to_rot
 from evio_lib.msckf.config import MsckfConfig
-from evio_lib.msckf.experiment import observation_covariance
+from evio_lib.geometry.pixel_noise import observation_covariance
 from evio_lib.msckf.filter import Msckf, MsckfWarning
 from evio_lib.msckf.initialization import initial_state_from_static, initial_state_from_truth
 from evio_lib.msckf.zero_velocity import StandstillDetector, ZeroVelocityConfig

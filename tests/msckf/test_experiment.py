@@ -17,13 +17,12 @@ from evio_lib.msckf.experiment import (
     experiment_msckf_config,
     initial_state,
     main_vio_sim,
-    observation_covariance,
     pose_nees,
     run_vio_sim,
     run_vio_sim_config,
     simulate_data,
-    undistortion_noise_factor,
 )
+from evio_lib.geometry.pixel_noise import observation_covariance, undistortion_noise_factor
 from evio_lib.msckf.state import state_difference
 from evio_lib.sim.trajectory import trajectory_from_preset
 

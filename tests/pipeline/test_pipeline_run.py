@@ -26,7 +26,7 @@ def recorded_sigmas(monkeypatch) -> list[float]:
     """The feature noise σ (px) of every observation covariance the pipeline builds, in order (the covariances
     themselves are built as usual)."""
     import evio_lib.pipeline.run as run_module
-    from evio_lib.msckf.experiment import observation_covariance
+    from evio_lib.geometry.pixel_noise import observation_covariance
 
     calls: list[float] = []
 
