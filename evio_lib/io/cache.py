@@ -29,6 +29,7 @@ from evio_lib.sequence import GroundTruth, ImuSamples, Sequence
 
 __all__ = [
     "CacheError",
+    "default_cache_dir",
     "load_npz_arrays",
     "discard_damaged_cache",
     "save_sequence_npz",
@@ -51,6 +52,14 @@ class CacheError(DataFileError):
     def __init__(self, path: str | Path, reason: str) -> None:
         self.path, self.reason = Path(path), reason
         super().__init__(f"{self.path.name}: {reason}")
+
+
+def default_cache_dir() -> Path:
+    """Return the project's one cache folder: ``$EVIO_CACHE_DIR`` if set, else ``<repository>/data/cache``
+    (git-ignored). Simulated recordings, evaluation stretches, training samples, feature labels and the event files of
+    ROS bags and HDF5 recordings are cached under it."""
+    env = os.environ.get("EVIO_CACHE_DIR")
+    return Path(env) if env else Path(__file__).resolve().parents[2] / "data" / "cache"
 
 
 def load_npz_arrays(path: str | Path, keys: tuple[str, ...] | None = None) -> dict[str, np.ndarray]:

@@ -65,15 +65,13 @@ def recording_cache_path(source: Path, stream: str) -> Path:
     """Return the ``.npy`` event file that caches ``stream`` of the recording ``source`` (keyed by its resolved
     path, size and modification time)."""
     import hashlib
-    import os
 
     stat = source.stat()
     key = f"{source.resolve()}|{stat.st_size}|{stat.st_mtime_ns}|{stream}|v1"
     digest = hashlib.sha1(key.encode()).hexdigest()[:16]
-    # the project's cache folder (evio_lib.features.training.datasets.default_cache_dir, without importing torch)
-    cache = Path(os.environ["EVIO_CACHE_DIR"]) if os.environ.get("EVIO_CACHE_DIR") else \
-        Path(__file__).resolve().parents[2] / "data" / "cache"
-    return cache / "recordings" / f"{source.stem}_{digest}_events.npy"
+    from evio_lib.io.cache import default_cache_dir
+
+    return default_cache_dir() / "recordings" / f"{source.stem}_{digest}_events.npy"
 
 
 def cached_events(source: Path, stream: str, chunks: Iterator[np.ndarray]) -> np.ndarray:

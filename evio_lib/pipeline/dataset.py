@@ -4,7 +4,7 @@
 plus the camera-IMU extrinsics and IMU noise model the filter needs, and notes saying where each came from.
 
 - A preset name (``boxes_like``, ``aerial_like``) is simulated on first use and cached as ``.npz`` under the project's
-  cache folder (``features.training.datasets.default_cache_dir() / "sequences"``), keyed by preset, duration, seed,
+  cache folder (``io.cache.default_cache_dir() / "sequences"``), keyed by preset, duration, seed,
   start, a digest of every other setting (:func:`evio_lib.sim.presets.recording_settings_digest`: the sensor models)
   and whether events were simulated; the sidecar knows the extrinsics and the IMU noise exactly.
 - An ECD folder (``events.txt`` [+ ``images.txt``, ``imu.txt``, ``calib.txt``, ``groundtruth.txt``]): extrinsics from
@@ -76,7 +76,7 @@ class LoadedDataset:
 
 def sequence_cache_dir() -> Path:
     """Return the folder of cached simulated recordings (``default_cache_dir() / "sequences"``)."""
-    from evio_lib.features.training.datasets import default_cache_dir
+    from evio_lib.io.cache import default_cache_dir
 
     return default_cache_dir() / "sequences"
 

@@ -401,7 +401,7 @@ def simulation_cache_path(config: SimulationConfig) -> Path:
     two configs share a file only when they are equal, and equal configs give equal recordings (every random
     stream is seeded by the config).
     """
-    from evio_lib.features.training.datasets import default_cache_dir  # the project's one cache folder
+    from evio_lib.io.cache import default_cache_dir  # the project's one cache folder
 
     return default_cache_dir() / "sequences" / f"{config.preset}_{_settings_digest(_settings(config), 16)}.npz"
 

@@ -13,6 +13,7 @@ from torch.utils.data import DataLoader
 import evio_lib.sim.scene as scene_module
 import evio_lib.features.training.datasets as datasets
 from evio_lib.features.training.augment import PairSample, Sample, keypoints_to_map
+from evio_lib.io.cache import default_cache_dir
 from evio_lib.features.training.datasets import (
     DEFAULT_POOL_SIZE,
     PHOTO_FILES,
@@ -23,7 +24,6 @@ from evio_lib.features.training.datasets import (
     EventFrames,
     RealImages,
     adaptation_labels,
-    default_cache_dir,
     image_pool,
     images_fingerprint,
     list_sources,

@@ -48,7 +48,7 @@ def test_configs_weights_runs_and_cache_are_where_they_were(monkeypatch):
     """The move one folder down must not change where the training configs, the shipped weights, the training runs
     and the label cache are looked for."""
     from evio_lib.features.network.model import WEIGHTS_DIR
-    from evio_lib.features.training.datasets import default_cache_dir
+    from evio_lib.io.cache import default_cache_dir
     from evio_lib.features.training.train import CONFIG_DIR, DEFAULT_CHECKPOINT_DIR, available_configs
 
     repository = Path(__file__).resolve().parents[2]

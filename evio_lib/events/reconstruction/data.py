@@ -300,7 +300,7 @@ def reconstruction_dataset(split: str, n_samples: int, seed: int = 0,
         raise ValueError(f"split must be one of {tuple(SPLIT_PHOTOS)}; got {split!r}")
     if int(n_samples) != n_samples or n_samples < 1:
         raise ValueError(f"n_samples must be a positive integer; got {n_samples!r}")
-    from evio_lib.features.training.datasets import default_cache_dir  # the project's one cache folder ($EVIO_CACHE_DIR)
+    from evio_lib.io.cache import default_cache_dir  # the project's one cache folder ($EVIO_CACHE_DIR)
 
     key = json.dumps({"split": split, "n": int(n_samples), "seed": int(seed), "config": asdict(config), "v": 1},
                      sort_keys=True)

@@ -103,7 +103,7 @@ def simulated_eval_sequence(stretch: str, duration: float | None = None, seed: i
     preset, start, default_duration, motion = EVAL_STRETCHES[stretch]
     duration = default_duration if duration is None else float(duration)
     config = SimulationConfig(preset=preset, duration=duration, start_time=start, trajectory_duration=motion, seed=seed)
-    from evio_lib.features.training.datasets import default_cache_dir  # the project's one cache folder ($EVIO_CACHE_DIR)
+    from evio_lib.io.cache import default_cache_dir  # the project's one cache folder ($EVIO_CACHE_DIR)
 
     name = f"reconstruction_eval_{stretch}_{duration:g}s_seed{seed}_m{recording_settings_digest(config)}.npz"
     path = default_cache_dir() / name

@@ -44,7 +44,6 @@ import hashlib
 import json
 import math
 import multiprocessing
-import os
 import re
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
@@ -74,6 +73,7 @@ from evio_lib.features.training.augment import (
     keypoints_to_map,
     photometric_augment,
 )
+from evio_lib.io.cache import default_cache_dir
 
 __all__ = [
     "SPLITS",
@@ -93,7 +93,6 @@ __all__ = [
     "render_view",
     "random_crop",
     "image_pool",
-    "default_cache_dir",
     "images_fingerprint",
     "save_labels",
     "load_labels",
@@ -656,12 +655,6 @@ def image_pool(split: str, seed: int = 0, size: tuple[int, int] = (240, 320), n_
 
 
 # ============================================================================================== label cache
-def default_cache_dir() -> Path:
-    """Return the label cache folder: ``$EVIO_CACHE_DIR`` if set, else ``<repository>/data/cache`` (git-ignored)."""
-    env = os.environ.get("EVIO_CACHE_DIR")
-    return Path(env) if env else Path(__file__).resolve().parents[3] / "data" / "cache"
-
-
 def images_fingerprint(images: Sequence[np.ndarray], extra: Any = None) -> str:
     """Return a SHA-1 hex digest of the images (shape, float32 bytes) and of ``extra`` (JSON-serialisable).
 
@@ -742,7 +735,7 @@ def adaptation_labels(images: Sequence[np.ndarray], heatmap_fn: Callable[[np.nda
         heatmap_fn: detector, ``images (B, H, W) -> heatmaps (B, H, W)``.
         cache_name: file-name stem (letters, digits, '_', '.', '-') or None.
         rng: seed (int) or Generator (a Generator disables caching: its state cannot be fingerprinted).
-        cache_dir: folder (default :func:`default_cache_dir`).
+        cache_dir: folder (default :func:`evio_lib.io.cache.default_cache_dir`).
         recompute: ignore an existing cache and overwrite it.
         progress: tqdm progress bar.
         n_homographies, config, batch_size, threshold, nms_radius, border, max_keypoints: see
