@@ -17,6 +17,11 @@ variants, replaces about 20 % of it with event frames. Nothing can be downloaded
   perspective), textured only with the photographs and procedural textures *of the same split*.
 * **texture** -- flat procedural textures of ``evio_lib.sim.textures`` (checkerboards, dead leaves, tiles, ...).
 * **events** -- event frames handed in through :class:`EventFrames` (the thesis's "Events" variants).
+* **folder** -- the photographs of a folder handed in as ``photos=`` (``--photos DIR`` of ``features-train``; see
+  :mod:`evio_lib.sim.photos`), one source per photograph, named ``folder:<path relative to the folder>``. Each
+  photograph belongs to the split that :func:`evio_lib.sim.photos.photo_split` gives it (a hash of its relative
+  path), so the held-out test photographs of the folder (``features-benchmark --dataset photos``) are never
+  sources of the train or val pools.
 
 Rendered views (linear intensity) are display-encoded with the sRGB curve so that they look like photographs.
 Every pool image is a random crop of a source view, rescaled to the output size (crop side = output side times a
@@ -86,6 +91,7 @@ __all__ = [
     "TEXTURE_SEEDS",
     "POOL_MIX",
     "DEFAULT_POOL_SIZE",
+    "FOLDER_SHARE",
     "ImageSource",
     "EventFrames",
     "list_sources",
@@ -135,6 +141,11 @@ POOL_MIX: dict[str, dict[str, float]] = {
     "test": {"photo": 0.30, "aerial": 0.25, "cards": 0.30, "texture": 0.15},
 }
 DEFAULT_POOL_SIZE = {"train": 800, "val": 100, "test": 60}
+#: share of a pool taken by the photographs of a ``photos=`` folder; the kinds of :data:`POOL_MIX` share the rest
+#: in their usual proportions. The thesis trains on photographs only (MS-COCO), so the photographs get the larger
+#: part; the rendered scenes and textures keep 40 % for the content the photographs lack (rooms, aerial views,
+#: occluding cards, repetitive textures).
+FOLDER_SHARE = 0.6
 _CARD_TEXTURE_KINDS = ("rectangles", "checkerboard", "tiles", "blobs", "stripes", "fractal_noise")
 _MAX_UPSCALE = 1.5
 _MIN_STD = 0.04
@@ -173,7 +184,7 @@ class ImageSource:
     Args:
         name: unique name, e.g. ``"photo:camera"``, ``"room:3"``, ``"aerial:200"``, ``"events:flight:test"``.
         split: "train", "val" or "test".
-        kind: "photo", "room", "aerial", "cards", "texture" or "events".
+        kind: "photo", "room", "aerial", "cards", "texture", "events" or "folder" (a photograph of a folder).
         content: tags of the pictures/textures it shows (``"photo:camera"``, ``"terrain:200"``, ...); the test
             split's content is disjoint from train's and val's.
         params: what :func:`render_view` needs (files, seed, frames).
@@ -246,12 +257,16 @@ class EventFrames:
         return ImageSource(tag, split, "events", frozenset({tag}), {"frames": self.frames_for(split)})
 
 
-def list_sources(split: str, event_frames: EventFrames | Sequence[EventFrames] | None = None) -> list[ImageSource]:
-    """Return the image sources of ``split`` (fixed table, see the module docstring), event blocks last.
+def list_sources(split: str, event_frames: EventFrames | Sequence[EventFrames] | None = None,
+                 photos: str | Path | None = None) -> list[ImageSource]:
+    """Return the image sources of ``split`` (fixed table, see the module docstring), folder photographs and event
+    blocks last.
 
     Args:
         split: "train", "val" or "test".
         event_frames: optional :class:`EventFrames` (or several) whose block of this split is added.
+        photos: optional folder of photographs: one source (kind ``"folder"``) per photograph of this split
+            (:func:`evio_lib.sim.photos.list_photos`; ValueError naming the folder when it holds none of the split).
 
     >>> names = [s.name for s in list_sources("test")]
     >>> "photo:clock" in names, "photo:camera" in names, any(n.startswith("room:") for n in names)
@@ -277,6 +292,13 @@ def list_sources(split: str, event_frames: EventFrames | Sequence[EventFrames] |
             tag = f"procedural:{kind}:{seed}"
             sources.append(ImageSource(f"texture:{kind}:{seed}", split, "texture", frozenset({tag}),
                                        {"kind": kind, "seed": seed}))
+    if photos is not None:
+        from evio_lib.sim.photos import list_photos
+
+        folder = Path(photos)
+        for path in list_photos(folder, split):
+            tag = f"folder:{path.relative_to(folder).as_posix()}"
+            sources.append(ImageSource(tag, split, "folder", frozenset({tag}), {"path": str(path)}))
     if event_frames is not None:
         for ev in _as_event_list(event_frames):
             sources.append(ev.source(split))
@@ -420,7 +442,7 @@ def render_view(source: ImageSource, rng: np.random.Generator | int, shape: tupl
 
     Scenes are rendered at ``shape`` from a random pose (room: inside the room, mostly toward the boxes; aerial:
     120-300 m altitude; cards: near the origin looking along +z) with a 50-80 degree horizontal field of view
-    and display-encoded (sRGB). Photos and event frames ignore ``shape``.
+    and display-encoded (sRGB). Photos (bundled or of a folder) and event frames ignore ``shape``.
 
     Args:
         source: an :class:`ImageSource` from :func:`list_sources`.
@@ -433,6 +455,10 @@ def render_view(source: ImageSource, rng: np.random.Generator | int, shape: tupl
     if source.kind == "photo":
         files = source.params["files"]
         return load_photo(source.name.split(":", 1)[1], int(gen.integers(len(files))))
+    if source.kind == "folder":
+        from evio_lib.sim.photos import load_photo as load_folder_photo
+
+        return load_folder_photo(source.params["path"]).copy()  # the cached array stays untouched
     if source.kind == "events":
         frames = source.params["frames"]
         if not frames:
@@ -478,7 +504,8 @@ def render_view(source: ImageSource, rng: np.random.Generator | int, shape: tupl
         R_CtoG, _ = cv2.Rodrigues(gen.normal(0.0, 0.12, 3))
         position = gen.uniform(-0.3, 0.3, 3)
         return _srgb_encode(scene.render_intensity(camera, R_CtoG, position))
-    raise ValueError(f"source.kind must be photo, room, aerial, cards, texture or events; got {source.kind!r}")
+    raise ValueError(f"source.kind must be photo, room, aerial, cards, texture, events or folder; "
+                     f"got {source.kind!r}")
 
 
 _RENDERED_KINDS = ("room", "aerial", "cards")  # sources drawn by the renderer (their size sets the scale)
@@ -559,13 +586,16 @@ def _pool_chunk(tasks: Sequence[tuple]) -> list[tuple[int, np.ndarray]]:
 def image_pool(split: str, seed: int = 0, size: tuple[int, int] = (240, 320), n_images: int | None = None,
                event_frames: EventFrames | Sequence[EventFrames] | None = None, event_fraction: float = 0.2,
                return_sources: bool = False, progress: bool = False, render_zoom: float = 1.0,
-               workers: int = 1) -> list[np.ndarray] | tuple[list, list[str]]:
+               workers: int = 1, photos: str | Path | None = None) -> list[np.ndarray] | tuple[list, list[str]]:
     """Return the pool of ``split``: a list of float32 (H, W) images in [0, 1] (random crops of the split's sources).
 
     Images are shared among source kinds by :data:`POOL_MIX` (largest remainder) and round-robin among the
     sources of a kind; with ``event_frames`` a fraction ``event_fraction`` of the pool (thesis: about 20 %) comes
-    from the event frames of this split instead. Image j uses ``default_rng([seed, split, j])``: the pool is
-    deterministic for a given seed, and which sources belong to a split never depends on the seed.
+    from the event frames of this split instead. With ``photos`` (a folder) the folder's photographs of this split
+    take :data:`FOLDER_SHARE` of the rest and the kinds of :data:`POOL_MIX` share what remains in their usual
+    proportions; without it the pool is exactly the one without the option. Image j uses
+    ``default_rng([seed, split, j])``: the pool is deterministic for a given seed, and which sources belong to a
+    split never depends on the seed.
 
     Args:
         split: "train", "val" or "test".
@@ -585,6 +615,8 @@ def image_pool(split: str, seed: int = 0, size: tuple[int, int] = (240, 320), n_
         workers: processes that render the pool (1: this process). The result does not depend on it (image j
             has its own generator); it only changes the time, about 155 ms per 120 x 160 image with ``render_zoom``
             4 on one core. Needs the ``fork`` start method (Linux); elsewhere the pool is rendered here.
+        photos: optional folder of photographs (:func:`list_sources`); its views are random crops of the
+            photographs, like the bundled photos'.
 
     Reference: thesis §3.2.1-3.2.2.
 
@@ -603,12 +635,15 @@ def image_pool(split: str, seed: int = 0, size: tuple[int, int] = (240, 320), n_
     if isinstance(render_zoom, bool) or not isinstance(render_zoom, Real) or not 1.0 <= render_zoom <= 16.0:
         raise ValueError(f"render_zoom must be a number in [1, 16]; got {render_zoom!r}")
     n_workers = _check_workers(workers)
-    sources = list_sources(split, event_frames)
+    sources = list_sources(split, event_frames, photos)
     by_kind: dict[str, list[ImageSource]] = {}
     for source in sources:
         if source.kind != "events" or source.params["frames"]:
             by_kind.setdefault(source.kind, []).append(source)
     shares = {k: v for k, v in POOL_MIX[split].items() if k in by_kind}
+    if "folder" in by_kind:  # the folder takes FOLDER_SHARE, the usual kinds the rest in their proportions
+        total_share = sum(shares.values())
+        shares = {k: (1.0 - FOLDER_SHARE) * v / total_share for k, v in shares.items()} | {"folder": FOLDER_SHARE}
     n_events = int(round(event_fraction * n_total)) if "events" in by_kind else 0
     counts = _allocate(int(n_total) - n_events, shares)
     if n_events:
@@ -788,8 +823,8 @@ class RealImages(Dataset):
     Args:
         images: the images (e.g. from :func:`image_pool`); default ``image_pool(split, seed, size, n_images,
             event_frames, event_fraction)``.
-        split, seed, size, n_images, event_frames, event_fraction: passed to :func:`image_pool` when ``images``
-            is None (``seed`` also seeds the augmentation).
+        split, seed, size, n_images, event_frames, event_fraction, photos: passed to :func:`image_pool` when
+            ``images`` is None (``seed`` also seeds the augmentation).
         keypoints: optional labels, one (N_i, 2) (x, y) array per image (e.g. :func:`adaptation_labels`).
         augment: None -> only for split "train".
         photometric, homographic: augmentation configs (None disables that part).
@@ -805,6 +840,7 @@ class RealImages(Dataset):
     def __init__(self, images: Sequence[np.ndarray] | None = None, *, split: str = "train", seed: int = 0,
                  size: tuple[int, int] = (240, 320), n_images: int | None = None,
                  event_frames: EventFrames | Sequence[EventFrames] | None = None, event_fraction: float = 0.2,
+                 photos: str | Path | None = None,
                  keypoints: Sequence[np.ndarray] | None = None, augment: bool | None = None,
                  photometric: PhotometricConfig | None = PHOTOMETRIC_REAL,
                  homographic: HomographicConfig | None = HOMOGRAPHIC_REAL, pairs: bool = False,
@@ -812,7 +848,7 @@ class RealImages(Dataset):
         self.split = _check_split(split)
         self.seed = _check_seed(seed)
         if images is None:
-            images = image_pool(split, self.seed, size, n_images, event_frames, event_fraction)
+            images = image_pool(split, self.seed, size, n_images, event_frames, event_fraction, photos=photos)
         if len(images) == 0:
             raise ValueError("images must hold at least one image; got an empty pool")
         self.images = [check_image(img, f"images[{i}]") for i, img in enumerate(images)]

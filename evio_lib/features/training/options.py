@@ -57,6 +57,10 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentPar
     parser.add_argument("--out", type=output_folder(), dest="checkpoint_dir",
                         help="checkpoint folder (default runs/features); each variant trains into OUT/VARIANT, "
                              "which must be new or empty unless --resume or --force")
+    parser.add_argument("--photos", metavar="DIR",
+                        help="folder of photographs (.jpg/.png/...) whose train and val photographs join the "
+                             "real-image pools (60 %% of each; its test photographs are never trained on); 'auto' the "
+                             "shared folder, 'none' no folder (default: the config's, none in the shipped configs)")
     parser.add_argument("--set", type=_parse_set, action="append", default=[], metavar="KEY=VALUE",
                         help="any other config field, VALUE in JSON (repeatable), e.g. --set n_homographies=20")
     parser.add_argument("--resume", action="store_true", help="continue from <out>/<variant>/last.pt")

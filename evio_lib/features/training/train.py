@@ -161,6 +161,13 @@ class TrainConfig:
         event_frames: None, a path to an ``.npy``/``.npz`` (N, H, W) stack of event frames, or a dict
             ``{"simulate": preset, "duration": s, "seed": k, "events_per_frame": n}`` -- the "Events" variants.
         event_fraction: share of the real pool taken by event frames (thesis: about 20 %).
+        photos: None, or a folder of photographs whose train / val photographs join the real pools
+            (``datasets.image_pool(photos=...)``: ``datasets.FOLDER_SHARE`` of each pool; the split of each
+            photograph is ``evio_lib.sim.photos.photo_split``, so its test photographs are never trained on).
+            ``"auto"`` is the shared folder (``evio_lib.sim.photos.default_photo_folder``), ``"none"`` None; a
+            folder is stored as its absolute path, and the checkpoints record the folder's
+            ``photo_fingerprint``, so a resumed run refuses other photographs. Stage "magicpoint" (synthetic
+            shapes) keeps None.
         device: "cpu", "cuda" or "auto" (CUDA when available).
         num_workers: DataLoader worker processes (0: load in the main process); also the processes that render the
             real-image pool (at least one).
@@ -204,6 +211,7 @@ class TrainConfig:
     augment: bool = True
     event_frames: str | dict[str, Any] | None = None
     event_fraction: float = 0.2
+    photos: str | None = None
     device: str = "auto"
     num_workers: int = 0
     num_threads: int | None = None
@@ -296,6 +304,18 @@ class TrainConfig:
         frac = _real("event_fraction", self.event_fraction, 0.0)
         if frac > 1.0:
             raise _bad("event_fraction", self.event_fraction, "a number in [0, 1]")
+        if self.photos is not None:
+            if not isinstance(self.photos, (str, Path)) or not str(self.photos):
+                raise _bad("photos", self.photos, "null, 'auto', 'none' or a folder of photographs")
+            from evio_lib.sim.photos import resolve_photo_option
+
+            folder = resolve_photo_option(self.photos)  # ValueError naming the folder when it holds no photograph
+            if self.stage == "magicpoint":  # synthetic shapes only: a chain's --photos does not reach it
+                folder = None
+            if folder is None and str(self.photos) == "auto":
+                raise ValueError("photos 'auto': no shared photo folder found (expected ../shared/data/photos beside "
+                                 "the checkout or $EVIO_PHOTOS); name a folder of photographs")
+            object.__setattr__(self, "photos", None if folder is None else str(Path(folder).resolve()))
         if self.device not in ("auto", "cpu", "cuda") and not str(self.device).startswith("cuda:"):
             raise _bad("device", self.device, "'auto', 'cpu' or 'cuda'")
         _int("num_workers", self.num_workers, 0)
@@ -593,13 +613,25 @@ def training_images(config: TrainConfig, split: str, progress: bool = False) -> 
         raise _bad("split", split, "'train' or 'val' (the test split is held out for the benchmark)")
     n = config.n_train_images if split == "train" else config.n_val_images
     events_key = json.dumps(config.event_frames, sort_keys=True)
-    key = (split, config.pool_seed, config.image_size, n, events_key, config.event_fraction, config.render_zoom)
+    photos_key = json.dumps(photos_fingerprint(config), sort_keys=True)
+    key = (split, config.pool_seed, config.image_size, n, events_key, config.event_fraction, config.render_zoom,
+           photos_key)
     if key not in _POOL_CACHE:
         events = None if config.event_frames is None else load_event_frames(config.event_frames)
         _POOL_CACHE[key] = image_pool(split, config.pool_seed, config.image_size, n, event_frames=events,
                                       event_fraction=config.event_fraction, progress=progress,
-                                      render_zoom=config.render_zoom, workers=max(1, config.num_workers))
+                                      render_zoom=config.render_zoom, workers=max(1, config.num_workers),
+                                      photos=config.photos)
     return _POOL_CACHE[key]
+
+
+def photos_fingerprint(config: TrainConfig) -> dict[str, Any] | None:
+    """Return the photo folder's ``evio_lib.sim.photos.photo_fingerprint`` with its path, or None without photos."""
+    if config.photos is None:
+        return None
+    from evio_lib.sim.photos import photo_fingerprint
+
+    return {"folder": config.photos, **photo_fingerprint(config.photos)}
 
 
 def _file_digest(path: Path) -> str:
@@ -646,6 +678,8 @@ def export_labels(
     heatmaps = _heatmap_function(load_model(path), device)
     stem = Path(config.labels_from).stem if Path(config.labels_from).suffix else config.labels_from
     events = "" if config.event_frames is None else "_events"
+    if config.photos is not None:  # another pool: its own file (the images' fingerprint also differs)
+        events += f"_photos-{photos_fingerprint(config)['names_sha256'][:8]}"
     labels = {}
     for split in splits:
         images = training_images(config, split, progress=progress)
@@ -956,6 +990,7 @@ def _train(config: TrainConfig, progress: bool, resume: bool) -> TrainResult:
     best_metrics: dict[str, float] | None = None
     # distill: the teacher checked (and fingerprinted) before anything is rendered or written
     teacher = _check_teacher(config, model) if config.stage == "distill" else None
+    photos = photos_fingerprint(config)
     if resume and last_path.is_file():
         checkpoint = load_checkpoint(last_path, map_location="cpu")
         # a field added after the checkpoint was written counts as its default value
@@ -967,6 +1002,10 @@ def _train(config: TrainConfig, progress: bool, resume: bool) -> TrainResult:
         if changed:
             raise ValueError(f"cannot resume {last_path}: the config differs in {changed}; only "
                              f"{sorted(_RESUME_FREE)} may change (or train without resume to start over)")
+        saved_photos = checkpoint["metadata"].get("photos_fingerprint")
+        if saved_photos != photos:
+            raise ValueError(f"cannot resume {last_path}: it trained with the photographs {saved_photos}, and the "
+                             f"folder is now {photos}; train without resume to start over")
         saved_teacher = checkpoint["metadata"].get("teacher_sha1")
         if teacher is not None and saved_teacher is not None and saved_teacher != teacher:
             raise ValueError(f"cannot resume {last_path}: its teacher was the file with SHA-1 {saved_teacher}..., "
@@ -992,7 +1031,8 @@ def _train(config: TrainConfig, progress: bool, resume: bool) -> TrainResult:
 
     def save_last() -> None:
         save_checkpoint(model, last_path, {"variant": config.name, "stage": config.stage, "config": config.to_dict(),
-                                           **({"teacher_sha1": teacher} if teacher else {})},
+                                           **({"teacher_sha1": teacher} if teacher else {}),
+                                           **({"photos_fingerprint": photos} if photos else {})},
                         optimizer=optimizer.state_dict(), step=step, train_loss=list(train_loss),
                         validation=[dict(v) for v in validation], best_step=best_step,
                         best_metrics=dict(best_metrics or {}), rng=_rng_state(device))
@@ -1148,7 +1188,7 @@ def _command(name: str, overrides: Mapping[str, Any], resume: bool) -> str:
     """Return the command line that reproduces one training call."""
     flags = {"max_steps": "--steps", "epochs": "--epochs", "batch_size": "--batch-size", "device": "--device",
              "checkpoint_dir": "--out", "seed": "--seed", "num_workers": "--num-workers", "num_threads": "--threads",
-             "max_minutes": "--max-minutes"}
+             "max_minutes": "--max-minutes", "photos": "--photos"}
     parts = ["python", "-m", "evio_lib", "features-train", name]
     for key, value in overrides.items():
         if value is None:
@@ -1245,7 +1285,8 @@ def main_train(args: argparse.Namespace | Sequence[str] | None = None) -> int:
             return 2
         return 0
     overrides = {k: getattr(args, k) for k in ("max_steps", "epochs", "batch_size", "image_size", "device", "seed",
-                                               "num_workers", "num_threads", "checkpoint_dir", "max_minutes")}
+                                               "num_workers", "num_threads", "checkpoint_dir", "max_minutes",
+                                               "photos")}
     overrides.update(dict(args.set))
     overrides = {k: v for k, v in overrides.items() if v is not None}
     force = bool(getattr(args, "force", False)) and not args.resume
@@ -1255,7 +1296,7 @@ def main_train(args: argparse.Namespace | Sequence[str] | None = None) -> int:
             config = load_config(name, **overrides)
             run_dir = config.run_dir
             inputs = [("the variant config", name if Path(name).is_file() else None)]
-            for key in ("init_from", "labels_from", "event_frames"):  # paths among them (else variant names)
+            for key in ("init_from", "labels_from", "event_frames", "photos"):  # paths (else variant names)
                 value = getattr(config, key)
                 if isinstance(value, str) and Path(value).exists():
                     inputs.append((f"the {key} file", value))
