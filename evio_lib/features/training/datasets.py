@@ -590,7 +590,7 @@ def image_pool(split: str, seed: int = 0, size: tuple[int, int] = (240, 320), n_
     """Return the pool of ``split``: a list of float32 (H, W) images in [0, 1] (random crops of the split's sources).
 
     Images are shared among source kinds by :data:`POOL_MIX` (largest remainder) and round-robin among the
-    sources of a kind; with ``event_frames`` a fraction ``event_fraction`` of the pool (thesis: about 20 %) comes
+    sources of a kind (the folder's photographs in a seeded random order); with ``event_frames`` a fraction ``event_fraction`` of the pool (thesis: about 20 %) comes
     from the event frames of this split instead. With ``photos`` (a folder) the folder's photographs of this split
     take :data:`FOLDER_SHARE` of the rest and the kinds of :data:`POOL_MIX` share what remains in their usual
     proportions; without it the pool is exactly the one without the option. Image j uses
@@ -652,6 +652,8 @@ def image_pool(split: str, seed: int = 0, size: tuple[int, int] = (240, 320), n_
     plan: list[ImageSource] = []
     for kind, count in counts.items():
         members = by_kind[kind]
+        if kind == "folder":  # a seeded order: a pool smaller than the folder draws from all its sub-folders
+            members = [members[i] for i in np.random.default_rng([seed, 6]).permutation(len(members))]
         offset = int(np.random.default_rng([seed, 5]).integers(len(members)))
         plan += [members[(t + offset) % len(members)] for t in range(count)]
     render_shape = (int(math.ceil(1.25 * height)), int(math.ceil(1.25 * width)))
