@@ -1,5 +1,5 @@
-"""The package's import graph: no cycle (counting imports inside functions), and every module imports alone in a
-fresh interpreter."""
+"""The package's import graph: no cycle (counting imports inside functions; names that a registry imports by string
+are not edges), and every module imports alone (one process, evio_lib cleared from sys.modules before each)."""
 from __future__ import annotations
 
 import ast
@@ -96,8 +96,8 @@ def test_no_import_cycle():
 
 
 def test_every_module_imports_alone():
-    """Each module in its own fresh interpreter (one process imports them one after another, each after clearing
-    evio_lib from sys.modules, so an import that only works after another module loaded is caught)."""
+    """Each module on its own: one process imports them one after another, clearing evio_lib from sys.modules before
+    each, so an import that only works after another module loaded is caught."""
     names = [name for name in _modules() if not name.endswith("__main__")]
     script = ("import importlib, sys\n"
               f"names = {names!r}\n"

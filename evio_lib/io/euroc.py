@@ -368,8 +368,8 @@ def read_euroc(folder: str | Path, *, load_frames: bool = True, camera: str | No
         if not cam_csv.is_file():
             raise DataFileError(
                 f"{rel(cam_csv)}: file not found, although the camera folder {rel(cam_dir)}/ exists (expected the image "
-                f"list `timestamp [ns],filename`: `run` needs the frames, which a EuRoC recording holds no events "
-                f"to replace; read_euroc(..., load_frames=False) reads the rest)"
+                f"list `timestamp [ns],filename`: the frames are what features are tracked on, and a EuRoC "
+                f"recording holds no events to replace them; read_euroc(..., load_frames=False) reads the rest)"
             )
         frame_times, files = _read_image_index(cam_csv, rel(cam_csv))
         _check_time_base(frame_times, imu.t, rel(cam_csv), rel(imu_csv))

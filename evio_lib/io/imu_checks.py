@@ -84,11 +84,11 @@ GYRO_BIAS_BOUND = 0.5
 #: ±150 mg (1.5 m/s^2) at most; 3 m/s^2 is twice that.
 ACCEL_BIAS_BOUND = 3.0
 
+#: m/s: a ground truth moving faster (95th percentile) holds its positions in another unit than metres
+MAX_TRUTH_SPEED = 100.0
 #: a sample with |a| or |w| beyond this many times the median, and beyond the floors below, is a glitch (a bit error,
 #: a parser fault) that the unit, axis and gravity checks leave out, when at most GLITCH_MAX_FRACTION of the samples
 #: are such (more are not glitches: the checks see them and say what is wrong)
-#: m/s: a ground truth moving faster (95th percentile) holds its positions in another unit than metres
-MAX_TRUTH_SPEED = 100.0
 GLITCH_FACTOR = 100.0
 GLITCH_ACCEL_FLOOR = 1e3   # m/s^2: ~100 g, beyond any MEMS accelerometer, and beyond 100 g-unit readings
 GLITCH_GYRO_FLOOR = 1e4    # beyond 2000 deg/s read as rad/s, so a gyro in deg/s is still diagnosed
@@ -406,9 +406,10 @@ def truth_speed_problem(truth: Any, max_speed: float = None) -> str | None:
     max_speed = MAX_TRUTH_SPEED if max_speed is None else float(max_speed)
     if fast <= max_speed:
         return None
-    guess = next((f": positions in {unit}? divide them by {factor:g} to get metres"
-                  for unit, factor in (("millimetres", 1e3), ("centimetres", 1e2)) if fast / factor <= 30.0),
-                 ": positions in another unit than metres?")
+    fits = [(unit, factor) for unit, factor in (("millimetres", 1e3), ("centimetres", 1e2)) if fast / factor <= 30.0]
+    guess = (": positions in another unit than metres?" if not fits else
+             "".join([": positions in ", " or ".join(u for u, _ in fits), "? divide them by ",
+                      " or ".join(f"{f:g}" for _, f in fits), " to get metres"]))
     return (f"the positions move at {fast:.4g} m/s (95th percentile over {len(k) - 1} steps), faster than any "
             f"camera a person, vehicle or drone carries ({max_speed:g} m/s){guess}")
 

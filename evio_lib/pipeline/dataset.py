@@ -391,8 +391,8 @@ def load_dataset(dataset: "str | Path | Sequence | None" = None, *, duration: fl
         raise ValueError(f"DATASET {text!r} names both the simulated preset and the {'folder' if Path(text).is_dir() else 'file'} "
                          f"{Path(text).resolve()}; write ./{text} for the recording, or run from another folder for "
                          f"the preset")
-    if given:
-        seq, kind, source = dataset, "sequence", dataset.name
+    if given:                                         # a shallow copy: --calib below never changes the caller's
+        seq, kind, source = dataclasses.replace(dataset), "sequence", dataset.name
     elif text in PRESETS:
         if calib is not None:
             raise ValueError(f"--calib applies to recordings; the preset {text} knows its camera")

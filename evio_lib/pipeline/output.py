@@ -17,7 +17,7 @@
                         top-down trajectory, the tracking statistics
 
 A finished run is never thrown away for a part of its output: a figure that cannot be drawn is left out, the rest is
-written, and metrics.json's ``output_problems`` (returned by :func:`write_run` too) names each part left out and why.
+written, and metrics.json's ``output_problems`` names each part left out and why (``run`` prints each as a warning).
 """
 from __future__ import annotations
 

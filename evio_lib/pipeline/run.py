@@ -677,7 +677,8 @@ def run_pipeline(data: "LoadedDataset | Sequence | str | Path", config: Pipeline
 
         uses = config.frames.split("+")
         data = load_dataset(data, need_events=not config.imu_only and any(s != "aps" for s in uses),
-                            need_frames=config.imu_only or "aps" in uses)
+                            need_frames=config.imu_only or "aps" in uses,
+                            seed=config.seed if isinstance(data, (str, Path)) else 0)   # as `run --seed` does
     seq = data.sequence
     notes = list(data.notes)
     has_truth = _groundtruth(data) is not None

@@ -37,9 +37,12 @@ _VAL_FRACTION, _TEST_FRACTION = 0.2, 0.2
 
 
 def default_photo_folder() -> Path | None:
-    """Return ``$EVIO_PHOTOS`` or ``../shared/data/photos`` beside the checkout where it exists, else None."""
+    """Return ``$EVIO_PHOTOS`` (refused in one line when it is no folder) or ``../shared/data/photos`` beside the
+    checkout where it exists, else None."""
     env = os.environ.get("EVIO_PHOTOS")
     if env:
+        if not Path(env).is_dir():
+            raise ValueError(f"$EVIO_PHOTOS={env}: not a folder (expected a folder of .jpg/.png photographs)")
         return Path(env)
     candidate = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "photos"
     return candidate if candidate.is_dir() else None

@@ -183,7 +183,7 @@ def test_a_track_gap_revives_tracks_after_a_missed_frame_with_their_ids(gentle):
     assert np.median(errors) < 0.3 and np.mean(errors > 3.0) < 0.05
 
 
-def test_a_dormant_track_is_forgotten_after_max_gap_frames(gentle):
+def test_a_dormant_track_is_forgotten_after_max_track_gap(gentle):
     """Frames 5 and 6 black: with max_track_gap = 1 no track of frame 4 comes back in frame 7; with 2 some do."""
     frames = _blanked(gentle, [5, 6])
     ids4 = {}

@@ -238,7 +238,7 @@ def test_missing_camera_index_is_an_error_unless_frames_are_skipped(tmp_path):
     root = _euroc_folder(tmp_path)
     (root / "mav0" / "cam0" / "data.csv").unlink()
     with pytest.raises(DataFileError, match=r"mav0/cam0/data.csv: file not found, although the camera folder mav0/cam0/ "
-                                            r"exists .*`run` needs the frames"):
+                                            r"exists .*the frames are what features are tracked on"):
         read_euroc(root)
     seq = read_euroc(root, load_frames=False)  # the calibration is still there
     assert seq.camera.width == 16 and len(seq.frame_times) == 0

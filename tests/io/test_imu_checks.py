@@ -424,13 +424,17 @@ def test_a_ground_truth_in_millimetres_or_wxyz_is_blamed_on_the_ground_truth(box
 
     truth, imu, g = boxes.groundtruth_imu, boxes.imu, boxes.metadata["gravity_G"]
     mm = dataclasses.replace(truth, p_BinG=truth.p_BinG * 1000.0)
-    with pytest.raises(ImuUnitsError, match=r"^gt.txt: the positions move at .* m/s .*millimetres\? divide them by "
-                                            r"1000"):
+    with pytest.raises(ImuUnitsError, match=r"^gt.txt: the positions move at .* m/s .*millimetres or centimetres\? "
+                                            r"divide them by 1000 or 100"):
         check_imu_units(imu.t, imu.gyro, imu.accel, mm, gravity_G=g, source="imu.txt", truth_source="gt.txt")
     q = truth.q_GtoB                                   # written w x y z, read as x y z w
     wxyz = dataclasses.replace(truth, q_GtoB=q[:, [3, 0, 1, 2]])
     with pytest.raises(ImuUnitsError, match=r"^gt.txt: the orientations .* read as w x y z: write them as qx qy qz "
                                             r"qw"):
         check_imu_units(imu.t, imu.gyro, imu.accel, wxyz, gravity_G=g, source="imu.txt", truth_source="gt.txt")
-    # a fast preset may move fast: the bound grows with its speed
-    assert "gravity and axes checked" in check_imu_units(imu.t, imu.gyro, imu.accel, truth, gravity_G=g)
+    # a motion played faster may move faster: the bound (100 m/s) grows with the speed
+    from evio_lib.io.imu_checks import truth_speed_problem
+
+    fast = dataclasses.replace(truth, p_BinG=truth.p_BinG * 500.0)     # 500x the preset's speed: ~170 m/s
+    assert truth_speed_problem(fast) is not None
+    assert truth_speed_problem(fast, max_speed=100.0 * 4) is None   # check_imu_units' bound at speed 4

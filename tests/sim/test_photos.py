@@ -26,12 +26,15 @@ def _write_folder(folder, names, seed=0):
 def test_the_split_depends_on_the_name_alone_and_berkeley_crops_only_train():
     names = [f"urban100/img_{i:03d}.png" for i in range(400)]
     splits = [photo_split(n) for n in names]
-    assert splits == [photo_split(n) for n in reversed(names)][::-1]        # order does not matter
     shares = {s: splits.count(s) / len(splits) for s in ("train", "val", "test")}
     assert 0.13 < shares["val"] < 0.27 and 0.13 < shares["test"] < 0.27, shares   # 20 % each by the hash
     assert {photo_split(f"bsd_train400/test_{i:03d}.png") for i in range(200)} == {"train"}
     assert {photo_split(f"bsd100/{i}.png") for i in range(200)} == {"train"}
-    assert photo_split("a/b.png") == photo_split("a/b.png")
+    # the split is the hash rule itself: a name whose first 8 hex digits of sha256 give u < 0.2 is validation
+    import hashlib
+
+    u = int(hashlib.sha256(b"urban100/img_000.png").hexdigest()[:8], 16) / 2 ** 32
+    assert photo_split("urban100/img_000.png") == ("val" if u < 0.2 else "test" if u < 0.4 else "train")
 
 
 def test_listing_loading_and_the_fingerprint(tmp_path):
@@ -63,6 +66,9 @@ def test_the_option_and_its_refusals(tmp_path, monkeypatch):
         resolve_photo_option(tmp_path / "empty")
     assert resolve_photo_option("none") is None
     monkeypatch.setenv("EVIO_PHOTOS", str(tmp_path / "mine"))
+    with pytest.raises(ValueError, match=r"^\$EVIO_PHOTOS=.*mine: not a folder"):
+        resolve_photo_option("auto")
+    (tmp_path / "mine").mkdir()
     assert resolve_photo_option("auto") == tmp_path / "mine" == photo_module.default_photo_folder()
 
 
@@ -95,3 +101,6 @@ def test_a_set_records_its_photographs_and_refuses_others(tmp_path):
     make_training_set(tmp_path / "plain", sequences=1, val=1, test=0, seed=0, config=SMALL, workers=1,
                       progress=False)
     assert "photos" not in json.loads((tmp_path / "plain" / "training_set.json").read_text())
+    with pytest.raises(ValueError, match="made without photographs; to resume or extend it, give --photos none"):
+        make_training_set(tmp_path / "plain", sequences=2, val=1, test=0, seed=0, config=SMALL, workers=1,
+                          progress=False, photos=folder)

@@ -445,6 +445,10 @@ def make_training_set(out: str | Path, sequences: int = 600, val: int = 32, test
         except (OSError, ValueError) as error:
             raise ValueError(f"{manifest_path} is not a readable training-set manifest ({error}); use another folder")
         keys = ("format", "generator", "seed", "config", "photos")
+        if "photos" not in have and wanted.get("photos") is not None and \
+                {k: have.get(k) for k in keys[:4]} == {k: wanted.get(k) for k in keys[:4]}:
+            raise ValueError(f"{out} holds a training set made without photographs; to resume or extend it, give "
+                             f"--photos none (photos=None), or use another folder for a set with photographs")
         if {k: have.get(k) for k in keys} != {k: wanted.get(k) for k in keys}:
             raise ValueError(f"{out} holds a training set made with other settings (seed {have.get('seed')}, "
                              f"generator version {have.get('generator')}, photos {have.get('photos')}, config "
