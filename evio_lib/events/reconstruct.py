@@ -222,6 +222,12 @@ def _published_checkpoint(path: Path, error: Exception) -> dict:
             warnings.simplefilter("ignore")
             raw = torch.load(path, map_location="cpu", weights_only=True)
     except Exception:                                   # unreadable: the reconstruct-train reader's message says why
+        if "Python objects" in str(error):               # e.g. event_cnn_minimal's files pickle their config object
+            from evio_lib.io.checkpoint import CheckpointError
+
+            raise CheckpointError(f"{error}; published FireNet weights saved with such objects load once their "
+                                  f"checkpoint['state_dict'] is saved alone (torch.save) by the code that wrote "
+                                  f"them") from None
         raise error from None
     if is_published_layout(raw) is None:
         raise error

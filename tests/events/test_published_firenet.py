@@ -108,3 +108,16 @@ def test_other_layouts_are_refused_in_one_line(tmp_path):
     _, path = _published(tmp_path, lambda s: {k: v for k, v in s.items() if k != "R1.conv1.bias"})
     with pytest.raises(CheckpointError, match="without R1.conv1.bias"):
         reconstructor_by_name_or_file(str(path), 40, 30)
+
+
+class _Config:                                    # stands for event_cnn_minimal's pickled ConfigParser object
+    def __init__(self) -> None:
+        self.name = "firenet"
+
+
+def test_a_published_file_with_pickled_objects_says_how_to_load_it(tmp_path):
+    path = tmp_path / "firenet_1000.pth.tar"
+    torch.save({"state_dict": {"head.conv2d.weight": torch.zeros(16, 5, 3, 3)}, "config": _Config()}, path)
+    with pytest.raises(CheckpointError, match=r"checkpoint\['state_dict'\] is saved alone") as error:
+        reconstructor_by_name_or_file(str(path), 40, 30)
+    assert "\n" not in str(error.value)
