@@ -932,11 +932,10 @@ def main_benchmark(args: argparse.Namespace | Sequence[str] | None = None) -> in
         if args.out is not None:
             weights_file = weights if weights is not None and Path(str(weights)).exists() else None  # or a shipped name
             photos = None  # the photo folder, so that --out is not written inside it
-            if args.dataset == "photos" and str(getattr(args, "photos", "auto")) != "none":
-                from evio_lib.sim.photos import default_photo_folder
+            if args.dataset == "photos":
+                from evio_lib.sim.photos import resolve_photo_option
 
-                given = getattr(args, "photos", "auto")
-                photos = default_photo_folder() if given is None or str(given) == "auto" else given
+                photos = resolve_photo_option(getattr(args, "photos", "auto"))
             check_output_dir(args.out, force, name="--out", inputs=[
                 ("the --hpatches-root folder", args.hpatches_root), ("the --event-frames file", args.event_frames),
                 ("the --photos folder", photos),

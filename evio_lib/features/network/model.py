@@ -62,10 +62,11 @@ MODEL_CONFIGS: dict[str, dict[str, Any]] = {
 WEIGHTS_DIR = Path(__file__).resolve().parents[2] / "weights"  # package data: evio_lib/weights/*.pt
 #: the shipped weights SuperPointDetector() loads: the same as create_detector("superpoint") (features.base)
 DEFAULT_WEIGHTS = SUPERPOINT_DEFAULT_WEIGHTS
-# How the shipped weights are made (issue 4 training chain); quoted by the missing-weights error.
+# How shipped weights are made (the training chain); quoted by the missing-weights error.
 TRAINING_COMMAND = (
-    "python -m evio_lib features-train pretrained_detdesc_round2 --chain  (writes "
-    "runs/features/pretrained_detdesc_round2/best.pt; copy it to evio_lib/weights/ under the weights name)"
+    "python -m evio_lib features-train pretrained_detdesc_round1 --chain  (writes "
+    "runs/features/pretrained_detdesc_round1/best.pt, the stage behind the default weights; copy it to "
+    "evio_lib/weights/ under the weights name; docs/howto/train-features.md gives every shipped file's commands)"
 )
 _POOL_AFTER = (1, 3, 5)  # 2x2 max-pool after encoder convolutions 2, 4 and 6 (0-based 1, 3, 5)
 _CHECKPOINT_FORMAT = "evio-superpoint-1"
