@@ -151,21 +151,17 @@ def _texture(rng: np.random.Generator, split: str, size: tuple[int, int], photos
     ``photos``: the split's photographs of a photo folder (:mod:`evio_lib.sim.photos`); when given, a texture is one of
     them with probability :data:`PHOTO_FOLDER_FRACTION`, else drawn as without them.
     """
+    image, source = None, None
     if photos and rng.random() < PHOTO_FOLDER_FRACTION:         # a natural photograph of the folder
-        photo = load_photo(photos[int(rng.integers(len(photos)))])
-        scale = float(np.exp(rng.uniform(np.log(0.3), np.log(3.0))))
-        tex = random_crop(rng, photo, size, scale)
-        if rng.random() < 0.5:
-            tex = tex[:, ::-1]
-        if rng.random() < 0.3:
-            tex = cv2.GaussianBlur(np.ascontiguousarray(tex, dtype=np.float32), (0, 0), float(rng.uniform(0.5, 3.0)))
-        return random_contrast(rng, tex, gamma=(0.5, 2.0), min_span=0.25)
-    source = rng.random()
-    if source < 0.45:                                           # a photograph, cropped at a random zoom
-        names = SPLIT_PHOTOS[split]
-        photo = _photo(names[int(rng.integers(len(names)))])
+        image = load_photo(photos[int(rng.integers(len(photos)))])
+    else:
+        source = rng.random()
+        if source < 0.45:                                       # a bundled photograph
+            names = SPLIT_PHOTOS[split]
+            image = _photo(names[int(rng.integers(len(names)))])
+    if image is not None:                                       # either photograph, cropped at a random zoom
         scale = float(np.exp(rng.uniform(np.log(0.3), np.log(3.0))))   # < 1: a wide, detailed crop; > 1: zoomed in
-        tex = random_crop(rng, photo, size, scale)
+        tex = random_crop(rng, image, size, scale)
         if rng.random() < 0.5:
             tex = tex[:, ::-1]
     elif source < 0.55:                                         # the farmland, a quarter per split
