@@ -82,14 +82,10 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--outlier-px", type=real(above=0.0), default=None, metavar="PX",
                    help="drop a track's observations that reproject farther than PX pixels from its triangulated "
                         "point, and keep the rest of the track (default: off)")
-    p.add_argument("--far-points", choices=["off", "starved", "far-scene", "always"], default="off",
-                   help="when to use a track whose triangulation fails for lack of parallax (behind a camera, beyond "
-                        "1 000 m, no baseline) with its point placed far on its bearing, where it still constrains "
-                        "the rotation: off, starved (only while the filter finds too few triangulated features: "
-                        "pipeline.run.FAR_POINT_STARVATION per image over the last second), far-scene (only while "
-                        "it starves and its triangulated points lie at least pipeline.run.FAR_POINT_SCENE_DEPTH "
-                        "away) or always "
-                        "(default: off, such tracks are dropped)")
+    p.add_argument("--far-points", action="store_true",
+                   help="use a track whose triangulation fails for lack of parallax (behind a camera, beyond 1 000 m, "
+                        "no baseline) with its point placed far on its bearing, where it still constrains the "
+                        "rotation (default: off, such tracks are dropped)")
     p.add_argument("--pixel-noise", type=real(above=0.0), default=1.0, metavar="PX",
                    help="the filter's feature noise sigma in pixels of the APS frames' tracks, and of a lone event "
                         "stream's; the base of the --event-pixel-noise default (default 1.0)")
@@ -305,7 +301,7 @@ def add_table_arguments(p: argparse.ArgumentParser) -> None:
                         "sift_events cnn_events klt_aps klt_events sift_mc_events sift_mc_events_gap2 cnn_mc_events "
                         "cnn_mc_events_far klt_mc_events klt_aps_mc_events cnn_events_trained (default: all but the "
                         "rows ending in _gap2, SIFT whose tracks survive two missed frames, in _far, the CNN with "
-                        "--far-points always, and cnn_narrow_aps, the distilled CNN, run only when named)")
+                        "--far-points, and cnn_narrow_aps, the distilled CNN, run only when named)")
     p.add_argument("--events-cnn", type=Path, default=None,
                    help="checkpoint of a CNN trained with event frames (the 'CNN trained with event frames' row)")
     p.add_argument("--reconstructor-precision", choices=PRECISIONS, default=None,

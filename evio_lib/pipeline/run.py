@@ -60,25 +60,10 @@ from evio_lib.pipeline.frames import (FRAME_SOURCES, STREAM_ID_OFFSET, aps_frame
                                       mc_event_frames)
 from evio_lib.threads import set_threads, single_threaded_blas  # re-exported: `from evio_lib.pipeline.run import set_threads` keeps working
 
-__all__ = ["FAR_POINT_MODES", "FAR_POINT_SCENE_DEPTH", "FAR_POINT_STARVATION", "FUSED_EVENT_NOISE_FACTOR",
-           "INIT_MODES", "MIN_PERCENT_DISTANCE_M", "PipelineConfig", "PipelineResult", "run_pipeline", "run_pipelines",
-           "set_threads"]
+__all__ = ["FUSED_EVENT_NOISE_FACTOR", "INIT_MODES", "MIN_PERCENT_DISTANCE_M", "PipelineConfig", "PipelineResult",
+           "run_pipeline", "run_pipelines", "set_threads"]
 
 INIT_MODES = ("auto", "groundtruth", "static")
-#: When the filter uses tracks without parallax as far points (``PipelineConfig.far_points``): never; only while it
-#: starves (fewer than FAR_POINT_STARVATION triangulated features used per image over the last second); only while it
-#: starves in a distant scene (median depth of its triangulated points at least FAR_POINT_SCENE_DEPTH); or always.
-FAR_POINT_MODES = ("off", "starved", "far-scene", "always")
-#: The starvation level of ``far_points='starved'``, features per image (``MsckfConfig.far_point_starvation``).
-#: Chosen on the validation seeds (docs/archive.md, the far-point rows): at 1.0 the CNN on motion-compensated
-#: event frames over the terrain stayed diverged (seed 3: 189 %), at 2.0 it reached 23 %; SIFT and KLT, which lose
-#: with far points always, used 0-3 candidates per run at both levels (they use 3.6-4.7 features per image) and kept
-#: their results on 7 of 10 runs. On the test seeds the CNN, which uses 2.6-3.1 per image, starved at this level in
-#: the room too and diverged (seed 0).
-FAR_POINT_STARVATION = 2.0
-#: The scene depth of ``far_points='far-scene'``, m (``MsckfConfig.far_point_scene_depth``): between the room's
-#: few metres (and those of the real ECD and EuRoC recordings) and the terrain's 250 m, set before measuring.
-FAR_POINT_SCENE_DEPTH = 50.0
 #: Shortest ground-truth path for which the % of distance is reported, m. Over a shorter path the mean error divided
 #: by the length measures the noise of standing still, not drift per metre travelled.
 MIN_PERCENT_DISTANCE_M = 0.5
@@ -156,14 +141,11 @@ class PipelineConfig:
         zupt: detect standstill and apply zero-velocity updates there (module docstring).
         observation_outlier_px: the filter drops a track's observations that reproject farther than this after
             triangulation and keeps the rest (``MsckfConfig.observation_outlier_px``; None: off).
-        far_points: when a track whose triangulation lands behind a camera, beyond 1 000 m or without baseline is
-            used with its point placed far on its bearing instead of dropped (``MsckfConfig.far_point_fallback``;
-            such tracks still tell the rotation between the cameras): 'off' (never; the default), 'starved' (only
-            while the filter starves, ``FAR_POINT_STARVATION``), 'far-scene' (only while it starves and the points
-            it triangulates lie at least ``FAR_POINT_SCENE_DEPTH`` away) or 'always'; True and False mean 'always'
-            and 'off'. None of the three is the default: 'always' costs SIFT and KLT accuracy in the room,
-            'starved' made the CNN diverge there on a test seed, and 'far-scene' left the CNN's mean over fresh
-            terrain seeds slightly worse (docs/archive.md, the far-point rows).
+        far_points: use a track whose triangulation lands behind a camera, beyond 1 000 m or without baseline with
+            its point placed far on its bearing instead of dropping it (``MsckfConfig.far_point_fallback``; such
+            tracks still tell the rotation between the cameras). False (default): dropped; True costs SIFT and KLT
+            accuracy in the room and is an option for the CNN over distant terrain (docs/archive.md, the far-point
+            rows; Table 6's optional rows ``cnn_aps_far``, ``cnn_mc_events_far``).
         max_track_gap: frames a descriptor track may miss and still continue with its id
             (``FrontendConfig.max_track_gap`` and ``MsckfConfig.max_track_gap``; 0: a missed detection ends the
             track, the thesis's tracker and the default). KLT never searches for a lost patch: with KLT on every
@@ -199,7 +181,7 @@ class PipelineConfig:
     zupt: bool = True
     observation_outlier_px: float | None = None
     max_track_gap: int = 0
-    far_points: str = "off"
+    far_points: bool = False
 
     def __post_init__(self) -> None:
         if self.frames not in FRAME_SOURCES:
@@ -244,11 +226,8 @@ class PipelineConfig:
             object.__setattr__(self, "detector_options", tuple(sorted(self.detector_options.items())))
         if not isinstance(self.zupt, bool):
             raise ValueError(f"zupt must be True or False; got {self.zupt!r}")
-        if isinstance(self.far_points, bool):  # the option's first form (2026-12-03 morning): a switch
-            object.__setattr__(self, "far_points", "always" if self.far_points else "off")
-        if self.far_points not in FAR_POINT_MODES:
-            raise ValueError(f"far_points must be one of {', '.join(FAR_POINT_MODES)} (or True / False for 'always' / "
-                             f"'off'); got {self.far_points!r}")
+        if not isinstance(self.far_points, bool):
+            raise ValueError(f"far_points must be True or False; got {self.far_points!r}")
         if self.observation_outlier_px is not None:  # checked as the filter will check it, before any loading
             MsckfConfig(observation_outlier_px=self.observation_outlier_px)
         for name, expected in (("pixel_noise_px", "a finite number of pixels > 0"),
@@ -346,8 +325,7 @@ class PipelineConfig:
         if self.aps_blur_noise is not None:
             noise += f", APS blur noise {self.aps_blur_noise:g}"
         return (label + (f", track gap {self.max_track_gap}" if self.max_track_gap else "") + noise
-                + {"off": "", "starved": ", far points when starved", "far-scene": ", far points when starved far away",
-                   "always": ", far points always"}[self.far_points])
+                + (", far points always" if self.far_points else ""))
 
 
 @dataclass(eq=False)
@@ -569,12 +547,7 @@ def msckf_config_for(config: PipelineConfig, data: LoadedDataset) -> MsckfConfig
     changes: dict[str, Any] = dict(pixel_noise_px=config.pixel_noise_px, focal_length_px=math.sqrt(cam.fx * cam.fy),
                                    observability_constrained=config.oc, imu_only=config.imu_only,
                                    observation_outlier_px=config.observation_outlier_px,
-                                   far_point_fallback=config.far_points != "off",
-                                   far_point_starvation=(FAR_POINT_STARVATION
-                                                         if config.far_points in ("starved", "far-scene")
-                                                         else math.inf),
-                                   far_point_scene_depth=(FAR_POINT_SCENE_DEPTH if config.far_points == "far-scene"
-                                                          else 0.0),
+                                   far_point_fallback=config.far_points,
                                    max_track_gap=_filter_track_gaps(config),
                                    max_camera_states=cfg.max_camera_states * len(frame_streams(config.frames)))
     if gravity is not None:

@@ -1,14 +1,12 @@
 """Tests of evio_lib.pipeline.run: the chain on simulated recordings, its metrics and its robustness."""
 import dataclasses
-import math
 
 import numpy as np
 import pytest
 
 from evio_lib.frontend import create_tracker
 from evio_lib.pipeline.dataset import LoadedDataset
-from evio_lib.pipeline.run import (FAR_POINT_SCENE_DEPTH, FAR_POINT_STARVATION, PipelineConfig, msckf_config_for,
-                                   run_pipeline)
+from evio_lib.pipeline.run import PipelineConfig, msckf_config_for, run_pipeline
 from evio_lib.sequence import ImuSamples
 
 
@@ -129,8 +127,8 @@ def test_static_initialisation_refuses_a_moving_start(boxes_aps):
     (dict(frames="events", reconstructor="no/such.pt"), "or a reconstruct-train checkpoint file; got 'no/such.pt'"),
     (dict(max_track_gap=-1), r"max_track_gap must be an integer >= 0 \(frames\); got -1"),
     (dict(max_track_gap=1.0), "max_track_gap must be an integer"),
-    (dict(far_points=1), r"far_points must be one of off, starved, far-scene, always \(or True / False for 'always' / 'off'\); got 1"),
-    (dict(far_points="sometimes"), "far_points must be one of off, starved, far-scene, always"),
+    (dict(far_points=1), "far_points must be True or False; got 1"),
+    (dict(far_points="always"), "far_points must be True or False; got 'always'"),
     (dict(tracker="klt", features="fast", max_track_gap=2), "max_track_gap applies to the descriptor tracker"),
     (dict(frames="aps+mc-events", tracker="klt", event_tracker="klt", max_track_gap=1),
      "max_track_gap applies to the descriptor tracker"),
@@ -294,30 +292,16 @@ def test_a_track_gap_reaches_the_tracker_and_the_filter(boxes_aps):
 
 
 def test_far_points_reach_the_filter_and_the_label(boxes_aps):
-    """far_points: 'starved' sets the filter's far_point_fallback with the starvation level, 'far-scene' with the
-    scene depth too, 'always' with neither (inf, 0 m), 'off' (the default) clears it; True / False are read as
-    'always' / 'off'; the label names the three that are not the default. A run fed by tracks with parallax, as in the room, starves nowhere and uses no far point
-    with 'starved', where 'always' does and stays on course (numbers over the whole presets: docs/archive.md,
-    "Tracks without parallax")."""
-    starved, always, off, far_scene = (msckf_config_for(PipelineConfig(features="sift", far_points=mode), boxes_aps)
-                                       for mode in ("starved", "always", "off", "far-scene"))
-    assert PipelineConfig().far_points == "off" and not msckf_config_for(PipelineConfig(), boxes_aps).far_point_fallback
-    assert starved.far_point_fallback and starved.far_point_starvation == FAR_POINT_STARVATION
-    assert starved.far_point_scene_depth == 0.0 and always.far_point_scene_depth == 0.0
-    assert (far_scene.far_point_fallback, far_scene.far_point_starvation, far_scene.far_point_scene_depth) == (
-        True, FAR_POINT_STARVATION, FAR_POINT_SCENE_DEPTH)
-    assert always.far_point_fallback and always.far_point_starvation == math.inf
-    assert not off.far_point_fallback
-    assert PipelineConfig(far_points=True).far_points == "always" and PipelineConfig(far_points=False).far_points == "off"
-    assert PipelineConfig(features="sift", far_points="always").label() == "SIFT on APS frames, far points always"
-    assert PipelineConfig(features="sift", far_points="starved").label() == "SIFT on APS frames, far points when starved"
-    assert PipelineConfig(far_points="far-scene").label() == "SIFT on APS frames, far points when starved far away"
+    """far_points: True sets the filter's far_point_fallback, False (the default) leaves it off; the label names it.
+    A run with far points uses some and stays on course in the room (numbers over the whole presets:
+    docs/archive.md, the far-point rows)."""
+    assert PipelineConfig().far_points is False and not msckf_config_for(PipelineConfig(), boxes_aps).far_point_fallback
+    assert msckf_config_for(PipelineConfig(features="sift", far_points=True), boxes_aps).far_point_fallback
+    assert PipelineConfig(features="sift", far_points=True).label() == "SIFT on APS frames, far points always"
     assert PipelineConfig(features="sift").label() == "SIFT on APS frames"
-    result = run_pipeline(boxes_aps, PipelineConfig(features="sift", far_points="always"))
+    result = run_pipeline(boxes_aps, PipelineConfig(features="sift", far_points=True))
     assert result.rejections["far_point_fallback"] > 0
     assert result.metrics["rmse_m"] < 0.3 and np.isfinite(result.p_IinG).all()
-    starving = run_pipeline(boxes_aps, PipelineConfig(features="sift", far_points="starved"))
-    assert starving.rejections.get("far_point_fallback", 0) == 0
 
 
 def test_two_frame_streams_in_one_run(boxes_events):
