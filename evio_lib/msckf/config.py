@@ -31,7 +31,7 @@ _NON_NEGATIVE = (
     "gyro_noise_density", "accel_noise_density", "gyro_random_walk", "accel_random_walk",
     "init_sigma_attitude", "init_sigma_gyro_bias", "init_sigma_velocity", "init_sigma_accel_bias",
     "init_sigma_position", "keyframe_rotation_threshold", "keyframe_translation_threshold",
-    "triangulation_min_baseline_ratio", "static_init_duration", "far_point_scene_depth",
+    "triangulation_min_baseline_ratio", "static_init_duration",
 )
 _POSITIVE = (
     "pixel_noise_px", "focal_length_px", "triangulation_tolerance", "triangulation_min_depth",
@@ -40,7 +40,6 @@ _POSITIVE = (
 # > 0, and math.inf allowed (switches the guard off)
 _POSITIVE_OR_INF = (
     "accel_full_scale", "gyro_full_scale", "imu_max_gap", "imu_max_bridged_gap", "max_normalized_coordinate",
-    "far_point_starvation",
 )
 _INTEGER_MIN = {"max_camera_states": 2, "min_track_length": 2, "triangulation_max_iterations": 1}
 _BOOLEAN = ("marginalize_third", "chi2_gating", "observability_constrained", "imu_only", "far_point_fallback")
@@ -83,21 +82,6 @@ class MsckfConfig:
             the cameras. Kept the CNN on course over the aerial terrain (docs/archive.md, "Tracks without
             parallax"). Off by default (the thesis's filter), here and in the pipeline (``PipelineConfig.far_points``):
             used always it cost SIFT and KLT accuracy (KLT in the room 0.29 -> 0.37 %).
-        far_point_starvation: when far points are used [inf: always, with ``far_point_fallback``]. With a finite
-            value s, only while the filter starves: while the features it triangulated (as usual, not far points)
-            and used, per image over the last second of image times, average fewer than s. Every image counts, of
-            every frame stream, and one whose update used nothing counts 0: at the first image there is nothing to
-            average (no far point), but over the rest of a run's first second, before tracks have ended, the
-            filter counts as starving. A filter fed by enough tracks with parallax is then left as it was, and one
-            that stops finding them (a distant scene, short tracks) gets the far points' rows. Measured at s = 2
-            (docs/archive.md): on the test seeds no divergence was left over the terrain, but the CNN, which uses
-            2.6-3.1 per image, starved in the room too and diverged on one.
-        far_point_scene_depth: far points only in a distant scene [0 m: no test]. With d > 0, only while the median
-            depth (in its anchor camera) of the points triangulated over the last second of image times is at
-            least d (a point that triangulated beyond ``triangulation_max_depth`` counts at that depth); when none
-            was in that second, the last median stands (0 before the first).
-            In a near scene (a room, depths of metres) a track that fails triangulation is more likely a wrong track
-            than a far one; over a terrain seen from 250 m the opposite holds.
         max_track_gap: images of its stream a track may miss and still continue [0]. With 0 a track ends at the first
             image without it and is used then; with g > 0 it is kept (its observations need not come from
             consecutive clones) until more than g images in a row lack it, so a front-end that finds a feature
@@ -116,9 +100,10 @@ class MsckfConfig:
             and give 0.50 m from 0.98 up. Perfect-data-association experiments use 0.99
             (``experiment.VioSimConfig.gate_probability``).
         triangulation_*: inverse-depth Gauss-Newton settings and the checks that reject bad features.
-        observability_constrained: OC-EKF on/off (thesis §3.3.8) [True].
-        oc_update: update side of the OC-EKF: "projected" (H_o (I - N (N^T N)^-1 N^T) after the nullspace
-            projection) or "eq86" (the thesis's per-camera change of H_C) ["projected"].
+        observability_constrained: OC-EKF on/off (thesis §3.3.8) [True]: first-estimate transition matrices
+            (Eqs. 81-84) and, on the update side, each feature's nullspace-projected Jacobian changed minimally so
+            that H_o N = 0 for the observing cameras' first-estimate nullspace N
+            (``observability.constrain_projected_jacobian``).
         imu_only: propagate only, never update (thesis Table 6 baseline) [False].
         static_init_duration: length of the stationary IMU window used by the static initialisation [1.0 s].
         accel_full_scale, gyro_full_scale: measurement range of the IMU, per axis [±16 g = 156.9 m/s², ±2000 deg/s
@@ -192,14 +177,8 @@ class MsckfConfig:
     far_point_fallback: bool = _param(False, "", "a track whose triangulation lands behind a camera, beyond the max "
                                                  "depth or without baseline: placed at the max depth on its anchor "
                                                  "bearing, gated")
-    far_point_starvation: float = _param(math.inf, "features/image", "far points only while the triangulated "
-                                         "features used per image over the last second average below this")
-    far_point_scene_depth: float = _param(0.0, "m", "far points only while the median depth of the points "
-                                                    "triangulated over the last second is at least this")
     # filter variants and modes
     observability_constrained: bool = _param(True, "", "observability-constrained EKF (thesis §3.3.8)")
-    oc_update: str = _param("projected", "", "update-side OC: 'projected' (on the projected feature Jacobian) or "
-                                             "'eq86' (the thesis's per-camera form)")
     imu_only: bool = _param(False, "", "propagate only, no visual updates")
     static_init_duration: float = _param(1.0, "s", "stationary IMU window of the static initialisation")
     # input guards (issue 17): IMU range, IMU gaps, plausible observations
@@ -268,8 +247,6 @@ class MsckfConfig:
                 "triangulation_min_depth must be < triangulation_max_depth; "
                 f"got {self.triangulation_min_depth} >= {self.triangulation_max_depth}"
             )
-        if self.oc_update not in ("projected", "eq86"):
-            raise ValueError(f"oc_update must be 'projected' or 'eq86'; got {self.oc_update!r}")
         for name in _BOOLEAN:
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ValueError(f"{name} must be True or False; got {getattr(self, name)!r}")

@@ -585,8 +585,7 @@ def main_vio_sim(args: argparse.Namespace) -> int:
         config = VioSimConfig(preset=args.preset, duration=args.duration, seed=args.seed, features=args.features,
                               oc=not args.no_oc, imu_only=args.imu_only, pixel_noise_px=args.pixel_noise,
                               noise_model=getattr(args, "noise_model", "per_observation"),
-                              gate_probability=getattr(args, "gate", 0.99),
-                              msckf_overrides=(("oc_update", getattr(args, "oc_update", "projected")),))
+                              gate_probability=getattr(args, "gate", 0.99))
     except ValueError as error:  # the message names the config field; the user typed the option
         from evio_lib.cli_args import as_option_error
 

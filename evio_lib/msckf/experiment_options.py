@@ -26,9 +26,6 @@ def add_vio_sim_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--noise-model", choices=["per_observation", "global_factor", "nominal"], default="per_observation",
                         help="feature noise model of the filter (default per_observation: each observation's own "
                              "covariance from the undistortion Jacobian)")
-    parser.add_argument("--oc-update", choices=["projected", "eq86"], default="projected",
-                        help="update side of the OC-EKF: constraint on the projected feature Jacobian (default) or the "
-                             "thesis's Eq. 86")
     parser.add_argument("--gate", type=real(above=0.0, below=1.0), default=0.99,
                         help="chi-square gate probability of the filter, in (0, 1) (default 0.99: the simulated tracks "
                              "hold no outliers; the library default 0.95 is for real tracks)")

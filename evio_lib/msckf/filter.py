@@ -22,10 +22,8 @@ and thesis §3.3.6.1:
 7. ``_marginalize``: the chosen camera states leave the window (their rows and columns of P are dropped).
 
 An update (``_update``): all features are triangulated at once (inverse depth, ``triangulate_inverse_depth_batch``);
-for each, the residual and Jacobians of the observations used (Eqs. 41-48; OC-modified by Eq. 86 when
-``oc_update="eq86"``) are
-whitened per observation (rows 2i, 2i+1 of r, H_x and H_f multiplied by W_i = L_i^-1, so the noise becomes N(0, I)),
-projected on the left nullspace of H_f (Eq. 50), OC-constrained as a whole (default ``oc_update="projected"``:
+for each, the residual and Jacobians of the observations used (Eqs. 41-48) are whitened per observation (rows 2i, 2i+1 of r, H_x and H_f multiplied by W_i = L_i^-1, so the noise becomes N(0, I)),
+projected on the left nullspace of H_f (Eq. 50), OC-constrained as a whole (with ``observability_constrained``:
 H_o* = H_o (I - N (N^T N)^-1 N^T) with the observing cameras' first-estimate nullspace N, so H_o* N = 0; see
 ``observability.constrain_projected_jacobian``) and chi-square gated (``chi2_probability``, 95 %) with unit noise on
 ALL the feature's observations in the window (a pruned feature's update rows come from the removed states only, but
@@ -59,7 +57,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from collections import Counter, deque
+from collections import Counter
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -73,7 +71,6 @@ from evio_lib.msckf.augmentation import augment_state
 from evio_lib.msckf.config import MsckfConfig
 from evio_lib.msckf.observability import (
     camera_nullspace,
-    constrain_camera_blocks,
     constrain_projected_jacobian,
     constrain_transition,
 )
@@ -101,7 +98,7 @@ from evio_lib.msckf.zero_velocity import ZeroVelocityConfig, zero_velocity_measu
 from evio_lib.threads import single_threaded_blas
 
 __all__ = [
-    "FilterOutput", "Msckf", "MsckfWarning", "OC_UPDATE_MODES", "StepRefusedError", "apply_correction",
+    "FilterOutput", "Msckf", "MsckfWarning", "StepRefusedError", "apply_correction",
     "whitening_matrices",
 ]
 
@@ -118,10 +115,6 @@ class MsckfWarning(UserWarning):
 class StepRefusedError(ValueError):
     """Raised when a propagation would leave a non-finite or non-PSD state; the filter keeps the state before it."""
 
-# Update side of the OC-EKF. "projected": the minimal change of each feature's nullspace-projected Jacobian with
-# H_o N_C = 0 (4 conditions). "eq86": the thesis's per-camera H_C u = 0 (2 per camera), which on aerial_like
-# (features at ~250 m) alters the position columns by 0.5-3.5 % and diverges on 4 of 10 seeds of 40 s.
-OC_UPDATE_MODES = ("projected", "eq86")
 # triangulation failures that mean "too little parallax for a depth" rather than "inconsistent observations"
 _FAR_POINT_REASONS = ("behind_camera", "too_far", "insufficient_baseline")
 
@@ -245,9 +238,6 @@ class Msckf:
         config: every parameter (``MsckfConfig``).
         state: the initial state (e.g. ``initialization.initial_state_from_truth`` or ``initial_state_from_static``);
             it usually holds no camera poses.
-        oc_update: update side of the OC-EKF when ``config.observability_constrained`` (``OC_UPDATE_MODES``):
-            "projected" (constrain the nullspace-projected Jacobian, H_o N_C = 0) or "eq86" (thesis Eq. 86);
-            None (default) takes ``config.oc_update``.
 
     Attributes:
         config: the configuration.
@@ -276,29 +266,18 @@ class Msckf:
     (0.05, array([0., 0., 0.]), 1, 2)
     """
 
-    def __init__(self, config: MsckfConfig, state: FilterState, oc_update: str | None = None) -> None:
+    def __init__(self, config: MsckfConfig, state: FilterState) -> None:
         if not isinstance(config, MsckfConfig):
             raise ValueError(f"config must be an MsckfConfig; got {type(config).__name__}")
         if not isinstance(state, FilterState):
             raise ValueError(f"state must be a FilterState; got {type(state).__name__}")
-        if oc_update is None:
-            oc_update = config.oc_update
-        if oc_update not in OC_UPDATE_MODES:
-            raise ValueError(f"oc_update must be one of {OC_UPDATE_MODES}; got {oc_update!r}")
         self.config = config
-        self.oc_update = oc_update
         self._state = state
         self.rejections: Counter[str] = Counter()
         self.tracks: dict[int, list[tuple[int, NDArray[np.float64], NDArray[np.float64]]]] = {}
         self._track_stream: dict[int, int] = {}  # the frame stream of each track (one stream: all 0)
         self._track_last_image: dict[int, int] = {}  # the stream's image count when each track was last observed
         self._stream_images: Counter[int] = Counter()  # images processed per stream
-        # the last second of updates, kept for the far-point tests (only with far_point_fallback): (image time,
-        # tracks triangulated and used, depths of the points triangulated); the depths' median persists
-        self._recent_updates: deque[tuple[float, int, list[float]]] = deque()
-        self._far_used = 0  # far points used by the last update
-        self._last_depths: list[float] = []  # depths of the points the last update triangulated (anchor camera)
-        self._scene_depth = 0.0  # median depth over the last second with any (far_point_scene_depth)
         self._next_camera_id = max(state.camera_ids, default=-1) + 1
         self._tracking_rate = 1.0
         self._imu_t = np.zeros(0)
@@ -552,10 +531,8 @@ class Msckf:
             pruned = self._collect_pruned_features(remove)
             self._frame_counters["lost_tried"] += len(lost)
             self._frame_counters["prune_tried"] += len(pruned)
-            used_mask = self._update(lost + pruned, far=self._far_points_now(t))
+            used_mask = self._update(lost + pruned, far=self._far_points_now())
             used = int(np.count_nonzero(used_mask))
-            if self.config.far_point_fallback:
-                self._remember_update(t, used - self._far_used)
             self._frame_counters["lost_used"] += int(np.count_nonzero(used_mask[:len(lost)]))
             self._frame_counters["prune_used"] += int(np.count_nonzero(used_mask[len(lost):]))
         self._marginalize(remove)
@@ -797,28 +774,10 @@ class Msckf:
     def _window_positions(self) -> dict[int, int]:
         return {cid: i for i, cid in enumerate(self._state.camera_ids)}
 
-    def _remember_update(self, t: float, triangulated_used: int) -> None:
-        """Add this image's update to the last second kept for ``_far_points_now`` and refresh the scene depth."""
-        recent = self._recent_updates
-        recent.append((t, triangulated_used, self._last_depths))
-        while recent[0][0] < t - 1.0:  # keep the last second
-            recent.popleft()
-        depths = [d for _, _, ds in recent for d in ds]
-        if depths:
-            self._scene_depth = float(np.median(depths))
-
-    def _far_points_now(self, t: float) -> bool:
-        """Return whether this image's update may use far points: ``far_point_fallback`` on (and the gate), and
-        ``far_point_starvation`` infinite or above the mean number of triangulated features used per image in
-        the last second of image times (before ``t``), and the scene at least ``far_point_scene_depth`` deep."""
-        if not (self.config.far_point_fallback and self.config.chi2_gating):  # never ungated: no residual check
-            return False
-        if self._scene_depth < self.config.far_point_scene_depth:  # a near scene: failed tracks are wrong ones
-            return False
-        if math.isinf(self.config.far_point_starvation):
-            return True
-        recent = [n for t_i, n, _ in self._recent_updates if t_i >= t - 1.0]
-        return bool(recent) and sum(recent) < self.config.far_point_starvation * len(recent)
+    def _far_points_now(self) -> bool:
+        """Return whether this image's update may use far points: ``far_point_fallback`` on, and the gate (never
+        ungated: no residual check)."""
+        return self.config.far_point_fallback and self.config.chi2_gating
 
     def _update(self, uses: list[_FeatureUse], far: bool = False) -> NDArray[np.bool_]:
         """Triangulate, gate, build, stack and apply ONE compressed EKF update; return which of ``uses`` were used.
@@ -828,8 +787,6 @@ class Msckf:
         degrees of freedom biases the kept residuals less (``update.gating_mean_shrink``).
         """
         used = np.zeros(len(uses), dtype=bool)
-        self._far_used = 0  # far points among the used (read by the caller for far_point_starvation)
-        self._last_depths = []  # depths of the points triangulated here (read by the caller: far_point_scene_depth)
         if not uses:
             return used
         state = self._state
@@ -841,7 +798,6 @@ class Msckf:
         if self.config.observation_outlier_px is not None:
             uses, results = self._drop_outlier_observations(uses, results, R_C, p_C)
         ok: list[tuple[int, _FeatureUse, NDArray[np.float64]]] = []
-        far_items: set[int] = set()
         for k, (u, res) in enumerate(zip(uses, results)):
             if far and res.reason in _FAR_POINT_REASONS and np.count_nonzero(u.involved) >= 2:
                 # low parallax: the depth is not observable from this track, its bearing is. A point far along
@@ -855,16 +811,12 @@ class Msckf:
                 alpha, beta, _ = res.inverse_depth
                 p_FinA = np.array([alpha, beta, 1.0]) * self.config.triangulation_max_depth
                 ok.append((k, u, p_C[a] + R_C[a].T @ p_FinA))
-                far_items.add(k)
             elif not res.success:
                 self.rejections[res.reason] += 1
             elif np.count_nonzero(u.involved) < 2:  # 2 rows cannot survive the 3-column nullspace projection
                 self.rejections["too_few_observations"] += 1
             else:
                 ok.append((k, u, res.p_FinG))
-        if self.config.far_point_fallback:  # the scene's depth: points triangulated, those beyond the max depth at it
-            self._last_depths = [1.0 / res.inverse_depth[2] if res.success else self.config.triangulation_max_depth
-                                 for res in results if res.success or res.reason == "too_far"]
         if self.config.observability_constrained:
             cams = state.cameras.values()
             R_null = quat_to_rot(np.array([c.q_GtoC_null for c in cams]))
@@ -910,7 +862,6 @@ class Msckf:
             col_parts.append(cols[keep])
         if not np.any(used) or not self._apply_update(H_parts, r_parts, col_parts):
             used[:] = False
-        self._far_used = int(np.count_nonzero(used[sorted(far_items)])) if far_items else 0
         return used
 
     def _drop_outlier_observations(self, uses: list[_FeatureUse], results: list[Any], R_C: NDArray[np.float64],
@@ -966,8 +917,8 @@ class Msckf:
         the projected Jacobians H_o (F, 2m-3, 6m), residuals r_o (F, 2m-3) and camera columns cols (F, 6m);
         keep is False where a depth or a value is not usable.
 
-        Vectorised over the F features: residuals and Jacobians (Eqs. 41-48), OC modification (Eqs. 85-86),
-        whitening and nullspace projection (Eq. 50). H_o holds only the observing cameras' columns ``cols``.
+        Vectorised over the F features: residuals and Jacobians (Eqs. 41-48), whitening, nullspace projection
+        (Eq. 50) and, with the first-estimate poses R_null, p_null, the OC constraint H_o N_C = 0. H_o holds only the observing cameras' columns ``cols``.
         """
         widx = np.array([u.window_idx[sel] for sel, u, _ in items])  # (F, m)
         z = np.array([u.xy[sel] for sel, u, _ in items])  # (F, m, 2)
@@ -993,12 +944,8 @@ class Msckf:
         blocks[..., 0, 0], blocks[..., 0, 1], blocks[..., 0, 2] = xy_, -1.0 - x * x, y
         blocks[..., 1, 0], blocks[..., 1, 1], blocks[..., 1, 2] = 1.0 + y * y, -xy_, -x
         blocks[..., 3:] = -H_f
-        if R_null is not None and self.oc_update == "eq86":  # OC: H_C u = 0, first-estimate poses (85-86)
-            blocks, H_f = constrain_camera_blocks(
-                blocks, R_null[widx], p_null[widx], np.broadcast_to(p_F[:, None, :], (F, m, 3)), self._gravity
-            )
-        # whitening: W_i r_i = W_i H_Ci δx_Ci + W_i H_fi δp_F + W_i n_i with W_i n_i ~ N(0, I). Left-multiplying
-        # keeps OC's H_C u = 0; done BEFORE the nullspace so that A^T (W n) stays white (A^T A = I).
+        # whitening: W_i r_i = W_i H_Ci δx_Ci + W_i H_fi δp_F + W_i n_i with W_i n_i ~ N(0, I), done
+        # BEFORE the nullspace so that A^T (W n) stays white (A^T A = I).
         r = np.einsum("fmij,fmj->fmi", W, r.reshape(F, m, 2)).reshape(F, 2 * m)  # r_w = W r
         H_f = W @ H_f  # (F, m, 2, 3)
         blocks = W @ blocks  # (F, m, 2, 6)
@@ -1010,7 +957,7 @@ class Msckf:
         H_o = np.swapaxes(A_cam @ blocks, 1, 2).reshape(F, 2 * m - 3, m * CAMERA_DIM)
         r_o = np.einsum("fkr,fr->fk", A_T, r)
         cols = ((IMU_DIM + CAMERA_DIM * widx)[:, :, None] + np.arange(CAMERA_DIM)).reshape(F, m * CAMERA_DIM)
-        if R_null is not None and self.oc_update != "eq86":
+        if R_null is not None:
             N_C = camera_nullspace(R_null[widx], p_null[widx], self._gravity)  # (F, 6m, 4) first estimates
             H_o = constrain_projected_jacobian(H_o, N_C)  # H_o* = H_o (I - N (N^T N)^-1 N^T): H_o* N_C = 0
         keep = front & np.all(np.isfinite(H_o), axis=(1, 2)) & np.all(np.isfinite(r_o), axis=1)

@@ -116,19 +116,17 @@ def test_with_imu_noise_copies_the_simulator_densities():
         MsckfConfig().with_imu_noise(object())
 
 
-def test_oc_update_mode_is_a_validated_config_field_that_the_filter_follows():
-    from evio_lib.msckf.filter import Msckf
-    from evio_lib.msckf.state import FilterState, ImuState
+def test_retired_options_are_gone_and_refused_by_name():
+    """The update-side OC has one form (the projected one) and far points no starvation or scene-depth test: their
+    fields are gone, and a dict that still names one is refused with its name (docs/archive.md has their numbers)."""
+    from dataclasses import fields
 
-    assert MsckfConfig().oc_update == "projected"
-    with pytest.raises(ValueError, match="oc_update must be 'projected' or 'eq86'"):
-        MsckfConfig(oc_update="hesch")
-    config = MsckfConfig(oc_update="eq86")
-    assert MsckfConfig.from_dict(config.to_dict()).oc_update == "eq86"
-    imu = ImuState.from_pose(np.eye(3), np.zeros(3), np.zeros(3), timestamp=0.0)
-    state = FilterState.initial(imu, np.eye(3), np.zeros(3), config.initial_imu_covariance())
-    assert Msckf(config, state).oc_update == "eq86"
-    assert Msckf(config, state, oc_update="projected").oc_update == "projected"  # an explicit argument wins
+    names = {f.name for f in fields(MsckfConfig)}
+    for retired, value in (("oc_update", "eq86"), ("far_point_starvation", 2.0), ("far_point_scene_depth", 50.0)):
+        assert retired not in names
+        with pytest.raises(ValueError, match=retired):
+            MsckfConfig.from_dict({retired: value})
+    assert "far_point_fallback" in names and "observability_constrained" in names
 
 
 def test_triangulation_settings_are_the_filters_and_drive_triangulate_inverse_depth():
