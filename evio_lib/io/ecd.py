@@ -43,7 +43,7 @@ import numpy as np
 from evio_lib.events.array import EVENT_DTYPE
 from evio_lib.geometry.camera import PinholeRadtan, intrinsics_problem
 from evio_lib.io.cache import from_json_value, to_json_value
-from evio_lib.io.errors import DataFileError, read_table, require_file, time_format, write_table
+from evio_lib.io.errors import DataFileError, read_table, read_text, require_file, time_format, write_table
 from evio_lib.io.imu_checks import check_imu_units
 from evio_lib.io.tum import read_tum, write_tum
 from evio_lib.sequence import GroundTruth, ImuSamples, Sequence
@@ -110,7 +110,7 @@ def _read_sidecar(folder: Path) -> dict | None:
     if not path.is_file():
         return None
     try:
-        raw = json.loads(path.read_text(encoding="utf-8"))
+        raw = json.loads(read_text(path))
     except json.JSONDecodeError as exc:
         raise DataFileError(f"{SIDECAR_NAME} line {exc.lineno}: invalid JSON ({exc.msg})") from None
     if not isinstance(raw, dict):
@@ -139,29 +139,28 @@ def _read_image_list(folder: Path) -> tuple[np.ndarray, list[Path]]:
     """Return (times (F,), image paths) listed in images.txt, checking order and that each image exists."""
     path = folder / "images.txt"
     times, files = [], []
-    with open(path, "r", encoding="utf-8") as f:
-        for number, line in enumerate(f, start=1):
-            stripped = line.split("#", 1)[0].strip()
-            if not stripped:
-                continue
-            tokens = stripped.split(maxsplit=1)                 # the path is the rest of the line: it may hold spaces
-            if len(tokens) != 2:
-                raise DataFileError(f"images.txt line {number}: expected 2 columns (t image_path), got {len(tokens)}")
-            try:
-                t = float(tokens[0])
-            except ValueError:
-                raise DataFileError(f"images.txt line {number}: column 't' must be a number; got {tokens[0]!r}") from None
-            if not np.isfinite(t):
-                raise DataFileError(f"images.txt line {number}: column 't' must be a finite number; got {tokens[0]!r}")
-            if times and t <= times[-1]:
-                raise DataFileError(
-                    f"images.txt line {number}: timestamp {t!r} follows {times[-1]!r}; t must be strictly increasing (no duplicates)"
-                )
-            image = folder / tokens[1]
-            if not image.is_file():
-                raise DataFileError(f"images.txt line {number}: image file {tokens[1]} not found in {folder}")
-            times.append(t)
-            files.append(image)
+    for number, line in enumerate(read_text(path).splitlines(keepends=True), start=1):
+        stripped = line.split("#", 1)[0].strip()
+        if not stripped:
+            continue
+        tokens = stripped.split(maxsplit=1)                 # the path is the rest of the line: it may hold spaces
+        if len(tokens) != 2:
+            raise DataFileError(f"images.txt line {number}: expected 2 columns (t image_path), got {len(tokens)}")
+        try:
+            t = float(tokens[0])
+        except ValueError:
+            raise DataFileError(f"images.txt line {number}: column 't' must be a number; got {tokens[0]!r}") from None
+        if not np.isfinite(t):
+            raise DataFileError(f"images.txt line {number}: column 't' must be a finite number; got {tokens[0]!r}")
+        if times and t <= times[-1]:
+            raise DataFileError(
+                f"images.txt line {number}: timestamp {t!r} follows {times[-1]!r}; t must be strictly increasing (no duplicates)"
+            )
+        image = folder / tokens[1]
+        if not image.is_file():
+            raise DataFileError(f"images.txt line {number}: image file {tokens[1]} not found in {folder}")
+        times.append(t)
+        files.append(image)
     return np.array(times, dtype=np.float64), files
 
 
@@ -242,12 +241,11 @@ def _read_camera_groundtruth(folder: Path) -> GroundTruth | None:
 def _read_groundtruth_imu(path: Path) -> GroundTruth:
     """Return the IMU-state ground truth of groundtruth_imu.txt (8, 11, 14 or 17 columns)."""
     first_line, n_columns = 0, 0
-    with open(path, "r", encoding="utf-8") as f:
-        for number, line in enumerate(f, start=1):
-            tokens = line.split("#", 1)[0].split()
-            if tokens:
-                first_line, n_columns = number, len(tokens)
-                break
+    for number, line in enumerate(read_text(path).splitlines(keepends=True), start=1):
+        tokens = line.split("#", 1)[0].split()
+        if tokens:
+            first_line, n_columns = number, len(tokens)
+            break
     if first_line == 0:
         raise DataFileError(f"{path.name}: the file holds no data (expected {' '.join(_POSE)} ...)")
     columns = _GT_IMU_LAYOUTS.get(n_columns)

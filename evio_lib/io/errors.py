@@ -25,7 +25,7 @@ from typing import Sequence
 
 import numpy as np
 
-__all__ = ["DataFileError", "Table", "read_table", "require_file", "time_format", "write_table", "unit_quaternions",
+__all__ = ["DataFileError", "Table", "read_table", "read_text", "require_file", "time_format", "write_table", "unit_quaternions",
            "quaternion_norm_problem", "QUATERNION_NORM_TOL"]
 
 #: Largest |norm - 1| of a quaternion that readers normalise; beyond it the quaternion is refused.
@@ -54,6 +54,32 @@ def require_file(path: str | Path, what: str) -> Path:
     if not path.is_file():
         raise DataFileError(f"{path.name}: file not found at {path} (expected {what})")
     return path
+
+
+def read_text(path: str | Path, name: str | None = None) -> str:
+    """Return the text of the UTF-8 file ``path``; a file that is not UTF-8 text raises DataFileError naming its line.
+
+    Args:
+        path: the file.
+        name: how messages call it (default: its file name).
+
+    >>> import tempfile, os
+    >>> folder = tempfile.mkdtemp()
+    >>> _ = open(os.path.join(folder, "calib.txt"), "wb").write(b"199.1 198.8\\n\\xe9t\\xe9\\n")
+    >>> read_text(os.path.join(folder, "calib.txt"))
+    Traceback (most recent call last):
+    ...
+    evio_lib.io.errors.DataFileError: calib.txt line 2: not UTF-8 text (byte 0xe9 at column 1); expected a plain-text file saved as UTF-8 (or ASCII)
+    """
+    path = Path(path)
+    data = path.read_bytes()
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        column = exc.start - (data.rfind(b"\n", 0, exc.start) + 1) + 1
+        raise DataFileError(f"{name or path.name} line {line}: not UTF-8 text (byte 0x{data[exc.start]:02x} at column "
+                            f"{column}); expected a plain-text file saved as UTF-8 (or ASCII)") from None
 
 
 def unit_quaternions(q: np.ndarray) -> tuple[np.ndarray, int, float]:

@@ -33,7 +33,7 @@ import numpy as np
 
 from evio_lib.geometry.camera import PinholeRadtan, intrinsics_problem
 from evio_lib.geometry.rotation import rot_to_quat
-from evio_lib.io.errors import DataFileError, read_table, require_file
+from evio_lib.io.errors import DataFileError, read_table, read_text, require_file
 from evio_lib.io.imu_checks import check_imu_units, check_noise_values
 from evio_lib.io.tum import read_tum
 from evio_lib.sequence import GroundTruth, ImuSamples, Sequence
@@ -90,7 +90,7 @@ def read_asl_yaml(path: str | Path, *, name: str | None = None) -> dict:
     root: dict = {}
     stack: list[tuple[int, dict]] = [(-1, root)]
     pending: tuple[int, int, str, str] | None = None  # (line, indent, key, text so far) of an open flow list
-    for number, raw in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
+    for number, raw in enumerate(read_text(path, name).splitlines(), start=1):
         line = raw.split("#", 1)[0].rstrip()
         if pending is not None:
             start, indent, key, text = pending
@@ -171,27 +171,26 @@ def _read_camera(yaml: dict, where: str) -> PinholeRadtan:
 def _read_image_index(path: Path, name: str) -> tuple[np.ndarray, list[Path]]:
     """Return (t (F,) [s], image paths) of a cam data.csv (``timestamp [ns],filename``)."""
     stamps, files = [], []
-    with open(path, "r", encoding="utf-8") as f:
-        for number, line in enumerate(f, start=1):
-            stripped = line.split("#", 1)[0].strip()
-            if not stripped:
-                continue
-            tokens = [tok.strip() for tok in stripped.split(",")]
-            if len(tokens) != 2:
-                raise DataFileError(f"{name} line {number}: expected 2 columns (timestamp [ns], filename), got {len(tokens)}")
-            try:
-                t_ns = int(tokens[0])
-            except ValueError:
-                raise DataFileError(f"{name} line {number}: timestamp must be an integer number of ns; got {tokens[0]!r}") from None
-            if stamps and t_ns <= stamps[-1]:
-                raise DataFileError(
-                    f"{name} line {number}: timestamp {t_ns} follows {stamps[-1]}; timestamps must be strictly increasing"
-                )
-            image = path.parent / "data" / tokens[1]
-            if not image.is_file():
-                raise DataFileError(f"{name} line {number}: image file data/{tokens[1]} not found in {path.parent}")
-            stamps.append(t_ns)
-            files.append(image)
+    for number, line in enumerate(read_text(path, name).splitlines(keepends=True), start=1):
+        stripped = line.split("#", 1)[0].strip()
+        if not stripped:
+            continue
+        tokens = [tok.strip() for tok in stripped.split(",")]
+        if len(tokens) != 2:
+            raise DataFileError(f"{name} line {number}: expected 2 columns (timestamp [ns], filename), got {len(tokens)}")
+        try:
+            t_ns = int(tokens[0])
+        except ValueError:
+            raise DataFileError(f"{name} line {number}: timestamp must be an integer number of ns; got {tokens[0]!r}") from None
+        if stamps and t_ns <= stamps[-1]:
+            raise DataFileError(
+                f"{name} line {number}: timestamp {t_ns} follows {stamps[-1]}; timestamps must be strictly increasing"
+            )
+        image = path.parent / "data" / tokens[1]
+        if not image.is_file():
+            raise DataFileError(f"{name} line {number}: image file data/{tokens[1]} not found in {path.parent}")
+        stamps.append(t_ns)
+        files.append(image)
     return ns_to_seconds(np.array(stamps, dtype=np.int64)), files
 
 

@@ -99,3 +99,10 @@ def test_bfloat16_and_int8_frames_are_close_to_float32_ones(ecd_folder, tmp_path
     levels = [np.abs(a - b) for a, b in zip(listings["float32"], listings["int8"])]
     assert len(levels) == len(listings["float32"]) and max(d.mean() for d in levels) < 2.5 and max(d.max() for d in levels) <= 15
     # int8: 1.0-1.3 levels on average, at most 7 (measured)
+
+
+def test_a_times_file_that_is_not_utf8_text_is_named_with_its_line(tmp_path):
+    bad = tmp_path / "t.txt"
+    bad.write_bytes(b"0.1\n0.2 \xe9\n")
+    with pytest.raises(ValueError, match=r"t.txt line 2: not UTF-8 text \(byte 0xe9 at column 5\)"):
+        read_times_file(bad)

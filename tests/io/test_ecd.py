@@ -1,5 +1,6 @@
 """Tests of evio_lib.io.ecd: the ECD text layout (read, write, exact round trip, errors with file and line)."""
 import json
+import re
 
 import cv2
 import numpy as np
@@ -327,3 +328,22 @@ def test_read_frames_of_the_real_slider(real_data_dir):
     seq = ecd.read_ecd_frames(real_data_dir / "ecd_slider_depth_slice")
     assert seq.frames.shape == (87, 180, 240) and seq.camera.fx == pytest.approx(335.419462958)
     assert seq.groundtruth is not None and seq.groundtruth.body == "camera"
+
+
+@pytest.mark.parametrize("name, text", [
+    ("images.txt", b"0.5 images/a.png\n0.6 \xe9t\xe9.png\n"),
+    ("evio_sim.json", b'{"name": "\xff"}\n'),
+    ("groundtruth_imu.txt", b"# t p q\n\xe9\n"),
+    ("events.txt", b"0.1 1 2 1\n0.2 \xff 4 0\n"),
+    ("calib.txt", b"199 198 132 110 -0.36 0.15 0 0 \xe9\n"),
+])
+def test_files_that_are_not_utf8_text_are_named_with_their_line(tmp_path, name, text):
+    """A Latin-1 or binary byte in any text file of the folder is one error naming the file and its line, never the
+    bare 'utf-8 codec can't decode' text that names neither."""
+    folder = _folder(tmp_path)
+    (folder / "images").mkdir()
+    cv2.imwrite(str(folder / "images" / "a.png"), np.zeros((180, 240), np.uint8))
+    (folder / name).write_bytes(text)
+    with pytest.raises(DataFileError, match=rf"^{re.escape(name)} line (2|1)") as error:
+        read_ecd(folder)
+    assert "codec" not in str(error.value)

@@ -1,4 +1,6 @@
 """Tests of evio_lib.io.euroc: the EuRoC ASL layout (real micro slice, synthetic folders, errors, yaml parser)."""
+from pathlib import Path
+
 import cv2
 import numpy as np
 import pytest
@@ -317,3 +319,15 @@ def test_camera_without_calibration_loads_frames_and_says_so(tmp_path):
         seq = read_euroc(root)
     assert seq.camera is None and seq.R_CtoI is None and seq.frames.shape == (2, 12, 16)
     seq.validate()
+
+
+@pytest.mark.parametrize("relative", ["mav0/cam0/sensor.yaml", "mav0/cam0/data.csv", "mav0/imu0/data.csv"])
+def test_files_that_are_not_utf8_text_are_named_with_their_line(tmp_path, relative):
+    root = _euroc_folder(tmp_path)
+    path = root / relative
+    lines = path.read_bytes().split(b"\n")
+    lines[2] = lines[2] + b" \xe9"
+    path.write_bytes(b"\n".join(lines))
+    with pytest.raises(DataFileError, match=r"line 3") as error:
+        read_euroc(root)
+    assert "codec" not in str(error.value) and Path(relative).name in str(error.value)

@@ -18,6 +18,8 @@ from typing import Sequence
 
 import numpy as np
 
+from evio_lib.io.errors import read_text
+
 __all__ = ["add_reconstruct_arguments", "main_reconstruct", "read_times_file"]
 
 DEFAULT_FRACTION = 0.35
@@ -77,22 +79,21 @@ def read_times_file(path: str | Path) -> np.ndarray:
     if not path.is_file():
         raise FileNotFoundError(f"--times file {path} does not exist")
     times = []
-    with open(path, encoding="utf-8") as f:
-        for number, line in enumerate(f, start=1):
-            text = line.strip()
-            if not text or text.startswith("#"):
-                continue
-            token = text.split()[0]
-            try:
-                t = float(token)
-            except ValueError:
-                raise ValueError(f"{path} line {number}: the first column must be a timestamp in seconds; "
-                                 f"got {token!r}") from None
-            if not np.isfinite(t):
-                raise ValueError(f"{path} line {number}: timestamp must be finite; got {token!r}")
-            if times and t <= times[-1]:
-                raise ValueError(f"{path} line {number}: timestamps must increase; {t!r} follows {times[-1]!r}")
-            times.append(t)
+    for number, line in enumerate(read_text(path, str(path)).splitlines(), start=1):
+        text = line.strip()
+        if not text or text.startswith("#"):
+            continue
+        token = text.split()[0]
+        try:
+            t = float(token)
+        except ValueError:
+            raise ValueError(f"{path} line {number}: the first column must be a timestamp in seconds; "
+                             f"got {token!r}") from None
+        if not np.isfinite(t):
+            raise ValueError(f"{path} line {number}: timestamp must be finite; got {token!r}")
+        if times and t <= times[-1]:
+            raise ValueError(f"{path} line {number}: timestamps must increase; {t!r} follows {times[-1]!r}")
+        times.append(t)
     if not times:
         raise ValueError(f"{path} holds no timestamps (expected one per line, in seconds, in the first column)")
     return np.asarray(times)
