@@ -40,8 +40,8 @@ def one_run(job: tuple[int, float, str, int | None]) -> dict:
     out = {"seed": seed}
     data = None
     for oc in (True, False):
-        config = VioSimConfig(preset=preset, duration=duration, seed=seed, oc=oc, max_track_length=max_track_length,
-                              gate_probability=gate,
+        config = VioSimConfig(preset=preset, duration=duration, seed=seed, observability_constrained=oc,
+                              max_track_length=max_track_length, gate_probability=gate,
                               msckf_overrides={"init_sigma_velocity": sigma_v, "init_sigma_attitude": sigma_att})
         data = simulate_data(config) if data is None else data
         r = run_vio_sim_config(config, baselines=False, data=data)

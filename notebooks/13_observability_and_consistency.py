@@ -444,8 +444,9 @@ duration = 3.0 if FAST else 10.0
 small_start = {"init_sigma_velocity": 0.03}
 results = {}
 for oc in (True, False):
-    results[oc] = run_vio_sim_seeds([100 + k for k in range(n_runs)], preset="boxes_like", duration=duration, oc=oc,
-                                    baselines=False, msckf_overrides=small_start, jobs=jobs)
+    results[oc] = run_vio_sim_seeds([100 + k for k in range(n_runs)], preset="boxes_like", duration=duration,
+                                    observability_constrained=oc, baselines=False, msckf_overrides=small_start,
+                                    jobs=jobs)
 t = results[True][0].t
 lo6, hi6 = chi2_bounds(6, n_runs)
 lo1, hi1 = chi2_bounds(1, n_runs)
@@ -557,7 +558,8 @@ display(Markdown(
 n_runs_att, duration_att = (3, 3.0) if FAST else (8, 10.0)
 big_start = {"init_sigma_velocity": 0.03, "init_sigma_attitude": 0.05}
 results_att = {oc: run_vio_sim_seeds([100 + k for k in range(n_runs_att)], preset="boxes_like", duration=duration_att,
-                                     oc=oc, baselines=False, msckf_overrides=big_start, jobs=jobs)
+                                     observability_constrained=oc, baselines=False, msckf_overrides=big_start,
+                                     jobs=jobs)
                for oc in (True, False)}
 lo6a, hi6a = chi2_bounds(6, n_runs_att)
 lo1a, hi1a = chi2_bounds(1, n_runs_att)
@@ -695,9 +697,10 @@ display(Markdown(verdict))
 #    8 runs of 10 s for each variant: a few minutes), then again with section 6's small start. Does the OC-EKF keep
 #    its yaw NEES inside the band, and its yaw σ, in both cases? What does the answer say about first-estimate methods?
 #
-#    *Hint:* `run_vio_sim_seeds([100 + k for k in range(8)], preset="aerial_like", duration=10.0, oc=oc,
-#    baselines=False, msckf_overrides=big_start)` (then `small_start`); compare the mean yaw NEES with
-#    `chi2_bounds(1, 8)` and the share of yaw σ kept, `sigma_yaw[-1] / sigma_yaw[0]`, as section 7 does.
+#    *Hint:* `run_vio_sim_seeds([100 + k for k in range(8)], preset="aerial_like", duration=10.0,
+#    observability_constrained=oc, baselines=False, msckf_overrides=big_start)` (then `small_start`); compare the
+#    mean yaw NEES with `chi2_bounds(1, 8)` and the share of yaw σ kept, `sigma_yaw[-1] / sigma_yaw[0]`, as section
+#    7 does.
 # 2. In section 3, scale the correction up and down: how does the first-interval mismatch of the standard EKF
 #    scale?
 #

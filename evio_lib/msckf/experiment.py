@@ -23,8 +23,8 @@ Consistency: the pose error of the IMU at image k (thesis Eqs. 23-26; q_true = �
 Baselines (thesis Table 6): IMU-only propagation from the same initial state, without bias correction (bias
 estimates 0) and with it (bias estimates = the true initial biases).
 
-Command line: ``python -m evio_lib vio-sim PRESET [--duration S] [--seed N] [--features N] [--no-oc] [--imu-only]
-[--out DIR]`` (:func:`add_vio_sim_arguments`, :func:`main_vio_sim`).
+Command line: ``python -m evio_lib vio-sim PRESET [--duration S] [--seed N] [--features N]
+[--no-observability-constrained] [--imu-only] [--out DIR]`` (:func:`add_vio_sim_arguments`, :func:`main_vio_sim`).
 """
 from __future__ import annotations
 
@@ -95,7 +95,8 @@ class VioSimConfig:
         seed: seed of every random stream of the run (IMU noise and biases, track noise and spawning, the initial
             error draw). The trajectory's shape is set by ``trajectory_seed`` so Monte-Carlo runs share it.
         features: tracks maintained per image (~60 as in thesis §4.5).
-        oc: observability-constrained EKF on/off (thesis §3.3.8).
+        observability_constrained: observability-constrained EKF on/off (thesis §3.3.8; the filter's
+            ``MsckfConfig.observability_constrained``).
         imu_only: run the filter in IMU-only mode (no updates).
         pixel_noise_px: std of the Gaussian pixel noise added to the tracks, pixels (also the filter's
             ``pixel_noise_px``, floored at 0.1 px).
@@ -116,7 +117,7 @@ class VioSimConfig:
     duration: float | None = None
     seed: int = 0
     features: int = 60
-    oc: bool = True
+    observability_constrained: bool = True
     imu_only: bool = False
     pixel_noise_px: float = 1.0
     imu_rate_hz: float = 1000.0
@@ -145,7 +146,7 @@ class VioSimConfig:
         if self.max_track_length is not None and (isinstance(self.max_track_length, bool) or not isinstance(
                 self.max_track_length, (int, np.integer)) or self.max_track_length < 2):
             raise ValueError(f"max_track_length must be None or an integer >= 2; got {self.max_track_length!r}")
-        for name in ("oc", "imu_only"):
+        for name in ("observability_constrained", "imu_only"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ValueError(f"{name} must be True or False; got {getattr(self, name)!r}")
         for name, positive in (("pixel_noise_px", False), ("imu_rate_hz", True), ("frame_rate_hz", True)):
@@ -276,7 +277,7 @@ class VioSimResult:
         lines = [
             f"vio-sim {cfg.preset}: {self.t[-1] - self.t[0] + 1.0 / cfg.frame_rate_hz:.1f} s, seed {cfg.seed}, "
             f"{cfg.features} features/image, {cfg.pixel_noise_px:g} px noise ({cfg.noise_model}), "
-            f"OC {'on' if cfg.oc else 'off'}"
+            f"OC {'on' if cfg.observability_constrained else 'off'}"
             f"{', IMU-only' if cfg.imu_only else ''}; distance travelled {self.metrics['distance_m']:.2f} m",
             format_table(self.rows, columns),
         ]
@@ -299,7 +300,7 @@ def experiment_msckf_config(config: VioSimConfig, noise: ImuNoiseParams | None =
     """Return the MsckfConfig of a run: the library defaults, the simulated IMU noise model, the run's pixel noise.
 
     Args:
-        config: the run (oc, imu_only, pixel_noise_px, noise_model, msckf_overrides).
+        config: the run (observability_constrained, imu_only, pixel_noise_px, noise_model, msckf_overrides).
         noise: the simulated IMU noise model (default ``ImuNoiseParams()``): densities and initial bias spreads.
         camera: gives the focal length that converts pixel noise to normalised units (default DAVIS240C).
 
@@ -319,7 +320,7 @@ def experiment_msckf_config(config: VioSimConfig, noise: ImuNoiseParams | None =
     factor = undistortion_noise_factor(camera) if config.noise_model == "global_factor" else 1.0
     sigma_px = max(config.pixel_noise_px * factor, 0.1)
     cfg = dataclasses.replace(cfg, pixel_noise_px=sigma_px, focal_length_px=focal,
-                              observability_constrained=config.oc, imu_only=config.imu_only,
+                              observability_constrained=config.observability_constrained, imu_only=config.imu_only,
                               chi2_probability=config.gate_probability)
     return dataclasses.replace(cfg, **dict(config.msckf_overrides)) if config.msckf_overrides else cfg
 
@@ -472,7 +473,8 @@ def run_vio_sim_config(config: VioSimConfig, baselines: bool = True, out_dir: st
     k_imu = np.clip(np.searchsorted(data.imu.t, t - 1e-9), 0, len(data.imu.t) - 1)  # IMU sample at each image
     imu_t, dense = data.imu.t, data.trajectory.evaluate(data.imu.t)
 
-    label = "IMU-only (filter mode)" if config.imu_only else f"MSCKF, OC {'on' if config.oc else 'off'}"
+    label = ("IMU-only (filter mode)" if config.imu_only
+             else f"MSCKF, OC {'on' if config.observability_constrained else 'off'}")
     row = summarize(t, p_est, imu_t, dense.p_IinG, name=label)
     rows = [row]
     if baselines:
@@ -512,7 +514,7 @@ def run_vio_sim(
     duration: float | None = None,
     seed: int = 0,
     features: int = 60,
-    oc: bool = True,
+    observability_constrained: bool = True,
     imu_only: bool = False,
     pixel_noise_px: float = 1.0,
     *,
@@ -527,7 +529,7 @@ def run_vio_sim(
         duration: seconds (None = preset default: 60 s boxes, 40 s aerial).
         seed: seed of every random stream (IMU noise/biases, tracks, initial error).
         features: tracks per image.
-        oc: observability-constrained EKF on/off.
+        observability_constrained: observability-constrained EKF on/off.
         imu_only: filter in IMU-only mode.
         pixel_noise_px: track noise std, pixels.
         baselines: also run the IMU-only baselines (without and with bias correction).
@@ -539,7 +541,8 @@ def run_vio_sim(
     >>> len(r.t), r.p_est.shape, bool(r.metrics["rmse_m"] < 0.1)
     (39, (39, 3), True)
     """
-    config = VioSimConfig(preset=preset, duration=duration, seed=seed, features=features, oc=oc, imu_only=imu_only,
+    config = VioSimConfig(preset=preset, duration=duration, seed=seed, features=features,
+                          observability_constrained=observability_constrained, imu_only=imu_only,
                           pixel_noise_px=pixel_noise_px, **options)
     return run_vio_sim_config(config, baselines=baselines, out_dir=out_dir)
 
@@ -583,7 +586,8 @@ def main_vio_sim(args: argparse.Namespace) -> int:
         check_output_dir(args.out, force)
     try:
         config = VioSimConfig(preset=args.preset, duration=args.duration, seed=args.seed, features=args.features,
-                              oc=not args.no_oc, imu_only=args.imu_only, pixel_noise_px=args.pixel_noise,
+                              observability_constrained=not args.no_observability_constrained,
+                              imu_only=args.imu_only, pixel_noise_px=args.pixel_noise,
                               noise_model=getattr(args, "noise_model", "per_observation"),
                               gate_probability=getattr(args, "gate", 0.99))
     except ValueError as error:  # the message names the config field; the user typed the option

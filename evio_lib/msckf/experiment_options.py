@@ -22,7 +22,8 @@ def add_vio_sim_arguments(parser: argparse.ArgumentParser) -> None:
                         help="tracked features per image, >= 1 (default 60)")
     parser.add_argument("--pixel-noise", type=real(at_least=0.0), default=1.0,
                         help="pixel noise std of the tracks, >= 0 px (default 1)")
-    parser.add_argument("--no-oc", action="store_true", help="plain EKF instead of the observability-constrained one")
+    parser.add_argument("--no-observability-constrained", action="store_true",
+                        help="plain EKF instead of the observability-constrained one")
     parser.add_argument("--noise-model", choices=["per_observation", "global_factor", "nominal"], default="per_observation",
                         help="feature noise model of the filter (default per_observation: each observation's own "
                              "covariance from the undistortion Jacobian)")

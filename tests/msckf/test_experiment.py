@@ -86,11 +86,12 @@ def test_runs_are_deterministic_for_a_seed_and_differ_between_seeds():
     np.testing.assert_array_equal(a.p_gt, c.p_gt)  # same trajectory (trajectory_seed), other noise
 
 
-def test_imu_only_mode_and_oc_switch():
+def test_imu_only_mode_and_observability_constrained_switch():
     r = run_vio_sim("boxes_like", duration=2.0, seed=2, features=30, imu_only=True, baselines=False)
     assert r.features_used.sum() == 0 and r.msckf_config.imu_only
     assert r.rows[0]["name"].startswith("IMU-only")
-    off = run_vio_sim("boxes_like", duration=2.0, seed=2, features=30, oc=False, baselines=False)
+    off = run_vio_sim("boxes_like", duration=2.0, seed=2, features=30, observability_constrained=False,
+                      baselines=False)
     assert not off.msckf_config.observability_constrained and off.rows[0]["name"] == "MSCKF, OC off"
     assert off.metrics["rmse_m"] < 0.5 * r.metrics["rmse_m"]
 
@@ -199,12 +200,14 @@ def test_per_observation_noise_passes_the_gate_at_the_nominal_rate_and_beats_the
 def test_command_line_parses_and_runs(tmp_path, capsys):
     parser = argparse.ArgumentParser()
     add_vio_sim_arguments(parser)
-    args = parser.parse_args(["aerial_like", "--duration", "3", "--seed", "4", "--features", "25", "--no-oc",
-                              "--out", str(tmp_path / "run")])
-    assert (args.preset, args.duration, args.seed, args.features, args.no_oc, args.imu_only) == \
+    args = parser.parse_args(["aerial_like", "--duration", "3", "--seed", "4", "--features", "25",
+                              "--no-observability-constrained", "--out", str(tmp_path / "run")])
+    assert (args.preset, args.duration, args.seed, args.features, args.no_observability_constrained,
+            args.imu_only) == \
         ("aerial_like", 3.0, 4, 25, True, False)
     defaults = parser.parse_args(["boxes_like"])
-    assert defaults.duration is None and defaults.seed == 0 and defaults.features == 60 and not defaults.no_oc
+    assert defaults.duration is None and defaults.seed == 0 and defaults.features == 60
+    assert not defaults.no_observability_constrained
     with pytest.raises(SystemExit):
         parser.parse_args(["mars_like"])
     args = parser.parse_args(["boxes_like", "--duration", "2", "--features", "20", "--no-baselines",
@@ -226,8 +229,8 @@ def test_bad_input_raises_value_errors():
         VioSimConfig(seed=-1)
     with pytest.raises(ValueError, match=r"pixel_noise_px must be a finite number >= 0; got -1.0"):
         VioSimConfig(pixel_noise_px=-1.0)
-    with pytest.raises(ValueError, match=r"oc must be True or False"):
-        VioSimConfig(oc="yes")
+    with pytest.raises(ValueError, match=r"observability_constrained must be True or False"):
+        VioSimConfig(observability_constrained="yes")
     with pytest.raises(ValueError, match=r"frame_rate_hz must be <= imu_rate_hz"):
         VioSimConfig(frame_rate_hz=2000.0)
     with pytest.raises(ValueError, match=r"msckf_overrides must name MsckfConfig fields; got unknown \['n_max'\]"):
