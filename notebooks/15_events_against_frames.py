@@ -624,14 +624,16 @@ display(Markdown(
 #
 #    *Hint:* `stretch_run(stretch, 0, PipelineConfig(frames=..., **KLT))` returns `frames_per_second`,
 #    `track_length`, `percent_of_distance` and `blur_px`.
-# 3. In section 3 the run on both streams gave every APS observation the same 1 px of noise, however smeared its
-#    frame. Run it again with `aps_blur_noise=0.5`, which grows each APS frame's σ with the rotation blur the gyro
-#    predicts, $\sigma = \sqrt{\sigma_0^2 + (0.5\,|\omega|\,T f)^2}$, $\sigma_0$ the usual 1 px (`pixel_noise_px`).
-#    What σ do the frames of this stretch get, and does the error move? Why might one seed not settle it?
+# 3. In section 3 the run on both streams gave the event tracks three times the APS tracks' pixel noise
+#    (`FUSED_EVENT_NOISE_FACTOR`), although at this speed the APS frames are the smeared ones. Run it again with
+#    equal weights (1 px for both streams) and with the APS frames weighted down (3 px for the APS tracks, 1 px for
+#    the event tracks). Which weighting gives the lowest error on this stretch, and why might one seed and one
+#    second not settle it?
 #
-#    *Hint:* `PipelineConfig(frames="aps+mc-events", aps_blur_noise=0.5, seed=SEEDS[0], **KLT)` on `data_violent`;
-#    the run's `notes` give the least, median and largest σ; compare `metrics["percent_of_distance"]` with section
-#    3's run on both streams, and with the spread over seeds in section 4's table.
+#    *Hint:* `PipelineConfig(frames="aps+mc-events", pixel_noise_px=3.0, event_pixel_noise_px=1.0, seed=SEEDS[0],
+#    **KLT)` on `data_violent` (`pixel_noise_px` is the APS tracks' σ, `event_pixel_noise_px` the event tracks'); the
+#    run's `notes` print each stream's σ; compare `metrics["percent_of_distance"]` with section 3's run on both
+#    streams, and with the spread over seeds in section 4's table.
 # 4. The thesis's numbers are SIFT's. Run SIFT instead of KLT on the APS frames and on the motion-compensated frames
 #    of the violent stretch, for each seed of `SEEDS`. Do the event frames beat the APS frames with SIFT, as in the
 #    thesis's 0.989 % against 0.447 %?

@@ -93,10 +93,6 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="the feature noise sigma of the event frame streams' tracks, so that --frames aps+mc-events "
                         "weights each stream by its own accuracy (default: 3 x --pixel-noise when fused with the "
                         "APS frames, else --pixel-noise; refused with --frames aps)")
-    p.add_argument("--aps-blur-noise", type=real(above=0.0), default=None, metavar="C",
-                   help="grow each APS frame's feature noise with its rotation blur: sigma = sqrt(PX^2 + (C |w| T "
-                        "f)^2), the gyro rate |w| over the exposure T, focal length f (default: off; 0.5 measured in "
-                        "docs/archive.md; needs a recording that gives T: the presets)")
     p.add_argument("--max-track-gap", type=integer(minimum=0), default=0, metavar="FRAMES",
                    help="descriptor tracker: keep a lost track for FRAMES frames and continue it, with its id, when "
                         "the feature is matched again (default 0: a missed detection ends the track, as in the "
@@ -191,15 +187,10 @@ def main_run(args: argparse.Namespace) -> int:
                                 zupt=not args.no_zupt, max_duration=args.max_duration, seed=args.seed,
                                 observation_outlier_px=args.outlier_px, max_track_gap=args.max_track_gap,
                                 far_points=args.far_points,
-                                pixel_noise_px=args.pixel_noise, event_pixel_noise_px=args.event_pixel_noise,
-                                aps_blur_noise=args.aps_blur_noise)
+                                pixel_noise_px=args.pixel_noise, event_pixel_noise_px=args.event_pixel_noise)
     except ValueError as error:  # the message names the config field; the user typed the option
         raise as_option_error(error, _OPTIONS) from None
     _check_aps_exposure(args.aps_exposure, uses_aps="aps" in frame_streams(args.frames) and not args.imu_only)
-    if args.aps_blur_noise is not None and str(args.dataset) not in PRESETS and Path(args.dataset).exists():
-        # refused before the recording is read (a typed name that is nothing gets 'neither a preset ...')
-        raise ValueError("--aps-blur-noise needs the APS frames' exposure time, which the simulated presets record "
-                         "and a recording folder does not")
     _check_speed(args.speed)
     start = time.perf_counter()
     data = load_dataset(args.dataset, duration=args.duration, seed=args.seed, start=args.start,
@@ -267,7 +258,7 @@ _OPTIONS = {"reconstructor": "--reconstructor", "reconstructor_precision": "--re
             "method": "--tracker", "observation_outlier_px": "--outlier-px",
             "max_track_gap": "--max-track-gap", "pixel_noise_px": "--pixel-noise",
             "event_pixel_noise_px": "--event-pixel-noise", "event_tracker": "--event-tracker",
-            "aps_exposure_s": "--aps-exposure", "aps_blur_noise": "--aps-blur-noise", "far_points": "--far-points"}
+            "aps_exposure_s": "--aps-exposure", "far_points": "--far-points"}
 
 
 def add_aps_exposure_argument(p: argparse.ArgumentParser) -> None:

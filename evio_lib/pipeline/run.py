@@ -131,11 +131,6 @@ class PipelineConfig:
             ``bench/track_accuracy.py`` (boxes_like, validation seed 3, KLT): observations on motion-compensated
             event frames lie a median 0.28 / 0.53 px from their points (gentle / violent 3 s; 95th percentile 3.3 /
             2.9 px), on the APS frames 0.15 / 0.32 px (1.2 / 1.7 px).
-        aps_blur_noise: c, to grow each APS frame's feature noise with its rotation blur:
-            σ = sqrt(pixel_noise_px² + (c |ω| T f)²), with |ω| the bias-corrected gyro rate over the frame's exposure
-            T and f the focal length (:func:`blurred_pixel_noise`); None (default): σ fixed. Needs a recording that
-            records T (the simulated presets). Off by default: measured on validation seeds (docs/archive.md,
-            "APS noise that grows with the blur") it helps where the APS frames smear and can hurt elsewhere.
         max_duration: seconds of the recording processed from the start (None: all).
         seed: seed of the front-end's RANSAC.
         zupt: detect standstill and apply zero-velocity updates there (module docstring).
@@ -175,7 +170,6 @@ class PipelineConfig:
     oc: bool = True
     pixel_noise_px: float = 1.0
     event_pixel_noise_px: float | None = None
-    aps_blur_noise: float | None = None
     max_duration: float | None = None
     seed: int = 0
     zupt: bool = True
@@ -231,19 +225,13 @@ class PipelineConfig:
         if self.observation_outlier_px is not None:  # checked as the filter will check it, before any loading
             MsckfConfig(observation_outlier_px=self.observation_outlier_px)
         for name, expected in (("pixel_noise_px", "a finite number of pixels > 0"),
-                               ("event_pixel_noise_px", "a finite number of pixels > 0"),
-                               ("aps_blur_noise", "None or a finite number > 0")):
+                               ("event_pixel_noise_px", "a finite number of pixels > 0")):
             value = getattr(self, name)
             if value is None and name != "pixel_noise_px":
                 continue
             if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
                     or not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be {expected}; got {value!r}")
-        if self.aps_blur_noise is not None:
-            if "aps" not in frame_streams(self.frames):
-                raise ValueError(f"aps_blur_noise applies to runs with APS frames; frames {self.frames!r} has none")
-            if self.imu_only:
-                raise ValueError("aps_blur_noise applies to runs with APS frames; imu_only processes no frame")
         if self.event_pixel_noise_px is not None and frame_streams(self.frames) == ("aps",):
             raise ValueError(f"event_pixel_noise_px applies to event frame streams; frames {self.frames!r} has none "
                              f"(use 'mc-events', 'events' or 'aps+mc-events')")
@@ -322,8 +310,6 @@ class PipelineConfig:
         noise = ""
         if self.event_pixel_noise_px is not None and streams != ("aps",):
             noise = f", event noise {self.event_pixel_noise_px:g} px"  # only when set: the default is in the docs
-        if self.aps_blur_noise is not None:
-            noise += f", APS blur noise {self.aps_blur_noise:g}"
         return (label + (f", track gap {self.max_track_gap}" if self.max_track_gap else "") + noise
                 + (", far points always" if self.far_points else ""))
 
@@ -721,8 +707,6 @@ def run_pipeline(data: "LoadedDataset | Sequence | str | Path", config: Pipeline
     trackers = [create_tracker(seq.camera, config.frontend_config(name), detector=detector) for name in streams]
     standstills = [StandstillDetector(zv) for _ in streams]
     sigmas_px = [config.stream_pixel_noise(name) for name in streams]  # each stream's feature noise
-    exposure_s = _aps_exposure(data) if config.aps_blur_noise is not None else None  # None: σ fixed
-    aps_sigmas: list[float] = []  # the APS frames' σ where it grows with the blur
     reconstructor = None if config.imu_only else _event_reconstructor(data, config)
     precision = getattr(reconstructor, "precision", None)  # networks only
     if precision is not None:  # what "auto" chose: int8 on an x86 CPU, else float32
@@ -787,10 +771,6 @@ def run_pipeline(data: "LoadedDataset | Sequence | str | Path", config: Pipeline
                     zupt_frames += out is not None
                 if out is None:
                     sigma = sigmas_px[k]
-                    if exposure_s is not None and streams[k] == "aps":  # σ grows with this frame's rotation blur
-                        rate = mean_rate(imu.t, imu.gyro, t - exposure_s / 2, t + exposure_s / 2) - filt.state.imu.b_g
-                        sigma = blurred_pixel_noise(sigma, config.aps_blur_noise, rate, exposure_s, seq.camera.fx)
-                        aps_sigmas.append(sigma)
                     cov = observation_covariance(seq.camera, frame.pixels, sigma) if len(frame) else None
                     out = filt.process_image(t, frame.ids, frame.xy, cov, stream=k)
                 outputs.append(out)
@@ -808,11 +788,6 @@ def run_pipeline(data: "LoadedDataset | Sequence | str | Path", config: Pipeline
     if not outputs:
         raise ValueError(f"no frame to process in [{t_first:.3f}, {t_last:.3f}] s (no events or frames there)")
     lengths = _track_lengths(tracked)
-    if aps_sigmas:
-        low, mid, high = np.percentile(aps_sigmas, [0, 50, 100])
-        notes.append(f"APS feature noise grown with the rotation blur (c = {config.aps_blur_noise:g}, exposure "
-                     f"{exposure_s * 1e3:g} ms): {low:.2f} / {mid:.2f} / {high:.2f} px (least / median / most) over "
-                     f"{len(aps_sigmas)} frames")
 
     t = np.array([o.t for o in outputs])
     P = np.array([o.P_imu for o in outputs])
@@ -921,52 +896,6 @@ def trajectory_metrics(result: PipelineResult, aligned_only: bool = False) -> di
                     "orientation_rmse_deg", "rmse_first_half_m", "rmse_second_half_m"):
             row[key] = float("nan")
     return row
-
-
-def blurred_pixel_noise(sigma_px: float, scale: float, rate_rad_s: np.ndarray, exposure_s: float,
-                        focal_px: float) -> float:
-    """Return the feature noise σ (pixels) of a frame exposed for ``exposure_s`` while the camera turned at
-    ``rate_rad_s`` (a 3-vector, bias-corrected, any frame: only its norm is used).
-
-    A rotation at |ω| smears a point near the image centre over b = |ω| T f pixels during the exposure T (focal
-    length f); a corner's position in a smear is uncertain along it. The model adds that, scaled by c, to the
-    sharp frame's noise σ0:
-
-        σ = sqrt(σ0² + (c |ω| T f)²)
-
-    c (``scale``, ``PipelineConfig.aps_blur_noise``) is chosen on validation runs; c = 0.5 counts half the smear as
-    a standard deviation. Translation blur and a roll's larger smear at the border are left out.
-
-    >>> blurred_pixel_noise(1.0, 0.5, np.array([0.0, 0.0, 0.0]), 0.01, 200.0)
-    1.0
-    >>> round(blurred_pixel_noise(1.0, 0.5, np.array([3.0, 0.0, 4.0]), 0.01, 200.0), 3)   # 10 px of smear
-    5.099
-    """
-    blur_px = float(np.linalg.norm(rate_rad_s)) * float(exposure_s) * float(focal_px)
-    return math.hypot(float(sigma_px), float(scale) * blur_px)
-
-
-def mean_rate(t_imu: np.ndarray, gyro: np.ndarray, t0: float, t1: float, samples: int = 5) -> np.ndarray:
-    """Return the mean angular rate (rad/s, 3-vector) over [t0, t1]: the gyroscope ``gyro`` (N x 3, sampled at
-    the sorted times ``t_imu``) interpolated linearly at ``samples`` evenly spread times and averaged (the rate
-    held at the ends outside the IMU's span)."""
-    if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 2:
-        raise ValueError(f"samples must be an integer >= 2 (both ends of the interval are sampled); got {samples!r}")
-    times = np.linspace(float(t0), float(t1), int(samples))
-    return np.array([np.interp(times, t_imu, gyro[:, i]).mean() for i in range(3)])
-
-
-def _aps_exposure(data: LoadedDataset) -> float:
-    """Return the APS frames' exposure time (s) recorded in the recording's metadata; ValueError when it has none."""
-    meta = data.sequence.metadata if isinstance(data.sequence.metadata, dict) else {}
-    config = meta.get("config") if isinstance(meta.get("config"), dict) else {}
-    aps = config.get("aps") if isinstance(config.get("aps"), dict) else {}
-    exposure = aps.get("exposure_s")
-    if isinstance(exposure, bool) or not (isinstance(exposure, (int, float)) and math.isfinite(exposure)
-                                          and exposure > 0):
-        raise ValueError(f"aps_blur_noise needs the APS frames' exposure time, which {data.source} does not record "
-                         f"(a simulated preset records it in its metadata['config']['aps']['exposure_s'])")
-    return float(exposure)
 
 
 def run_pipelines(data: LoadedDataset, configs: Mapping[str, PipelineConfig], jobs: int | None = None,

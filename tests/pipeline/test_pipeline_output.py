@@ -104,7 +104,6 @@ def test_pixel_noise_options_reach_the_config(pipeline_cache, boxes_aps, monkeyp
     assert main(fused + ["--event-tracker", "klt", "--max-track-gap", "2"]) == 0
     assert (configs[-1].tracker, configs[-1].event_tracker, configs[-1].max_track_gap) == ("descriptor", "klt", 2)
     assert main(fused) == 0 and configs[-1].event_tracker is None
-    assert main(fused + ["--aps-blur-noise", "0.5"]) == 0 and configs[-1].aps_blur_noise == 0.5
 
 
 @pytest.mark.parametrize("args, message", [
@@ -124,9 +123,6 @@ def test_pixel_noise_options_reach_the_config(pipeline_cache, boxes_aps, monkeyp
     (["run", "boxes_like", "--imu-only", "--aps-exposure", "0.02"], "--aps-exposure applies to runs that use APS"),
     (["table", "--rows", "imu", "--aps-exposure", "0.02"], "--aps-exposure applies to table rows that use APS frames"),
     (["run", "boxes_like", "--speed", "5"], "--speed must be a number in [0.25, 4]"),
-    (["run", "boxes_like", "--aps-blur-noise", "0"], "--aps-blur-noise"),
-    (["run", "boxes_like", "--frames", "mc-events", "--aps-blur-noise", "0.5"],
-     "--aps-blur-noise applies to runs with APS frames; frames 'mc-events' has none"),
     (["table", "--speed", "0.2"], "--speed must be a number in [0.25, 4]"),
     (["table", "--speed", "2", "--duration", "40"], "--duration: duration of boxes_like must be in (0, 30] s (the "
                                                    "preset's whole motion played at speed 2)"),
@@ -135,18 +131,6 @@ def test_command_errors_are_one_line(args, message, capsys, pipeline_cache):
     assert main(args) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and message in err and "Traceback" not in err
-
-
-def test_aps_blur_noise_is_refused_for_a_folder_before_reading_it(tmp_path, capsys, monkeypatch):
-    """A recording folder records no exposure time: one error line, and nothing is loaded."""
-    folder = tmp_path / "recording"
-    folder.mkdir()
-    (folder / "events.txt").write_text("0.0 1 1 1\n")
-    monkeypatch.setattr("evio_lib.pipeline.dataset.load_dataset", lambda *a, **k: pytest.fail("loaded"))
-    assert main(["run", str(folder), "--aps-blur-noise", "0.5"]) == 2
-    err = capsys.readouterr().err
-    assert err.startswith("error: --aps-blur-noise needs the APS frames' exposure time, which the simulated presets "
-                          "record and a recording folder does not") and err.count("\n") == 1
 
 
 def test_corrupt_recording_file_is_one_line(boxes_aps, tmp_path, capsys):
