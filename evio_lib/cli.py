@@ -5,6 +5,7 @@ refuses a non-empty one unless given --force, and never leaves a half-written on
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
 import pickle
 import re
@@ -268,11 +269,31 @@ def build_parser(full: Container[str] | None = None) -> argparse.ArgumentParser:
     return parser
 
 
-def _one_line(error: BaseException) -> str:
-    """Return the first line of an exception's message (its type when the message is empty)."""
+#: Errors of a write that the system refused, in words that say what to do (by errno).
+_WRITE_ERRORS = {
+    errno.EFBIG: "a file grew beyond the largest file allowed (the shell's file-size limit, `ulimit -f`, or the file "
+                 "system's)",
+    errno.ENOSPC: "no space left on the device (free some, or write the output elsewhere)",
+    errno.EDQUOT: "the disk quota is used up (free some, or write the output elsewhere)",
+}
+#: The temporary folder an output folder is written into (``io.output_dir``: ``.NAME.tmp-XXXX`` beside NAME).
+_TEMPORARY_FOLDER = re.compile(r"(^|/)\.([^/]+)\.tmp-[A-Za-z0-9_]+(?=/|$)")
+
+
+def _one_line(error: BaseException, output: object = None) -> str:
+    """Return the first line of an exception's message (its type when the message is empty).
+
+    A file is named as the user knows it (an output folder's temporary name, ``.NAME.tmp-XXXX``, as NAME); a write
+    the system refused (file too large, disk full, quota) says so in words and, when the error names no
+    file, names ``output`` (the command's output folder) instead.
+    """
     text = str(error).strip()
-    if isinstance(error, OSError) and error.filename is not None and error.strerror:
-        text = f"{error.filename}: {error.strerror}"
+    if isinstance(error, OSError) and error.strerror:
+        reason = _WRITE_ERRORS.get(error.errno, error.strerror)
+        where = error.filename if error.filename is not None else (
+            output if error.errno in _WRITE_ERRORS and output is not None else None)
+        text = reason if where is None else f"{where}: {reason}"
+    text = _TEMPORARY_FOLDER.sub(r"\1\2", text)
     if isinstance(error, pickle.UnpicklingError) or not text:
         text = f"{type(error).__name__}: {text.splitlines()[0] if text else 'no message'}"
     first = text.splitlines()[0]
@@ -345,5 +366,5 @@ def main(argv: list[str] | None = None) -> int:
         except USER_ERRORS as error:
             if args.debug:
                 raise
-            print(f"error: {_one_line(error)}", file=sys.stderr)
+            print(f"error: {_one_line(error, getattr(args, 'out', None))}", file=sys.stderr)
             return 2

@@ -4,6 +4,7 @@ left half-written, equal seeds give equal folders, and every option explains its
 The table BAD_INPUTS holds the bad command lines; each must fail before any real work, so the table runs in seconds.
 """
 import argparse
+import errno
 import json
 import os
 import subprocess
@@ -209,6 +210,29 @@ def test_simulate_failure_leaves_no_partial_output(inputs, monkeypatch, capsys, 
     assert capsys.readouterr().err.strip().startswith("error: ")
     assert _tree(inputs) == before and out.exists() == existing
     assert [p.name for p in inputs.iterdir() if p.name.startswith(".")] == []
+
+
+@pytest.mark.parametrize("error, words", [
+    (OSError(errno.EFBIG, "File too large"), "a file grew beyond the largest file allowed (the shell's file-size limit"),
+    (OSError(errno.ENOSPC, "No space left on device"), "no space left on the device (free some"),
+])
+def test_a_refused_write_names_the_output_folder_and_the_cause_in_words(inputs, monkeypatch, capsys, error, words):
+    """A write the system refuses without naming a file ('[Errno 27] File too large') names the output folder and
+    says what to do; a temporary folder's name never reaches the message."""
+    from evio_lib.io import ecd
+
+    def fail(sequence, folder, progress=False):
+        raise error
+
+    monkeypatch.setattr(ecd, "write_ecd", fail)
+    assert _simulate(inputs / "new", "--no-frames") == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"error: {inputs / 'new'}: {words}") and "Errno" not in err
+    named = OSError(errno.ENOSPC, "No space left on device", str(inputs / ".new.tmp-ab_9x" / "events.txt"))
+    monkeypatch.setattr(ecd, "write_ecd", lambda *a, **k: (_ for _ in ()).throw(named))
+    assert _simulate(inputs / "new", "--no-frames") == 2
+    assert capsys.readouterr().err == f"error: {inputs / 'new' / 'events.txt'}: no space left on the device (free " \
+                                      "some, or write the output elsewhere)\n"
 
 
 # ---------------------------------------------------------------------------------------------- features-benchmark
