@@ -75,11 +75,12 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="initial biases: zero (default), groundtruth, or six numbers 'bgx,bgy,bgz,bax,bay,baz' "
                         "(rad/s, m/s^2)")
     p.add_argument("--imu-only", action="store_true", help="propagate the IMU only (no visual updates)")
-    p.add_argument("--no-oc", action="store_true", help="plain EKF instead of the observability-constrained one")
+    p.add_argument("--no-observability-constrained", action="store_true",
+                   help="plain EKF instead of the observability-constrained one")
     p.add_argument("--no-zupt", action="store_true",
                    help="no zero-velocity updates where the platform stands still (default: detected from the "
                         "feature tracks and the IMU, and applied as in OpenVINS)")
-    p.add_argument("--outlier-px", type=real(above=0.0), default=None, metavar="PX",
+    p.add_argument("--observation-outlier", type=real(above=0.0), default=None, metavar="PX",
                    help="drop a track's observations that reproject farther than PX pixels from its triangulated "
                         "point, and keep the rest of the track (default: off)")
     p.add_argument("--far-points", action="store_true",
@@ -183,9 +184,10 @@ def main_run(args: argparse.Namespace) -> int:
                                 reconstructor_precision=args.reconstructor_precision,
                                 window_fraction=args.window_fraction, adaptive_windows=args.adaptive,
                                 min_window_s=args.min_window, max_window_s=args.max_window, init=args.init,
-                                bias_init=_bias(args.bias_init), imu_only=args.imu_only, oc=not args.no_oc,
+                                bias_init=_bias(args.bias_init), imu_only=args.imu_only,
+                                observability_constrained=not args.no_observability_constrained,
                                 zupt=not args.no_zupt, max_duration=args.max_duration, seed=args.seed,
-                                observation_outlier_px=args.outlier_px, max_track_gap=args.max_track_gap,
+                                observation_outlier_px=args.observation_outlier, max_track_gap=args.max_track_gap,
                                 far_points=args.far_points,
                                 pixel_noise_px=args.pixel_noise, event_pixel_noise_px=args.event_pixel_noise)
     except ValueError as error:  # the message names the config field; the user typed the option
@@ -255,7 +257,7 @@ _OPTIONS = {"reconstructor": "--reconstructor", "reconstructor_precision": "--re
             "bias_init": "--bias-init", "max_duration": "--max-duration", "window_fraction": "--window-fraction",
             "min_window_s": "--min-window", "max_window_s": "--max-window",
             "max_features": "--max-features", "init": "--init", "frames": "--frames", "seed": "--seed",
-            "method": "--tracker", "observation_outlier_px": "--outlier-px",
+            "tracker": "--tracker", "observation_outlier_px": "--observation-outlier",
             "max_track_gap": "--max-track-gap", "pixel_noise_px": "--pixel-noise",
             "event_pixel_noise_px": "--event-pixel-noise", "event_tracker": "--event-tracker",
             "aps_exposure_s": "--aps-exposure", "far_points": "--far-points"}

@@ -46,6 +46,7 @@ from typing import Any, Iterator, Mapping
 
 import numpy as np
 
+from evio_lib.cli_args import as_option_error
 from evio_lib.events.reconstruct import Reconstructor, available_reconstructors, reconstructor_by_name_or_file
 from evio_lib.evaluation.trajectory_metrics import orientation_errors, relative_errors_by_length, summarize
 from evio_lib.frontend import FrontendConfig, camera_rotation_prior, create_tracker, stats_table
@@ -120,7 +121,8 @@ class PipelineConfig:
         init: one of :data:`INIT_MODES`.
         bias_init: 'zero', 'groundtruth', or six numbers (b_g [rad/s], b_a [m/s^2]).
         imu_only: propagate the IMU only (no frames are processed: the IMU-only rows of Table 6).
-        oc: observability-constrained EKF.
+        observability_constrained: the observability-constrained EKF (thesis §3.3.8;
+            ``MsckfConfig.observability_constrained``); False: the plain EKF.
         pixel_noise_px: feature noise σ of the APS frames' tracks, pixels (and of a lone event stream's tracks when
             ``event_pixel_noise_px`` is None).
         event_pixel_noise_px: feature noise σ of the event streams' tracks ('events', 'mc-events'), pixels; None:
@@ -167,7 +169,7 @@ class PipelineConfig:
     init: str = "auto"
     bias_init: Any = "zero"
     imu_only: bool = False
-    oc: bool = True
+    observability_constrained: bool = True
     pixel_noise_px: float = 1.0
     event_pixel_noise_px: float | None = None
     max_duration: float | None = None
@@ -235,8 +237,10 @@ class PipelineConfig:
         if self.event_pixel_noise_px is not None and frame_streams(self.frames) == ("aps",):
             raise ValueError(f"event_pixel_noise_px applies to event frame streams; frames {self.frames!r} has none "
                              f"(use 'mc-events', 'events' or 'aps+mc-events')")
-        FrontendConfig(method=self.tracker, max_features=self.max_features, ratio=self.match_ratio,
-                       seed=self.seed)  # validates those
+        try:  # validates those
+            FrontendConfig(method=self.tracker, max_features=self.max_features, ratio=self.match_ratio, seed=self.seed)
+        except ValueError as error:  # FrontendConfig names its own fields; say which of ours was wrong
+            raise as_option_error(error, {"method": "tracker", "ratio": "match_ratio"}) from None
         if isinstance(self.max_track_gap, bool) or not isinstance(self.max_track_gap, (int, np.integer)) or self.max_track_gap < 0:
             raise ValueError(f"max_track_gap must be an integer >= 0 (frames); got {self.max_track_gap!r}")
         object.__setattr__(self, "max_track_gap", int(self.max_track_gap))
@@ -531,7 +535,7 @@ def msckf_config_for(config: PipelineConfig, data: LoadedDataset) -> MsckfConfig
     gravity = data.sequence.metadata.get("gravity_G")  # Sequence.metadata is always a dict
     cfg = MsckfConfig().with_imu_noise(data.noise)
     changes: dict[str, Any] = dict(pixel_noise_px=config.pixel_noise_px, focal_length_px=math.sqrt(cam.fx * cam.fy),
-                                   observability_constrained=config.oc, imu_only=config.imu_only,
+                                   observability_constrained=config.observability_constrained, imu_only=config.imu_only,
                                    observation_outlier_px=config.observation_outlier_px,
                                    far_point_fallback=config.far_points,
                                    max_track_gap=_filter_track_gaps(config),
