@@ -44,6 +44,7 @@ from evio_lib.events.array import EVENT_DTYPE
 from evio_lib.geometry.camera import PinholeRadtan, intrinsics_problem
 from evio_lib.io.cache import from_json_value, to_json_value
 from evio_lib.io.errors import DataFileError, read_table, read_text, require_file, time_format, write_table
+from evio_lib.io.image_files import decoder_note, read_image
 from evio_lib.io.imu_checks import check_imu_units
 from evio_lib.io.tum import read_tum, write_tum
 from evio_lib.sequence import GroundTruth, ImuSamples, Sequence
@@ -166,9 +167,9 @@ def _read_image_list(folder: Path) -> tuple[np.ndarray, list[Path]]:
 
 def _load_gray(path: Path, where: str) -> np.ndarray:
     """Return the image at ``path`` as an (H, W) uint8 grayscale array."""
-    image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    image, said = read_image(path, cv2.IMREAD_UNCHANGED)
     if image is None:
-        raise DataFileError(f"{where}: could not decode image {path.name}")
+        raise DataFileError(f"{where}: could not decode image {path.name}{decoder_note(said)}")
     if image.ndim == 3:
         image = cv2.cvtColor(image, cv2.COLOR_BGRA2GRAY if image.shape[2] == 4 else cv2.COLOR_BGR2GRAY)
     if image.dtype != np.uint8:

@@ -34,6 +34,7 @@ import numpy as np
 from evio_lib.geometry.camera import PinholeRadtan, intrinsics_problem
 from evio_lib.geometry.rotation import rot_to_quat
 from evio_lib.io.errors import DataFileError, read_table, read_text, require_file
+from evio_lib.io.image_files import decoder_note, read_image
 from evio_lib.io.imu_checks import check_imu_units, check_noise_values
 from evio_lib.io.tum import read_tum
 from evio_lib.sequence import GroundTruth, ImuSamples, Sequence
@@ -374,9 +375,9 @@ def read_euroc(folder: str | Path, *, load_frames: bool = True, camera: str | No
         _check_time_base(frame_times, imu.t, rel(cam_csv), rel(imu_csv))
         images = []
         for path in files:
-            image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+            image, said = read_image(path, cv2.IMREAD_GRAYSCALE)
             if image is None:
-                raise DataFileError(f"{rel(path)}: could not decode the image")
+                raise DataFileError(f"{rel(path)}: could not decode the image{decoder_note(said)}")
             if images and image.shape != images[0].shape:
                 raise DataFileError(f"{rel(path)}: image size {image.shape[::-1]} differs from the first image {images[0].shape[::-1]}")
             images.append(image)

@@ -347,3 +347,16 @@ def test_files_that_are_not_utf8_text_are_named_with_their_line(tmp_path, name, 
     with pytest.raises(DataFileError, match=rf"^{re.escape(name)} line (2|1)") as error:
         read_ecd(folder)
     assert "codec" not in str(error.value)
+
+
+def test_a_damaged_frame_is_one_error_with_the_decoders_words_and_nothing_on_stderr(tmp_path, capfd):
+    """libpng's own 'libpng error: IHDR: CRC error' line goes into the error, not onto the terminal before it."""
+    folder = _folder(tmp_path)
+    (folder / "images").mkdir()
+    png = bytearray(cv2.imencode(".png", np.zeros((180, 240), np.uint8))[1].tobytes())
+    png[20] ^= 0xFF  # the header chunk's CRC no longer matches
+    (folder / "images" / "a.png").write_bytes(bytes(png))
+    (folder / "images.txt").write_text("0.5 images/a.png\n")
+    with pytest.raises(DataFileError, match=r"could not decode image a.png \(libpng error: IHDR: CRC error\)$"):
+        read_ecd(folder)
+    assert capfd.readouterr().err == ""

@@ -331,3 +331,14 @@ def test_files_that_are_not_utf8_text_are_named_with_their_line(tmp_path, relati
     with pytest.raises(DataFileError, match=r"line 3") as error:
         read_euroc(root)
     assert "codec" not in str(error.value) and Path(relative).name in str(error.value)
+
+
+def test_a_damaged_frame_is_one_error_with_the_decoders_words_and_nothing_on_stderr(tmp_path, capfd):
+    root = _euroc_folder(tmp_path)
+    image = next((root / "mav0" / "cam0" / "data").iterdir())
+    png = bytearray(image.read_bytes())
+    png[20] ^= 0xFF
+    image.write_bytes(bytes(png))
+    with pytest.raises(DataFileError, match=rf"{image.name}: could not decode the image \(libpng error: IHDR: CRC"):
+        read_euroc(root)
+    assert capfd.readouterr().err == ""
