@@ -271,7 +271,7 @@ def build_parser(full: Container[str] | None = None) -> argparse.ArgumentParser:
 
 #: Errors of a write that the system refused, in words that say what to do (by errno).
 _WRITE_ERRORS = {
-    errno.EFBIG: "a file grew beyond the largest file allowed (the shell's file-size limit, `ulimit -f`, or the file "
+    errno.EFBIG: "a file grew beyond the largest file allowed (the shell's file-size limit, see ulimit -f, or the file "
                  "system's)",
     errno.ENOSPC: "no space left on the device (free some, or write the output elsewhere)",
     errno.EDQUOT: "the disk quota is used up (free some, or write the output elsewhere)",
