@@ -59,26 +59,49 @@ MIN_SPEED, MAX_SPEED = 0.25, 4.0
 
 @dataclass(frozen=True)
 class SimulationConfig:
-    """Every setting of a simulated recording; ``print(config)`` shows them all."""
+    """Every setting of a simulated recording (frozen, validated); ``print(config)`` shows them all.
+
+    Attributes (defaults in brackets; every time is in seconds of the recording's clock, which starts at 0):
+        preset: the scene and motion, one of :data:`PRESETS` ['boxes_like'].
+        duration: length of the recording, s [10].
+        start_time: where in the preset's motion the recording starts, s [0].
+        trajectory_duration: length of the preset's whole motion, s. None [default]: ``max(start_time + duration,
+            2 s)``, so the whole motion (gentle start, violent end) is played within the recording: **duration here
+            compresses the preset**. ``evio_lib.pipeline.load_dataset(preset, duration=D)`` means something else,
+            the first D s of the preset's full-length motion (60 s boxes_like, 40 s aerial_like); to simulate that
+            here, pass ``trajectory_duration=preset_length(preset)`` (``evio_lib.pipeline.dataset.preset_length``).
+        speed: the preset's motion played this many times faster [1], in [MIN_SPEED, MAX_SPEED]
+            (``TimeScaledTrajectory``); duration, start_time and trajectory_duration are times of the faster motion.
+        seed: one seed for everything random: the trajectory's phases, the scene, the IMU noise and biases, the
+            events and the frames [0]. (``msckf.experiment.VioSimConfig`` splits it into ``seed``, the noise, and
+            ``trajectory_seed``, the motion.)
+        imu_rate_hz, frame_rate_hz, groundtruth_rate_hz: sample rates, Hz [1000, 24 (the DAVIS240C's APS), 200].
+        camera: intrinsics and radial-tangential distortion of the camera, pixels [the DAVIS240C's, 240 x 180].
+        extrinsics: the camera's pose in the IMU frame, R_CtoI and p_CinI [m] [``CameraImuExtrinsics.default()``].
+        imu_noise: noise densities and bias random walks of the IMU (continuous-time, per sqrt(Hz)).
+        events: the event camera: contrast thresholds, their per-pixel spread, refractory period, noise.
+        aps: the APS frames: exposure, blur, sensor response and noise.
+        event_change_quantile: the adaptive event sampling bounds this quantile of the per-pixel log-intensity change
+            between renders [0.99] (occlusion edges jump by a whole log unit however short the step).
+        with_events, with_frames: simulate the events and the APS frames [True, True]; without both, an IMU-only
+            recording may last up to ``MAX_TRAJECTORY_DURATION_S``.
+    """
 
     preset: str = "boxes_like"
-    duration: float = 10.0                 # seconds of recording
-    start_time: float = 0.0                # where in the preset's motion the recording starts (s)
-    trajectory_duration: float | None = None   # length of the preset's motion; None: max(start_time + duration, 2 s),
-                                               # i.e. the whole preset (gentle start, violent end) within the recording
-    speed: float = 1.0                     # the preset's motion played this many times faster (TimeScaledTrajectory);
-                                           # every time here (duration, start_time, trajectory_duration) is played time
-    seed: int = 0                          # one seed drives the trajectory, the scene, the IMU noise, the events and the frames
-    imu_rate_hz: float = 1000.0            # DAVIS IMU rate
-    frame_rate_hz: float = 24.0            # DAVIS APS frame rate
-    groundtruth_rate_hz: float = 200.0     # rate of the ground-truth pose files
+    duration: float = 10.0
+    start_time: float = 0.0
+    trajectory_duration: float | None = None
+    speed: float = 1.0
+    seed: int = 0
+    imu_rate_hz: float = 1000.0
+    frame_rate_hz: float = 24.0
+    groundtruth_rate_hz: float = 200.0
     camera: PinholeRadtan = field(default_factory=PinholeRadtan.davis240c)
     extrinsics: CameraImuExtrinsics = field(default_factory=CameraImuExtrinsics.default)
     imu_noise: ImuNoiseParams = field(default_factory=ImuNoiseParams)
     events: EventCameraParams = field(default_factory=EventCameraParams)
     aps: ApsParams = field(default_factory=ApsParams)
-    event_change_quantile: float = 0.99    # adaptive event sampling bounds this quantile of the per-pixel log change
-                                           # (occlusion edges jump by a whole log unit however short the step)
+    event_change_quantile: float = 0.99
     with_events: bool = True
     with_frames: bool = True
 
