@@ -741,7 +741,9 @@ display(Markdown(
 #   $s = F_{k+2}(c)/F_k(c)$ of the error it sees, which makes the filter overconfident; gating whole tracks (large
 #   $k$) keeps $s$ near 1.
 # * The whole filter is a loop of about forty lines over these functions; `Msckf.run` is that loop, with the
-#   features batched.
+#   features batched. `Msckf` composes three parts you can read one at a time: `msckf.imu_buffer` (the IMU samples
+#   and the propagation), `msckf.feature_database` (the tracks in the window, which end and which are pruned) and
+#   `msckf.updater` (sections 2-9 as one batched update).
 # * Depth is the weak direction: with a short baseline one pixel of noise costs decimetres, and extra views of the
 #   same motion help less than $1/\sqrt{M}$.
 #

@@ -609,6 +609,44 @@ def propagate(
     >>> s1.timestamp, s1.imu.p_IinG + 0.0, round(float(np.sqrt(s1.P[12, 12])), 4)  # σ_x grows with δv, δb_a
     (0.5, array([0., 0., 0.]), 0.0538)
     """
+    t_imu, gyro, accel, t_target = _checked_inputs(state, imu_t, imu_gyro, imu_accel, t_target, config)
+    t0 = state.timestamp
+    if t_target == t0:
+        return state
+    t_nodes, w_nodes, a_nodes, gap = _nodes(t_imu, gyro, accel, t0, t_target, config)
+    imu = state.imu
+    g = config.gravity
+    q, v, p, R_mid, w_mid, a_mid = _integrate(
+        imu.q_GtoI, imu.v_IinG, imu.p_IinG, t_nodes, w_nodes - imu.b_g, a_nodes - imu.b_a, g
+    )
+    dt = np.diff(t_nodes)
+    Phi, X = _discretize(R_mid, w_mid, a_mid, dt, _gap_noise_psd(config, gap))  # Eq. 36; Q_d,k = X_k X_k^T (37)
+    if transition_hook is not None:
+        for arr in (t_nodes, dt, w_mid, a_mid, R_mid, q, v, p):
+            _frozen(arr)  # the hook may read, not write, what the state is built from
+        steps = PropagationSteps(
+            t=t_nodes, dt=dt, w_hat=w_mid, a_hat=a_mid, R_ItoG_mid=R_mid, q_GtoI=q, v_IinG=v, p_IinG=p,
+            q_GtoI_prev=np.vstack((imu.q_GtoI_null, q[1:-1])), v_IinG_prev=np.vstack((imu.v_IinG_null, v[1:-1])),
+            p_IinG_prev=np.vstack((imu.p_IinG_null, p[1:-1])), gravity_G=g,
+        )
+        Phi = _hooked_transition(transition_hook, Phi, steps)
+    P_new = _propagated_covariance(state, Phi, X)
+
+    # predicted IMU state; its OC first estimates are the predicted values (S-MSCKF)
+    q_new, v_new, p_new = (_frozen(x[-1].copy()) for x in (q, v, p))
+    new_imu = _unchecked(
+        ImuState, q_GtoI=q_new, b_g=imu.b_g, v_IinG=v_new, b_a=imu.b_a, p_IinG=p_new, timestamp=t_target,
+        q_GtoI_null=q_new, v_IinG_null=v_new, p_IinG_null=p_new,
+    )
+    return _filter_state_unchecked(new_imu, state.cameras, P_new, state)
+
+
+def _checked_inputs(
+    state: FilterState, imu_t: ArrayLike, imu_gyro: ArrayLike, imu_accel: ArrayLike, t_target: float,
+    config: MsckfConfig,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float]:
+    """Return (imu_t (M,), imu_gyro (M, 3), imu_accel (M, 3), t_target) of :func:`propagate` as arrays and a float,
+    after its type, shape and time checks (ValueError)."""
     if not isinstance(state, FilterState):
         raise ValueError(f"state must be a FilterState; got {type(state).__name__}")
     if not isinstance(config, MsckfConfig):
@@ -630,9 +668,19 @@ def propagate(
     t_target = float(t_target)
     if t_target < t0:
         raise ValueError(f"t_target must be >= state.timestamp = {t0!r} (no backward propagation); got {t_target!r}")
-    if t_target == t0:
-        return state
+    return t_imu, gyro, accel, t_target
 
+
+def _nodes(
+    t_imu: NDArray[np.float64], gyro: NDArray[np.float64], accel: NDArray[np.float64], t0: float, t_target: float,
+    config: MsckfConfig,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Return (t_nodes (K + 1,), w_nodes (K + 1, 3), a_nodes (K + 1, 3), gap (K,)): the integration nodes t0, the
+    samples strictly inside (t0, t_target), t_target, the measurements there (interpolated at the ends) and the
+    length of the data gap each interval lies in.
+
+    Raises ValueError for non-finite or unordered samples in the window or samples beyond the IMU's full scale, and
+    :class:`ImuGapError` for a gap longer than ``config.imu_max_bridged_gap``."""
     # samples strictly inside (t0, t_target), plus one on each side for the interpolated end points
     lo, hi, j0, j1 = _window(t_imu, t0, t_target)
     win_t, win_g, win_a = t_imu[lo:hi], gyro[lo:hi], accel[lo:hi]
@@ -665,15 +713,12 @@ def propagate(
         )
     w_nodes = np.vstack((_signal_at(t0, win_t, win_g), gyro[j0:j1], _signal_at(t_target, win_t, win_g)))
     a_nodes = np.vstack((_signal_at(t0, win_t, win_a), accel[j0:j1], _signal_at(t_target, win_t, win_a)))
+    return t_nodes, w_nodes, a_nodes, gap
 
-    imu = state.imu
-    g = config.gravity
-    q, v, p, R_mid, w_mid, a_mid = _integrate(
-        imu.q_GtoI, imu.v_IinG, imu.p_IinG, t_nodes, w_nodes - imu.b_g, a_nodes - imu.b_a, g
-    )
-    dt = np.diff(t_nodes)
-    K = dt.shape[0]
 
+def _gap_noise_psd(config: MsckfConfig, gap: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Return diag(Q_IMU), (12,), or (K, 12) when an interval lies in a gap longer than ``imu_max_gap``: the unseen
+    motion over a gap of length T adds σ_g² T (gyro) and σ_a² T (accel) to the white-noise densities."""
     noise_psd = config.continuous_noise_psd()
     in_gap = gap > config.imu_max_gap
     if in_gap.any():  # unseen motion over a gap of length T: + σ_g² T (gyro), + σ_a² T (accel) white-noise density
@@ -681,23 +726,27 @@ def propagate(
         extra[0:3] = config.imu_gap_gyro_sigma ** 2
         extra[6:9] = config.imu_gap_accel_sigma ** 2
         noise_psd = noise_psd + np.where(in_gap, gap, 0.0)[:, None] * extra
-    Phi, X = _discretize(R_mid, w_mid, a_mid, dt, noise_psd)  # Eq. 36; Q_d,k = X_k X_k^T (37)
-    if transition_hook is not None:
-        for arr in (t_nodes, dt, w_mid, a_mid, R_mid, q, v, p):
-            _frozen(arr)  # the hook may read, not write, what the state is built from
-        steps = PropagationSteps(
-            t=t_nodes, dt=dt, w_hat=w_mid, a_hat=a_mid, R_ItoG_mid=R_mid, q_GtoI=q, v_IinG=v, p_IinG=p,
-            q_GtoI_prev=np.vstack((imu.q_GtoI_null, q[1:-1])), v_IinG_prev=np.vstack((imu.v_IinG_null, v[1:-1])),
-            p_IinG_prev=np.vstack((imu.p_IinG_null, p[1:-1])), gravity_G=g,
-        )
-        Phi = np.asarray(transition_hook(Phi.copy(), steps), dtype=np.float64)
-        if Phi.shape != (K, IMU_DIM, IMU_DIM) or not np.all(np.isfinite(Phi)):
-            raise ValueError(f"transition_hook must return finite Phi of shape ({K}, 15, 15); got {Phi.shape}")
+    return noise_psd
 
-    # Eqs. 38-40 over all K intervals at once. Unrolling P_k+1 = Φ_k P_k Φ_k^T + Q_d,k gives
-    #   P_II,K = Φ_tot P_II,0 Φ_tot^T + Σ_k S_k Q_d,k S_k^T,   S_k = Φ_K-1 ... Φ_k+1 (S_K-1 = I), Φ_tot = S_-1
-    #   P_IC,K = Φ_tot P_IC,0,   P_CC unchanged;
-    # with Q_d,k = X_k X_k^T the sum is Y Y^T, Y = [S_0 X_0, ..., S_K-1 X_K-1] (15 x 36K).
+
+def _hooked_transition(hook: TransitionHook, Phi: NDArray[np.float64], steps: PropagationSteps) -> NDArray[np.float64]:
+    """Return the hook's transition matrices (K, 15, 15) for a copy of Phi, checked for shape and finiteness."""
+    K = Phi.shape[0]
+    Phi = np.asarray(hook(Phi.copy(), steps), dtype=np.float64)
+    if Phi.shape != (K, IMU_DIM, IMU_DIM) or not np.all(np.isfinite(Phi)):
+        raise ValueError(f"transition_hook must return finite Phi of shape ({K}, 15, 15); got {Phi.shape}")
+    return Phi
+
+
+def _propagated_covariance(state: FilterState, Phi: NDArray[np.float64], X: NDArray[np.float64]
+                           ) -> NDArray[np.float64]:
+    """Return P after the K intervals with transitions Phi (K, 15, 15) and noise factors X (Q_d,k = X_k X_k^T).
+
+    Eqs. 38-40 over all K intervals at once. Unrolling P_k+1 = Φ_k P_k Φ_k^T + Q_d,k gives
+    P_II,K = Φ_tot P_II,0 Φ_tot^T + Σ_k S_k Q_d,k S_k^T with S_k = Φ_K-1 ... Φ_k+1 (S_K-1 = I), Φ_tot = S_-1;
+    P_IC,K = Φ_tot P_IC,0; P_CC unchanged. With Q_d,k = X_k X_k^T the sum is Y Y^T,
+    Y = [S_0 X_0, ..., S_K-1 X_K-1] (15 x 36K)."""
+    K = Phi.shape[0]
     S = np.empty((K, IMU_DIM, IMU_DIM))
     acc = _EYE15
     for k in range(K - 1, -1, -1):  # suffix products: one 15x15 product per interval
@@ -716,11 +765,4 @@ def propagate(
         P_new[:IMU_DIM, IMU_DIM:] = P_IC
         P_new[IMU_DIM:, :IMU_DIM] = P_IC.T
         P_new[IMU_DIM:, IMU_DIM:] = P[IMU_DIM:, IMU_DIM:]
-
-    # predicted IMU state; its OC first estimates are the predicted values (S-MSCKF)
-    q_new, v_new, p_new = (_frozen(x[-1].copy()) for x in (q, v, p))
-    new_imu = _unchecked(
-        ImuState, q_GtoI=q_new, b_g=imu.b_g, v_IinG=v_new, b_a=imu.b_a, p_IinG=p_new, timestamp=t_target,
-        q_GtoI_null=q_new, v_IinG_null=v_new, p_IinG_null=p_new,
-    )
-    return _filter_state_unchecked(new_imu, state.cameras, P_new, state)
+    return P_new

@@ -545,10 +545,41 @@ def _triangulate(
     max_depth: float,
     max_rms_residual: float,
 ) -> list[TriangulationResult]:
-    """Triangulate K features whose observations are stacked in R, p, z with the given track lengths."""
+    """Triangulate K features whose observations are stacked in R, p, z with the given track lengths: set up the
+    padded problem, guess, solve (Levenberg-Marquardt), check, report."""
     K = lengths.shape[0]
     if K == 0:
         return []
+    prob = _padded_problem(R, p, z, lengths, anchor)
+    theta0 = _initial_guess(prob, R, p, initial, min_baseline_ratio)
+    theta, e, h3, iterations, reason = _solve(prob, theta0, max_iterations, step_tol)
+    rho, positive, ratio, per_obs, cost, rms, reason = _check(prob, theta, e, h3, reason, min_baseline_ratio,
+                                                              min_depth, max_depth, max_rms_residual)
+    return _results(prob, theta, positive, rho, ratio, per_obs, cost, rms, iterations, reason)
+
+
+@dataclass(frozen=True, eq=False)
+class _Problem:
+    """K features' observations scattered into padded (K, M) arrays, relative to each feature's anchor camera A.
+
+    Pads: D = 0, c = [0, 0, 1], z = 0, dist = -1."""
+
+    lengths: NDArray[np.int64]  # (K,) observations per feature
+    starts: NDArray[np.int64]  # (K,) first stacked row of each feature
+    anchors: NDArray[np.int64]  # (K,) anchor index within each track
+    R_GtoA: NDArray[np.float64]  # (K, 3, 3)
+    p_AinG: NDArray[np.float64]  # (K, 3)
+    D: NDArray[np.float64]  # (K, M, 3, 3) and c (K, M, 3): the measurement model's terms (Eq. 59)
+    c: NDArray[np.float64]
+    zp: NDArray[np.float64]  # (K, M, 2) observations
+    partner: NDArray[np.int64]  # (K,) the observation farthest from the anchor
+    max_baseline: NDArray[np.float64]  # (K,) |p_CinG_i - p_AinG| at most
+
+
+def _padded_problem(R: NDArray[np.float64], p: NDArray[np.float64], z: NDArray[np.float64],
+                    lengths: NDArray[np.int64], anchor: int) -> _Problem:
+    """Return the relative poses of each track to its anchor (Eq. 59) and its observations as padded arrays."""
+    K = lengths.shape[0]
     M = max(int(lengths.max()), 1)
     starts = np.concatenate([[0], np.cumsum(lengths)[:-1]])
     row_k = np.repeat(np.arange(K), lengths)  # feature of each stacked observation
@@ -573,12 +604,20 @@ def _triangulate(
     dist[row_k, row_j] = np.linalg.norm(p - p_AinG[row_k], axis=1)  # |p_CinG_i - p_AinG|
     partner = np.argmax(dist, axis=1)
     max_baseline = np.maximum(dist.max(axis=1), 0.0)
+    return _Problem(lengths, starts, anchors, R_GtoA, p_AinG, D, c, zp, partner, max_baseline)
 
-    # initial guess θ0 = (X/Z, Y/Z, 1/Z) of p_FinA = R_GtoA (p_FinG - p_AinG)
+
+def _initial_guess(prob: _Problem, R: NDArray[np.float64], p: NDArray[np.float64],
+                   initial: NDArray[np.float64] | None, min_baseline_ratio: float) -> NDArray[np.float64]:
+    """Return θ0 (K, 3) = (X/Z, Y/Z, 1/Z) of p_FinA = R_GtoA (p_FinG - p_AinG): of ``initial`` (K, 3) points in G,
+    else of the midpoint of the anchor's and the partner's rays; where that is unusable (behind the anchor), the
+    anchor's own ray at the farthest depth the baseline check still accepts."""
+    K = prob.lengths.shape[0]
+    R_GtoA, p_AinG, zp, anchors = prob.R_GtoA, prob.p_AinG, prob.zp, prob.anchors
     if initial is None:
-        j_glob = np.minimum(starts + partner, max(R.shape[0] - 1, 0))
+        j_glob = np.minimum(prob.starts + prob.partner, max(R.shape[0] - 1, 0))
         z_a = np.column_stack([zp[np.arange(K), anchors], np.ones(K)])
-        z_b = np.column_stack([zp[np.arange(K), partner], np.ones(K)])
+        z_b = np.column_stack([zp[np.arange(K), prob.partner], np.ones(K)])
         d_a = np.einsum("kji,kj->ki", R_GtoA, z_a)  # ray directions d = R_GtoC^T [x, y, 1]
         d_b = np.einsum("kji,kj->ki", R[j_glob], z_b) if R.shape[0] else d_a
         guess, ok = _midpoints(d_a, d_b, p_AinG, p[j_glob] if R.shape[0] else p_AinG)
@@ -588,16 +627,24 @@ def _triangulate(
     ok &= p_FinA[:, 2] > 0.0
     Z0 = np.where(ok, p_FinA[:, 2], 1.0)
     # no usable guess: the anchor's own ray at the farthest depth the baseline check still accepts
-    fallback_depth = np.maximum(max_baseline, _MIN_BASELINE) / max(min_baseline_ratio, 1e-3)
+    fallback_depth = np.maximum(prob.max_baseline, _MIN_BASELINE) / max(min_baseline_ratio, 1e-3)
     z_anchor = zp[np.arange(K), anchors]
-    theta0 = np.where(
+    return np.where(
         ok[:, None],
         np.column_stack([p_FinA[:, 0] / Z0, p_FinA[:, 1] / Z0, 1.0 / Z0]),
         np.column_stack([z_anchor, 1.0 / fallback_depth]),
     )
 
+
+def _solve(
+    prob: _Problem, theta0: NDArray[np.float64], max_iterations: int, step_tol: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.int64], NDArray[np.int64]]:
+    """Return (θ (K, 3), e (K, M, 2), h3 (K, M), iterations (K,), reason (K,)): Levenberg-Marquardt from θ0 for the
+    features with >= 2 observations and a baseline; the others keep θ0 with ρ = 0 and their reason code."""
+    lengths, D, c, zp = prob.lengths, prob.D, prob.c, prob.zp
+    K, M = zp.shape[:2]
     reason = np.full(K, _OK)
-    reason[max_baseline < _MIN_BASELINE] = _BASELINE
+    reason[prob.max_baseline < _MIN_BASELINE] = _BASELINE
     reason[lengths < 2] = _TOO_FEW
     solve = np.flatnonzero(reason == _OK)
     theta = theta0.copy()
@@ -611,12 +658,24 @@ def _triangulate(
         )
         theta[solve], e[solve], h3[solve], iterations[solve] = t, ee, hh, it
         reason[solve[~conv]] = _NOT_CONVERGED
+    return theta, e, h3, iterations, reason
 
+
+def _check(
+    prob: _Problem, theta: NDArray[np.float64], e: NDArray[np.float64], h3: NDArray[np.float64],
+    reason: NDArray[np.int64], min_baseline_ratio: float, min_depth: float, max_depth: float,
+    max_rms_residual: float,
+) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
+           NDArray[np.float64], NDArray[np.int64]]:
+    """Return (ρ, ρ > 0, max baseline / Z_A, |residual| per observation (K, M), cost, RMS, reason): the first
+    failed check of each feature (behind a camera, too close, too far, too little baseline, too large a residual)
+    becomes its reason."""
+    lengths = prob.lengths
     rho = theta[:, 2]
     positive = rho > 0.0
     rho_safe = np.where(positive, rho, 1.0)
     depths = np.where(positive[:, None], h3 / rho_safe[:, None], -1.0)  # Z_i = Z_A h_i3 (pads: Z_A)
-    ratio = np.where(positive, max_baseline * rho, 0.0)  # max baseline / Z_A
+    ratio = np.where(positive, prob.max_baseline * rho, 0.0)  # max baseline / Z_A
     per_obs = np.sqrt(np.einsum("kmi,kmi->km", e, e))  # |g_i - z_i| (pads: 0)
     cost = np.einsum("km,km->k", per_obs, per_obs)
     rms = np.sqrt(cost / np.maximum(lengths, 1))
@@ -629,9 +688,20 @@ def _triangulate(
     )
     for code, failed in checks:
         reason = np.where((reason == _OK) & failed, code, reason)
+    return rho, positive, ratio, per_obs, cost, rms, reason
 
+
+def _results(
+    prob: _Problem, theta: NDArray[np.float64], positive: NDArray[np.bool_], rho: NDArray[np.float64],
+    ratio: NDArray[np.float64], per_obs: NDArray[np.float64], cost: NDArray[np.float64], rms: NDArray[np.float64],
+    iterations: NDArray[np.int64], reason: NDArray[np.int64],
+) -> list[TriangulationResult]:
+    """Return one TriangulationResult per feature: the point in G (Eq. 79) and the standard deviations of θ."""
+    K = theta.shape[0]
+    R_GtoA, p_AinG = prob.R_GtoA, prob.p_AinG
+    rho_safe = np.where(positive, rho, 1.0)
     # standard deviations of θ per unit noise: sqrt(diag((J^T J)^-1)) at the estimate (Ω = σ^-2 I, Eq. 71)
-    _, J_end, _ = _evaluate(theta, D, c, zp)
+    _, J_end, _ = _evaluate(theta, prob.D, prob.c, prob.zp)
     J_end = J_end.reshape(K, -1, 3)
     theta_std = np.sqrt(np.maximum(_sym3_inverse_diagonal(np.swapaxes(J_end, 1, 2) @ J_end), 0.0))
 
@@ -639,7 +709,7 @@ def _triangulate(
     bearing = np.column_stack([theta[:, :2], np.ones(K)])
     p_FinG = np.einsum("kji,kj->ki", R_GtoA, bearing) / rho_safe[:, None] + p_AinG
     p_FinG = np.where(positive[:, None] & np.isfinite(p_FinG).all(axis=1)[:, None], p_FinG, p_AinG)
-    p_FinG[lengths == 0] = 0.0  # no camera at all: nothing better than the origin
+    p_FinG[prob.lengths == 0] = 0.0  # no camera at all: nothing better than the origin
     worst = per_obs.max(axis=1)
     return [
         TriangulationResult(
@@ -651,7 +721,7 @@ def _triangulate(
             rms_residual=float(rms[k]),
             max_residual=float(worst[k]),
             inverse_depth=theta[k],
-            anchor=int(anchors[k]),
+            anchor=int(prob.anchors[k]),
             baseline_ratio=float(ratio[k]),
             inverse_depth_std=theta_std[k],
         )

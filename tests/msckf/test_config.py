@@ -142,7 +142,7 @@ def test_triangulation_settings_are_the_filters_and_drive_triangulate_inverse_de
                             min_depth=cfg.triangulation_min_depth, max_depth=cfg.triangulation_max_depth,
                             max_rms_residual=0.01)
     s0 = initial_state_from_truth(0.0, np.eye(3), np.zeros(3), np.zeros(3), np.eye(3), np.zeros(3), cfg)
-    assert Msckf(cfg, s0)._tri_settings == settings  # the filter's own settings
+    assert Msckf(cfg, s0)._updater.triangulation_settings == settings  # the filter's own settings
     R = np.stack([np.eye(3)] * 3)
     p = np.array([[0.0, 0.0, 0.0], [0.5, 0.0, 0.0], [1.0, 0.1, 0.0]])
     point = np.array([0.3, -0.2, 4.0])

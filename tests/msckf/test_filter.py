@@ -1,4 +1,4 @@
-"""Tests for evio_lib.msckf.filter: perfect-data-association runs on the simulator (boxes_like, 1 px noise) against
+"""Tests for evio_lib.msckf.filter and its parts (feature_database, updater): perfect-data-association runs on the simulator (boxes_like, 1 px noise) against
 ground truth and IMU-only dead reckoning, one update against an independent reference built from the public update
 functions, chi-square gating of moving-point (outlier) tracks, keyframe pruning, the IMU-only mode against plain
 propagation, degenerate input (no features, one pixel, no baseline) and bad input.
@@ -13,7 +13,8 @@ import pytest
 from evio_lib.evaluation.trajectory_metrics import orientation_errors
 from evio_lib.geometry.rotation import quat_to_rot
 from evio_lib.msckf.config import MsckfConfig
-from evio_lib.msckf.filter import FilterOutput, Msckf, _FeatureUse, apply_correction, whitening_matrices
+from evio_lib.msckf.feature_database import FeatureUse
+from evio_lib.msckf.filter import FilterOutput, Msckf, apply_correction, whitening_matrices
 from evio_lib.msckf.initialization import initial_state_from_truth
 from evio_lib.msckf.observability import constrain_transition, state_nullspace
 from evio_lib.msckf.propagation import propagate
@@ -27,6 +28,7 @@ from evio_lib.msckf.update import (
     measurement_compress,
     nullspace_project,
 )
+from evio_lib.msckf.updater import MsckfUpdater
 from evio_lib.sim.imu import ImuNoiseParams, synthesize_imu
 from evio_lib.sim.rig import CameraImuExtrinsics
 from evio_lib.sim.trajectory import trajectory_from_preset
@@ -223,9 +225,9 @@ def test_one_update_equals_the_reference_pipeline_of_the_update_module(rng, oc):
         if k % 4 == 1:  # like a pruned feature: only two of its observations give residuals
             involved[:] = False
             involved[[0, 2]] = True
-        uses.append(_FeatureUse(obs_cams.astype(np.int64), xy, involved))
-    f = Msckf(cfg, s)
-    used = f._update(uses)
+        uses.append(FeatureUse(obs_cams.astype(np.int64), xy, involved))
+    result = MsckfUpdater(cfg).update(s, uses)
+    used = result.used
     N_ref = state_nullspace(s, cfg.gravity, first_estimates=True)  # (dim, 4) first-estimate nullspace
     # reference: triangulate, per-feature Jacobians, OC, nullspace, gate, stack, compress, Joseph update
     tri = triangulate_inverse_depth_batch([(R_C[u.window_idx], p_C[u.window_idx], u.xy) for u in uses],
@@ -254,12 +256,18 @@ def test_one_update_equals_the_reference_pipeline_of_the_update_module(rng, oc):
             r_rows.append(r_o)
     np.testing.assert_array_equal(used, ref_used)
     assert sum(ref_used) >= 9
-    assert not used[4] and not used[8] and f.rejections["chi2"] >= 2  # the outliers were gated and counted
+    assert not used[4] and not used[8] and result.rejections["chi2"] >= 2  # the outliers were gated and counted
     H_c, r_c = measurement_compress(np.vstack(H_rows), np.concatenate(r_rows))
     dx, P_ref = kalman_update(s.P, H_c, r_c, cfg.feature_noise_sigma**2)
     ref = s.inject_error(dx)
-    np.testing.assert_allclose(f.state.P, P_ref, atol=1e-12)
-    np.testing.assert_allclose(state_difference(ref, f.state), 0.0, atol=1e-10)
+    assert result.applied and result.rows == sum(h.shape[0] for h in H_rows)
+    np.testing.assert_allclose(result.state.P, P_ref, atol=1e-12)
+    np.testing.assert_allclose(state_difference(ref, result.state), 0.0, atol=1e-10)
+    # the filter applies the result: the same state, the same rejections
+    f = Msckf(cfg, s)
+    np.testing.assert_array_equal(f._take_update(f._update(uses)), used)
+    np.testing.assert_array_equal(f.state.P, result.state.P)
+    assert f.rejections == result.rejections
 
 
 # ---------------------------------------------------------------- per-observation noise (whitening)
@@ -333,11 +341,11 @@ def test_update_with_correlated_noise_equals_generalised_least_squares_with_the_
         cov = _random_covariances(rng, len(obs_cams), sigma=3 * SIGMA)
         L = np.linalg.cholesky(cov)
         xy = p_FinC[:, :2] / p_FinC[:, 2:] + np.einsum("mij,mj->mi", L, rng.normal(size=(len(obs_cams), 2)))
-        uses.append(_FeatureUse(obs_cams.astype(np.int64), xy, np.ones(len(obs_cams), dtype=bool),
+        uses.append(FeatureUse(obs_cams.astype(np.int64), xy, np.ones(len(obs_cams), dtype=bool),
                                 whitening_matrices(cov)))
         covs.append(cov)
-    f = Msckf(cfg, s)
-    used = f._update(uses)
+    result = MsckfUpdater(cfg).update(s, uses)
+    used = result.used
     assert used.sum() >= 8  # no gate: only features the triangulation rejected are left out
     tri = triangulate_inverse_depth_batch([(R_C[u.window_idx], p_C[u.window_idx], u.xy) for u in uses],
                                           max_rms_residual=cfg.triangulation_max_reprojection_px / cfg.focal_length_px)
@@ -358,8 +366,8 @@ def test_update_with_correlated_noise_equals_generalised_least_squares_with_the_
     P_ref = np.linalg.inv(np.linalg.inv(s.P) + Lam)
     dx = P_ref @ b
     scale = np.sqrt(np.outer(np.diag(P_ref), np.diag(P_ref)))
-    np.testing.assert_allclose(f.state.P / scale, P_ref / scale, atol=1e-6)
-    np.testing.assert_allclose(state_difference(s.inject_error(dx), f.state) / np.sqrt(np.diag(P_ref)), 0.0,
+    np.testing.assert_allclose(result.state.P / scale, P_ref / scale, atol=1e-6)
+    np.testing.assert_allclose(state_difference(s.inject_error(dx), result.state) / np.sqrt(np.diag(P_ref)), 0.0,
                                atol=1e-5)
     assert np.abs(dx / np.sqrt(np.diag(P_ref))).max() > 0.1  # the update moved the state
 
@@ -683,28 +691,28 @@ def test_outlier_observations_are_dropped_and_the_track_kept():
     q_C, p_C = f.state.camera_poses
     R_C = quat_to_rot(q_C)
     fid, track = max(f.tracks.items(), key=lambda item: len(item[1]))
-    pos = f._window_positions()
+    pos = {cid: i for i, cid in enumerate(f.state.camera_ids)}
     idx = np.array([pos[c] for c, _, _ in track])
     xy = np.array([z for _, z, _ in track])
     assert len(track) >= 8
-    clean = _FeatureUse(idx, xy, np.ones(len(idx), bool))
+    clean = FeatureUse(idx, xy, np.ones(len(idx), bool))
     jumped_xy = xy.copy()
     jumped_xy[len(idx) // 2, 0] += 12.0 * SIGMA  # 12 px
-    jumped = _FeatureUse(idx, jumped_xy, np.ones(len(idx), bool))
-    settings = f._tri_settings
+    jumped = FeatureUse(idx, jumped_xy, np.ones(len(idx), bool))
+    settings = f.config.triangulation_settings()
     (res_clean, res_jumped) = triangulate_inverse_depth_batch([(R_C[u.window_idx], p_C[u.window_idx], u.xy)
                                                                for u in (clean, jumped)], **settings)
     assert res_clean.success
     biased = np.linalg.norm(res_jumped.p_FinG - res_clean.p_FinG)
     assert biased > 0.03 * np.linalg.norm(res_clean.p_FinG - p_C[idx[0]])  # one jump moves the point
-    g = Msckf(dataclasses.replace(f.config, observation_outlier_px=3.0), f.state)
-    (use,), (res,) = g._drop_outlier_observations([jumped], [res_jumped], R_C, p_C)
+    g = MsckfUpdater(dataclasses.replace(f.config, observation_outlier_px=3.0))
+    (use,), (res,), dropped = g._drop_outlier_observations([jumped], [res_jumped], R_C, p_C)
     assert res.success and len(use.xy) == len(idx) - 1
     assert not np.any(np.all(use.xy == jumped_xy[len(idx) // 2], axis=1))  # the jumped one went
     assert np.linalg.norm(res.p_FinG - res_clean.p_FinG) < 0.2 * biased
-    assert g.rejections["outlier_observations"] == 1
-    (same,), _ = g._drop_outlier_observations([clean], [res_clean], R_C, p_C)  # a clean track stays whole
-    assert len(same.xy) == len(idx)
+    assert dropped == 1
+    (same,), _, none = g._drop_outlier_observations([clean], [res_clean], R_C, p_C)  # a clean track stays whole
+    assert len(same.xy) == len(idx) and none == 0
 
 
 def test_outlier_observation_option_helps_a_run_with_jumps_and_is_checked():

@@ -11,7 +11,7 @@ import warnings
 import numpy as np
 import pytest
 
-from evio_lib.msckf import filter as filter_module
+from evio_lib.msckf import updater as updater_module
 from evio_lib.msckf.config import MsckfConfig
 from evio_lib.msckf.experiment import (
     VioSimConfig,
@@ -213,7 +213,7 @@ def test_a_propagation_that_would_leave_a_non_finite_state_is_refused(sim):
 
 @pytest.mark.parametrize("corruption", ["nan", "not_psd", "raises"])
 def test_an_update_that_fails_the_check_is_rolled_back_and_the_filter_goes_on(sim, monkeypatch, corruption):
-    real = filter_module.kalman_update
+    real = updater_module.kalman_update
     calls = []
 
     def corrupted(P, H, r, sigma):
@@ -230,7 +230,7 @@ def test_an_update_that_fails_the_check_is_rolled_back_and_the_filter_goes_on(si
             P_new[12:15, 12:15] -= 10.0 * np.eye(3)
         return dx, P_new
 
-    monkeypatch.setattr(filter_module, "kalman_update", corrupted)
+    monkeypatch.setattr(updater_module, "kalman_update", corrupted)
     outputs, f, caught = run(sim)
     assert_usable(outputs, f)
     assert f.faults == {"update_refused": 1} and len(caught) == 1
