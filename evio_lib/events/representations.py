@@ -16,7 +16,8 @@ Windows (thesis §4.1, Eq. 87). A reconstruction step consumes one window of eve
 
 Representations of one window (all vectorised with ``np.bincount``; no Python loop over events):
 
-- count frames (events per pixel) and polarity frames (sum of polarities),
+- count frames (events per pixel: ``polarity_frame(..., signed=False)``, float32, or
+  :func:`evio_lib.events.array.event_count_image`, int64) and polarity frames (sum of polarities),
 - time surfaces: exp(-(t_ref - t_last(x, y)) / tau), per polarity or merged,
 - voxel grids (E2VID's input): B temporal bins, each event spread over the two nearest bins with bilinear weights
   t* = (B - 1)(t - t_0)/(t_N - t_0), V[b, y, x] += p * max(0, 1 - |b - t*|), then the non-zero voxels are normalised to zero
