@@ -359,11 +359,52 @@ def load_dataset(dataset: "str | Path | Sequence | None" = None, *, duration: fl
     gravity against the ground truth).
 
     Raises ValueError (DataFileError) naming what is missing or malformed.
+
+    The steps, in order: the options against the kind of ``dataset`` (:func:`_check_dataset_options`); the reading
+    (:func:`_load_preset`, :func:`_read_bag_or_hdf5`, :func:`_read_aedat4_file`, :func:`_read_folder`); ``calib``;
+    the checks of the IMU, the ground truth's times and the camera; the extrinsics (:func:`_extrinsics`); the IMU's
+    units against them (:func:`_check_imu_against_truth`); the frames and events the run needs; the IMU noise.
     """
     notes: list[str] = []
     dataset = "boxes_like" if dataset is None else dataset
-    from evio_lib.sequence import Sequence
+    given, text = _check_dataset_options(dataset, duration=duration, start=start, aps_exposure_s=aps_exposure_s,
+                                         speed=speed, topics=topics)
+    if given:                                         # a shallow copy: --calib below never changes the caller's
+        seq, kind, source = dataclasses.replace(dataset), "sequence", dataset.name
+    elif text in PRESETS:
+        seq, kind, source = _load_preset(text, duration=duration, seed=seed, need_events=need_events,
+                                         progress=progress, calib=calib, start=start, aps_exposure_s=aps_exposure_s,
+                                         speed=speed, notes=notes)
+    elif _is_bag_or_h5(text):
+        seq, kind, source = _read_bag_or_hdf5(text, duration=duration, need_events=need_events,
+                                              need_frames=need_frames, calib=calib, topics=topics, notes=notes)
+    elif Path(text).is_file() and Path(text).suffix.lower() == ".aedat4":
+        seq, kind, source = _read_aedat4_file(text, duration=duration, need_frames=need_frames, calib=calib,
+                                              notes=notes)
+    else:
+        seq, kind, source = _read_folder(text, duration=duration, need_events=need_events, need_frames=need_frames)
+    if calib is not None:
+        _replace_camera(seq, calib, kind, source, notes)
+    _check_imu_truth_and_camera(seq, kind, source)
+    R_CtoI, p_CinI = _extrinsics(seq, kind, extrinsics, notes)
+    _check_imu_against_truth(seq, kind, source, R_CtoI, assumed=extrinsics is None and seq.R_CtoI is None,
+                             speed=speed)
+    if need_frames and len(seq.frame_times) < 2:
+        raise ValueError(f"{source} has fewer than 2 frames (images.txt): use --frames events, or a recording with "
+                         f"frames")
+    if need_events and len(seq.events) == 0:
+        raise ValueError(f"{source} has no events (events.txt is empty): use --frames aps")
+    noise = _imu_noise(seq.metadata, source, notes)
+    return LoadedDataset(sequence=seq, kind=kind, source=source, R_CtoI=R_CtoI, p_CinI=p_CinI, noise=noise,
+                         notes=tuple(notes))
 
+
+# ---------------------------------------------------------------------------------------------- load_dataset's steps
+def _check_dataset_options(dataset: Any, *, duration: float | None, start: float, aps_exposure_s: float | None,
+                           speed: float | None, topics: str | None) -> tuple[bool, str]:
+    """Return (given, text): whether ``dataset`` is a Sequence in memory, and the name the checks read ("" for a
+    Sequence). Refuse the options that do not apply to it (presets-only options for a recording, ``topics`` for
+    anything but a bag or an MVSEC file) and a preset name that is also a path, before anything is read."""
     given = isinstance(dataset, Sequence)
     if given:                                        # a recording in memory (simulate_sequence, a reader, a slice)
         for option, value in (("duration", duration), ("start", start), ("aps_exposure_s", aps_exposure_s),
@@ -391,92 +432,122 @@ def load_dataset(dataset: "str | Path | Sequence | None" = None, *, duration: fl
         raise ValueError(f"DATASET {text!r} names both the simulated preset and the {'folder' if Path(text).is_dir() else 'file'} "
                          f"{Path(text).resolve()}; write ./{text} for the recording, or run from another folder for "
                          f"the preset")
-    if given:                                         # a shallow copy: --calib below never changes the caller's
-        seq, kind, source = dataclasses.replace(dataset), "sequence", dataset.name
-    elif text in PRESETS:
-        if calib is not None:
-            raise ValueError(f"--calib applies to recordings; the preset {text} knows its camera")
-        seq = simulate_preset(text, duration, seed, with_events=need_events, progress=progress, start=start,
-                              aps_exposure_s=aps_exposure_s, speed=1.0 if speed is None else speed)
-        if aps_exposure_s is not None:
-            notes.append(f"APS exposure {1e3 * aps_exposure_s:g} ms (the simulator's default: 10 ms)")
-        if speed is not None and speed != 1.0:
-            notes.append(f"motion: the preset's played at speed {speed:g} (rates x {speed:g}, accelerations x "
-                         f"{speed * speed:g}; its whole motion lasts {preset_length(text, speed):g} s)")
-        kind, source = "preset", text
-    elif _is_bag_or_h5(text):
-        if duration is not None:
-            raise ValueError("--duration applies to simulated presets; for a recording use --max-duration")
-        if Path(text).suffix.lower() in HDF5_SUFFIXES:
-            from evio_lib.io.hdf5 import read_hdf5
+    return given, text
 
-            seq, kind = read_hdf5(text, load_events=need_events, load_frames=need_frames, group=topics), "hdf5"
-            missing = "no calibration in the file"
-        else:
-            from evio_lib.io.rosbag import read_rosbag
 
-            seq, kind = read_rosbag(text, load_events=need_events, load_frames=need_frames, topics=topics), "rosbag"
-            missing = "no sensor_msgs/CameraInfo topic in the bag"
-            notes.append("topics: " + ", ".join(f"{role} {topic}" for role, topic in seq.metadata["topics"].items()))
-        source = text
-        if seq.camera is None and calib is None:
-            raise ValueError(f"{text}: {missing}; give one with --calib FILE (one line fx fy cx cy k1 k2 p1 p2 [k3] "
-                             f"in pixels, the ECD calib.txt format)")
-        if seq.groundtruth is None:
-            notes.append(f"ground truth: none in the {'bag' if kind == 'rosbag' else 'file'}: static "
-                         f"initialisation (the sensor must start still), no error metrics")
-        else:
-            notes.append("ground truth: " + ("the pose topic, taken as the camera's pose in the world"
-                                             if kind == "rosbag" else "pose (camera-to-world matrices)"))
-    elif Path(text).is_file() and Path(text).suffix.lower() == ".aedat4":
-        from evio_lib.io.aedat4 import read_aedat4
-
-        if duration is not None:
-            raise ValueError("--duration applies to simulated presets; for a recording use --max-duration")
-        if calib is None:
-            raise ValueError(f"{text}: an AEDAT4 recording holds no camera calibration; give one with --calib FILE "
-                             f"(one line fx fy cx cy k1 k2 p1 p2 [k3] in pixels, the ECD calib.txt format, e.g. from "
-                             f"a Kalibr or OpenCV calibration of this camera)")
-        seq, kind, source = read_aedat4(text, load_frames=need_frames), "aedat4", text
-        notes.append("IMU units: " + str(seq.metadata.get("imu_units", "none in the file")))
-        notes.append("ground truth: none in an AEDAT4 file: static initialisation (the sensor must start still), "
-                     "no error metrics")
-    else:
-        if duration is not None:
-            raise ValueError("--duration applies to simulated presets; for a recording folder use --max-duration")
-        folder = Path(text)
-        if not folder.exists():
-            raise ValueError(f"DATASET {text!r} is neither a preset ({', '.join(PRESETS)}) nor an existing folder")
-        if not folder.is_dir():
-            raise ValueError(f"DATASET {text!r} is a file; expected a preset name, an ECD folder (events.txt, imu.txt, "
-                             f"...), a EuRoC ASL folder (mav0/), an AEDAT4 file (.aedat4), a ROS bag (.bag, or a ROS2 "
-                             f"bag folder) or an HDF5 file (.h5, .hdf5)")
-        if _is_euroc(folder):
-            from evio_lib.io.euroc import read_euroc
-
-            if need_events:
-                raise ValueError(f"{folder} is a EuRoC folder: it has no events; use --frames aps")
-            seq, kind = read_euroc(folder, load_frames=need_frames), "euroc"
-        elif (folder / "events.txt").is_file():
-            from evio_lib.io.ecd import read_ecd
-
-            seq, kind = read_ecd(folder, load_events=need_events, load_frames=need_frames), "ecd"
-        elif (folder / "sequence.npz").is_file():  # the binary cache (convert --format cache, simulate --cache)
-            from evio_lib.io.cache import load_sequence_npz
-
-            seq, kind = load_sequence_npz(folder / "sequence.npz"), "cache"
-        else:
-            raise ValueError(f"{folder} is not a recording folder: expected events.txt (ECD layout), mav0/ "
-                             f"(EuRoC ASL layout) or sequence.npz (the binary cache)")
-        source = str(folder)
+def _load_preset(text: str, *, duration: float | None, seed: int, need_events: bool, progress: bool,
+                 calib: Any, start: float, aps_exposure_s: float | None, speed: float | None,
+                 notes: list[str]) -> tuple[Sequence, str, str]:
+    """Return (sequence, 'preset', name) of the preset ``text``, simulated or from the cache (:func:`simulate_preset`);
+    ``notes`` get a non-default exposure and speed."""
     if calib is not None:
-        from evio_lib.io.ecd import read_calib
+        raise ValueError(f"--calib applies to recordings; the preset {text} knows its camera")
+    seq = simulate_preset(text, duration, seed, with_events=need_events, progress=progress, start=start,
+                          aps_exposure_s=aps_exposure_s, speed=1.0 if speed is None else speed)
+    if aps_exposure_s is not None:
+        notes.append(f"APS exposure {1e3 * aps_exposure_s:g} ms (the simulator's default: 10 ms)")
+    if speed is not None and speed != 1.0:
+        notes.append(f"motion: the preset's played at speed {speed:g} (rates x {speed:g}, accelerations x "
+                     f"{speed * speed:g}; its whole motion lasts {preset_length(text, speed):g} s)")
+    return seq, "preset", text
 
-        if seq.sensor_size is None:
-            raise ValueError(f"{source}: the sensor size is unknown (no frames, no sidecar), so --calib cannot be "
-                             f"checked against it")
-        seq.camera = read_calib(calib, *seq.sensor_size)
-        notes.append(f"camera: from --calib {calib}" + ("" if kind == "aedat4" else " (replaces the recording's)"))
+
+def _read_bag_or_hdf5(text: str, *, duration: float | None, need_events: bool, need_frames: bool, calib: Any,
+                      topics: str | None, notes: list[str]) -> tuple[Sequence, str, str]:
+    """Return (sequence, 'hdf5' or 'rosbag', path) of an HDF5 file or a ROS bag; refuse one without a camera when
+    no ``calib`` is given. ``notes`` get the topics read and where the ground truth comes from."""
+    if duration is not None:
+        raise ValueError("--duration applies to simulated presets; for a recording use --max-duration")
+    if Path(text).suffix.lower() in HDF5_SUFFIXES:
+        from evio_lib.io.hdf5 import read_hdf5
+
+        seq, kind = read_hdf5(text, load_events=need_events, load_frames=need_frames, group=topics), "hdf5"
+        missing = "no calibration in the file"
+    else:
+        from evio_lib.io.rosbag import read_rosbag
+
+        seq, kind = read_rosbag(text, load_events=need_events, load_frames=need_frames, topics=topics), "rosbag"
+        missing = "no sensor_msgs/CameraInfo topic in the bag"
+        notes.append("topics: " + ", ".join(f"{role} {topic}" for role, topic in seq.metadata["topics"].items()))
+    source = text
+    if seq.camera is None and calib is None:
+        raise ValueError(f"{text}: {missing}; give one with --calib FILE (one line fx fy cx cy k1 k2 p1 p2 [k3] "
+                         f"in pixels, the ECD calib.txt format)")
+    if seq.groundtruth is None:
+        notes.append(f"ground truth: none in the {'bag' if kind == 'rosbag' else 'file'}: static "
+                     f"initialisation (the sensor must start still), no error metrics")
+    else:
+        notes.append("ground truth: " + ("the pose topic, taken as the camera's pose in the world"
+                                         if kind == "rosbag" else "pose (camera-to-world matrices)"))
+    return seq, kind, source
+
+
+def _read_aedat4_file(text: str, *, duration: float | None, need_frames: bool, calib: Any,
+                      notes: list[str]) -> tuple[Sequence, str, str]:
+    """Return (sequence, 'aedat4', path) of an AEDAT4 file, which holds no calibration: ``calib`` is required."""
+    from evio_lib.io.aedat4 import read_aedat4
+
+    if duration is not None:
+        raise ValueError("--duration applies to simulated presets; for a recording use --max-duration")
+    if calib is None:
+        raise ValueError(f"{text}: an AEDAT4 recording holds no camera calibration; give one with --calib FILE "
+                         f"(one line fx fy cx cy k1 k2 p1 p2 [k3] in pixels, the ECD calib.txt format, e.g. from "
+                         f"a Kalibr or OpenCV calibration of this camera)")
+    seq, kind, source = read_aedat4(text, load_frames=need_frames), "aedat4", text
+    notes.append("IMU units: " + str(seq.metadata.get("imu_units", "none in the file")))
+    notes.append("ground truth: none in an AEDAT4 file: static initialisation (the sensor must start still), "
+                 "no error metrics")
+    return seq, kind, source
+
+
+def _read_folder(text: str, *, duration: float | None, need_events: bool,
+                 need_frames: bool) -> tuple[Sequence, str, str]:
+    """Return (sequence, 'euroc', 'ecd' or 'cache', path) of a recording folder, by its layout; refuse a path that
+    is no folder or a folder of no known layout."""
+    if duration is not None:
+        raise ValueError("--duration applies to simulated presets; for a recording folder use --max-duration")
+    folder = Path(text)
+    if not folder.exists():
+        raise ValueError(f"DATASET {text!r} is neither a preset ({', '.join(PRESETS)}) nor an existing folder")
+    if not folder.is_dir():
+        raise ValueError(f"DATASET {text!r} is a file; expected a preset name, an ECD folder (events.txt, imu.txt, "
+                         f"...), a EuRoC ASL folder (mav0/), an AEDAT4 file (.aedat4), a ROS bag (.bag, or a ROS2 "
+                         f"bag folder) or an HDF5 file (.h5, .hdf5)")
+    if _is_euroc(folder):
+        from evio_lib.io.euroc import read_euroc
+
+        if need_events:
+            raise ValueError(f"{folder} is a EuRoC folder: it has no events; use --frames aps")
+        seq, kind = read_euroc(folder, load_frames=need_frames), "euroc"
+    elif (folder / "events.txt").is_file():
+        from evio_lib.io.ecd import read_ecd
+
+        seq, kind = read_ecd(folder, load_events=need_events, load_frames=need_frames), "ecd"
+    elif (folder / "sequence.npz").is_file():  # the binary cache (convert --format cache, simulate --cache)
+        from evio_lib.io.cache import load_sequence_npz
+
+        seq, kind = load_sequence_npz(folder / "sequence.npz"), "cache"
+    else:
+        raise ValueError(f"{folder} is not a recording folder: expected events.txt (ECD layout), mav0/ "
+                         f"(EuRoC ASL layout) or sequence.npz (the binary cache)")
+    return seq, kind, str(folder)
+
+
+def _replace_camera(seq: Sequence, calib: Any, kind: str, source: str, notes: list[str]) -> None:
+    """Set ``seq.camera`` from the calibration file ``calib`` (the ECD ``calib.txt`` format), checked against the
+    sensor size."""
+    from evio_lib.io.ecd import read_calib
+
+    if seq.sensor_size is None:
+        raise ValueError(f"{source}: the sensor size is unknown (no frames, no sidecar), so --calib cannot be "
+                         f"checked against it")
+    seq.camera = read_calib(calib, *seq.sensor_size)
+    notes.append(f"camera: from --calib {calib}" + ("" if kind == "aedat4" else " (replaces the recording's)"))
+
+
+def _check_imu_truth_and_camera(seq: Sequence, kind: str, source: str) -> None:
+    """Refuse a recording without an IMU (two samples at least), with a ground truth that shares no time with the
+    IMU, or without a camera calibration; each message names what is missing and where it would be."""
     if seq.imu is None or len(seq.imu.t) < 2:
         if kind == "hdf5":
             raise ValueError(f"{source}: the {seq.metadata['format']} layout holds no IMU, and the MSCKF needs one; "
@@ -495,6 +566,11 @@ def load_dataset(dataset: "str | Path | Sequence | None" = None, *, duration: fl
         raise ValueError(f"{source} has no camera calibration (calib.txt / mav0/cam0/sensor.yaml): the front-end needs "
                          f"it to undistort the features")
 
+
+def _extrinsics(seq: Sequence, kind: str, extrinsics: str | Path | None,
+                notes: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Return (R_CtoI, p_CinI): from the ``extrinsics`` file, else from the recording, else camera = IMU frame;
+    ``notes`` say which."""
     if extrinsics is not None:
         R_CtoI, p_CinI = read_kalibr_extrinsics(extrinsics)
         notes.append(f"extrinsics: from {extrinsics}")
@@ -508,8 +584,14 @@ def load_dataset(dataset: "str | Path | Sequence | None" = None, *, duration: fl
         R_CtoI, p_CinI = np.eye(3), np.zeros(3)
         notes.append("extrinsics: none in the recording; assumed camera = IMU frame (the DAVIS's own IMU); "
                      "give --extrinsics FILE if it differs")
+    return R_CtoI, p_CinI
+
+
+def _check_imu_against_truth(seq: Sequence, kind: str, source: str, R_CtoI: np.ndarray, assumed: bool,
+                             speed: float | None) -> None:
+    """Check the IMU's units and axes (:func:`~evio_lib.io.imu_checks.check_imu_units`) with the extrinsics the run
+    will use (``assumed``: camera = IMU frame, for lack of any)."""
     truth = seq.groundtruth_imu if seq.groundtruth_imu is not None else seq.groundtruth
-    assumed = extrinsics is None and seq.R_CtoI is None  # the run assumes camera = IMU frame
     gravity_G = seq.metadata.get("gravity_G") if isinstance(seq.metadata, dict) else None
     try:  # the readers checked already; presets, --extrinsics and the assumed extrinsics are checked here
         check_imu_units(seq.imu.t, seq.imu.gyro, seq.imu.accel, truth, source=f"{source} IMU", R_CtoI=R_CtoI,
@@ -522,16 +604,16 @@ def load_dataset(dataset: "str | Path | Sequence | None" = None, *, duration: fl
         raise ImuUnitsError(f"{error} (the recording holds no camera-IMU extrinsics, so the check, like the run, "
                             f"took the camera frame as the IMU frame; if they differ, give the camera-IMU "
                             f"transformation with --extrinsics FILE, a Kalibr camchain with T_cam_imu)") from None
-    if need_frames and len(seq.frame_times) < 2:
-        raise ValueError(f"{source} has fewer than 2 frames (images.txt): use --frames events, or a recording with frames")
-    if need_events and len(seq.events) == 0:
-        raise ValueError(f"{source} has no events (events.txt is empty): use --frames aps")
-    noise, defaulted = _noise_from_metadata(seq.metadata, source)
+
+
+def _imu_noise(metadata: Any, source: str, notes: list[str]) -> ImuNoiseParams:
+    """Return the IMU noise for the filter: the recording's (:func:`_noise_from_metadata`), else the DAVIS's
+    MPU-6150 model; ``notes`` say which values were assumed."""
+    noise, defaulted = _noise_from_metadata(metadata, source)
     if noise is None:
         noise = ImuNoiseParams()
         notes.append("IMU noise: not in the recording; assumed the DAVIS's MPU-6150 model (ImuNoiseParams defaults)")
     elif defaulted:
         notes.append(f"IMU noise: from the recording, except {', '.join(defaulted)}: not in it, assumed the DAVIS's "
                      f"MPU-6150 model (ImuNoiseParams defaults)")
-    return LoadedDataset(sequence=seq, kind=kind, source=source, R_CtoI=R_CtoI, p_CinI=p_CinI, noise=noise,
-                         notes=tuple(notes))
+    return noise

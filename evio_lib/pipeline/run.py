@@ -628,7 +628,32 @@ def run_pipeline(data: "LoadedDataset | Sequence | str | Path", config: Pipeline
 
     Raises ValueError for a recording the run cannot use (no overlap of frames and IMU, a still start required by
     static initialisation that is not still, an IMU gap too long to bridge) with the reason in the message.
+
+    The run in three parts: :func:`_initial_state` (the filter's first state and the time it starts at),
+    :class:`_PipelineRun` (the filter and the front-ends, fed frame by frame in time order) and
+    :meth:`_PipelineRun.result` (the arrays, the timings and the metrics).
     """
+    config, data = _checked_inputs(data, config)
+    notes = list(data.notes)
+    has_truth = _groundtruth(data) is not None
+    if config.init == "groundtruth" and not has_truth:
+        raise ValueError("init 'groundtruth' needs a ground truth (groundtruth.txt); use init 'static'")
+    t_first, t_last = _span(data, config)
+    msckf_cfg = msckf_config_for(config, data)
+    still_window = _still_window(msckf_cfg, t_first, t_last)
+    msckf_cfg = dataclasses.replace(msckf_cfg, static_init_duration=still_window)
+    state, t_first, init, unanchored = _initial_state(data, config, msckf_cfg, t_first, has_truth, notes)
+    if t_last <= t_first:
+        raise ValueError(f"nothing left to process after the initialisation at t = {t_first:.3f} s")
+
+    run = _PipelineRun(data, config, msckf_cfg, state, t_first, notes, detector)
+    run.process(t_last, progress)
+    return run.result(t_last, init, unanchored=unanchored, has_truth=has_truth)
+
+
+def _checked_inputs(data: Any, config: PipelineConfig | None) -> tuple[PipelineConfig, LoadedDataset]:
+    """Return (config, data) for :func:`run_pipeline`: the default config for None, and ``data`` loaded by
+    :func:`~evio_lib.pipeline.dataset.load_dataset` unless it is a LoadedDataset already (what the run reads only)."""
     config = PipelineConfig() if config is None else config
     if not isinstance(config, PipelineConfig):
         raise ValueError(f"config must be a PipelineConfig; got {type(config).__name__}")
@@ -642,15 +667,15 @@ def run_pipeline(data: "LoadedDataset | Sequence | str | Path", config: Pipeline
         data = load_dataset(data, need_events=not config.imu_only and any(s != "aps" for s in uses),
                             need_frames=config.imu_only or "aps" in uses,
                             seed=config.seed if isinstance(data, (str, Path)) else 0)   # as `run --seed` does
+    return config, data
+
+
+def _initial_state(data: LoadedDataset, config: PipelineConfig, msckf_cfg: MsckfConfig, t_first: float,
+                   has_truth: bool, notes: list[str]) -> tuple[Any, float, str, bool]:
+    """Return (state, t_first, init, unanchored): the filter's first state, the time it starts at, the
+    initialisation used ('groundtruth' or 'static', 'auto' resolved; module docstring) and whether the start has no
+    ground truth to take yaw and position from (another world frame: aligned errors only). Appends to ``notes``."""
     seq = data.sequence
-    notes = list(data.notes)
-    has_truth = _groundtruth(data) is not None
-    if config.init == "groundtruth" and not has_truth:
-        raise ValueError("init 'groundtruth' needs a ground truth (groundtruth.txt); use init 'static'")
-    t_first, t_last = _span(data, config)
-    msckf_cfg = msckf_config_for(config, data)
-    still_window = _still_window(msckf_cfg, t_first, t_last)
-    msckf_cfg = dataclasses.replace(msckf_cfg, static_init_duration=still_window)
     init = config.init
     unanchored = False  # a static start without ground truth at its end: another world frame, aligned errors only
     if init == "auto":
@@ -695,124 +720,163 @@ def run_pipeline(data: "LoadedDataset | Sequence | str | Path", config: Pipeline
                      f"{'from the still IMU' if biases is None else 'from ' + str(config.bias_init)}; "
                      + ("yaw and position from the ground truth" if truth_start else
                         "yaw 0 and position 0, so compare with a ground truth after alignment (ATE)"))
-    if t_last <= t_first:
-        raise ValueError(f"nothing left to process after the initialisation at t = {t_first:.3f} s")
+    return state, t_first, init, unanchored
 
-    filt = Msckf(msckf_cfg, state)
-    imu = seq.imu
-    zv = ZeroVelocityConfig(enabled=config.zupt and not config.imu_only)
-    zupt_frames = 0
-    k0 = int(np.searchsorted(imu.t, t_first, side="right"))
-    wall0 = time.perf_counter()
-    filt.feed_imu(imu.t[k0:], imu.gyro[k0:], imu.accel[k0:])
-    streams = frame_streams(config.frames)
-    # one tracker (and standstill test) per frame stream; the second stream's track ids are offset so that the
-    # filter's tracks of the two never share an id (STREAM_ID_OFFSET)
-    trackers = [create_tracker(seq.camera, config.frontend_config(name), detector=detector) for name in streams]
-    standstills = [StandstillDetector(zv) for _ in streams]
-    sigmas_px = [config.stream_pixel_noise(name) for name in streams]  # each stream's feature noise
-    reconstructor = None if config.imu_only else _event_reconstructor(data, config)
-    precision = getattr(reconstructor, "precision", None)  # networks only
-    if precision is not None:  # what "auto" chose: int8 on an x86 CPU, else float32
-        notes.append(f"event frames: {config.reconstructor} computed in {precision} (reconstructor precision "
-                     f"{config.reconstructor_precision})")
-    if len(streams) > 1:
-        notes.append(f"{len(streams)} frame streams: feature noise "
-                     + ", ".join(f"{name} {sigma:g} px" for name, sigma in zip(streams, sigmas_px))
-                     + f"; the window holds {msckf_cfg.max_camera_states} camera states")
-    outputs: list = []
-    tracked: list = []
-    timings = dict(reconstruction=0.0, detection=0.0, matching=0.0, ransac=0.0, filter=0.0)
-    bar = None
-    if progress:
-        from tqdm import tqdm
 
-        total = round(t_last - t_first, 1)
-        bar = tqdm(total=total, unit="s", desc=config.label(), leave=False, bar_format="{l_bar}{bar}| {n:.1f}/"
-                   "{total:.1f} s [{elapsed}<{remaining}]")
-    t_prev = None
-    t_prev_stream: list[float | None] = [None] * len(streams)
-    if config.imu_only:
-        times = seq.frame_times[(seq.frame_times > t_first) & (seq.frame_times <= t_last)]
-        source = ((float(t), None, 0.0, 0) for t in times)
-    else:
-        def bias() -> np.ndarray:
-            return filt.state.imu.b_g
+class _PipelineRun:
+    """One run of :func:`run_pipeline` after its initialisation: the filter, one tracker and one standstill test per
+    frame stream, and what each frame left (the filter's outputs, the tracked frames, the timings).
 
-        parts = [_tagged(_frames(data, config, t_first, t_last, gyro_bias=bias, stream=name,
-                                   reconstructor=reconstructor), k)
-                 for k, name in enumerate(streams)]
-        source = parts[0] if len(parts) == 1 else heapq.merge(*parts, key=lambda item: item[0])
-    # one BLAS thread: the front-end's and the filter's matrices are small, and threaded BLAS spins (evio_lib.threads)
-    with warnings.catch_warnings(), single_threaded_blas():
-        warnings.simplefilter("ignore", MsckfWarning)  # counted in filt.faults and reported in the summary
-        for t, image, t_rec, k in source:
-            if t <= t_first or (t_prev is not None and t <= t_prev):
-                continue
-            timings["reconstruction"] += t_rec
-            if image is None:
-                start = time.perf_counter()
-                outputs.append(filt.process_image(t, np.zeros(0, np.int64), np.zeros((0, 2))))
-                timings["filter"] += time.perf_counter() - start
-            else:
-                R_prior = None
-                if t_prev_stream[k] is not None:
-                    b_g = filt.state.imu.b_g
-                    R_prior = camera_rotation_prior(imu.t, imu.gyro, t_prev_stream[k], t, data.R_CtoI, gyro_bias=b_g)
-                frame = trackers[k].process(image, t, R_prior)
-                t_prev_stream[k] = t
-                if k:
-                    frame = dataclasses.replace(frame, ids=frame.ids + k * STREAM_ID_OFFSET)
-                timings["detection"] += frame.stats.time_detect_s
-                timings["matching"] += frame.stats.time_match_s
-                timings["ransac"] += frame.stats.time_ransac_s
-                tracked.append(frame)
-                start = time.perf_counter()
-                out = None
-                if zv.enabled and standstills[k].test(t, frame.ids, frame.pixels, imu.t, imu.gyro, imu.accel,
-                                                      filt.state.imu, msckf_cfg.gravity).still:
-                    out = filt.zero_velocity_update(t, zv)  # None: its gate refused; a visual update then
-                    zupt_frames += out is not None
-                if out is None:
-                    sigma = sigmas_px[k]
-                    cov = observation_covariance(seq.camera, frame.pixels, sigma) if len(frame) else None
-                    out = filt.process_image(t, frame.ids, frame.xy, cov, stream=k)
-                outputs.append(out)
-                timings["filter"] += time.perf_counter() - start
-            if not (np.all(np.isfinite(outputs[-1].p_IinG)) and np.all(np.isfinite(outputs[-1].P_imu))):
-                raise ValueError(f"the filter's state became non-finite at t = {t:.3f} s (faults: {dict(filt.faults)})")
-            if bar is not None:  # whole tenths of a second, never past the total
-                bar.update(max(0.0, min(bar.total, round(t - t_first, 1)) - bar.n))
-            t_prev = t
-    if bar is not None:
-        bar.update(max(0.0, bar.total - bar.n))  # ends at its total
-        bar.refresh()
-        bar.close()
-    wall = time.perf_counter() - wall0
-    if not outputs:
-        raise ValueError(f"no frame to process in [{t_first:.3f}, {t_last:.3f}] s (no events or frames there)")
-    lengths = _track_lengths(tracked)
+    ``__init__`` starts the filter at ``t_first`` and feeds it the whole IMU; :meth:`process` takes the frames in
+    time order through :meth:`step`; :meth:`result` turns the records into a :class:`PipelineResult`."""
 
-    t = np.array([o.t for o in outputs])
-    P = np.array([o.P_imu for o in outputs])
-    duration = float(t[-1] - t_first)
-    timings["total"] = wall  # reconstruction happens inside the loop, so it is part of the wall time
-    timings["realtime_factor"] = duration / wall if wall > 0 else float("inf")
-    result = PipelineResult(
-        config=config, dataset={"name": seq.name, "kind": data.kind, "source": data.source}, notes=notes, t=t,
-        q_GtoI=np.array([o.q_GtoI for o in outputs]), p_IinG=np.array([o.p_IinG for o in outputs]),
-        v_IinG=np.array([o.v_IinG for o in outputs]), b_g=np.array([o.b_g for o in outputs]),
-        b_a=np.array([o.b_a for o in outputs]), sigma=np.sqrt(np.clip(np.diagonal(P, axis1=1, axis2=2), 0.0, None)),
-        features_used=np.array([o.n_features_used for o in outputs]), R_CtoI=data.R_CtoI, p_CinI=data.p_CinI,
-        tracking=stats_table(tracked) if tracked else {}, track_lengths=lengths, truth={}, metrics={},
-        timings=timings, faults=dict(filt.faults), rejections=dict(filt.rejections),
-        reconstructor_precision=precision,
-    )
-    result.metrics = {"frames": int(len(t)), "duration_s": duration, "t_start": t_first, "t_end": float(t[-1]),
-                      "init": init, "zupt_frames": int(zupt_frames)}
-    if has_truth:
-        _score(result, data, aligned_only=unanchored)
-    return result
+    def __init__(self, data: LoadedDataset, config: PipelineConfig, msckf_cfg: MsckfConfig, state: Any,
+                 t_first: float, notes: list[str], detector: Any = None) -> None:
+        seq = data.sequence
+        self.data, self.config, self.msckf_cfg, self.t_first, self.notes = data, config, msckf_cfg, t_first, notes
+        self.filt = filt = Msckf(msckf_cfg, state)
+        self.imu = imu = seq.imu
+        self.zv = ZeroVelocityConfig(enabled=config.zupt and not config.imu_only)
+        self.zupt_frames = 0
+        k0 = int(np.searchsorted(imu.t, t_first, side="right"))
+        self.wall0 = time.perf_counter()
+        filt.feed_imu(imu.t[k0:], imu.gyro[k0:], imu.accel[k0:])
+        self.streams = streams = frame_streams(config.frames)
+        # one tracker (and standstill test) per frame stream; the second stream's track ids are offset so that the
+        # filter's tracks of the two never share an id (STREAM_ID_OFFSET)
+        self.trackers = [create_tracker(seq.camera, config.frontend_config(name), detector=detector)
+                         for name in streams]
+        self.standstills = [StandstillDetector(self.zv) for _ in streams]
+        self.sigmas_px = sigmas_px = [config.stream_pixel_noise(name) for name in streams]  # each stream's noise
+        self.reconstructor = None if config.imu_only else _event_reconstructor(data, config)
+        self.precision = precision = getattr(self.reconstructor, "precision", None)  # networks only
+        if precision is not None:  # what "auto" chose: int8 on an x86 CPU, else float32
+            notes.append(f"event frames: {config.reconstructor} computed in {precision} (reconstructor precision "
+                         f"{config.reconstructor_precision})")
+        if len(streams) > 1:
+            notes.append(f"{len(streams)} frame streams: feature noise "
+                         + ", ".join(f"{name} {sigma:g} px" for name, sigma in zip(streams, sigmas_px))
+                         + f"; the window holds {msckf_cfg.max_camera_states} camera states")
+        self.outputs: list = []
+        self.tracked: list = []
+        self.timings = dict(reconstruction=0.0, detection=0.0, matching=0.0, ransac=0.0, filter=0.0)
+        self.t_prev_stream: list[float | None] = [None] * len(streams)
+        self.wall = 0.0
+
+    def _gyro_bias(self) -> np.ndarray:
+        """Return the filter's current gyro bias (mc-events warp each window with the gyro less this)."""
+        return self.filt.state.imu.b_g
+
+    def _source(self, t_last: float) -> Iterator[tuple[float, np.ndarray | None, float, int]]:
+        """Return the frames of (t_first, t_last] as (t, image, reconstruction seconds, stream index), every stream
+        merged in time order; IMU only: the frame times with no image."""
+        config, seq, t_first = self.config, self.data.sequence, self.t_first
+        if config.imu_only:
+            times = seq.frame_times[(seq.frame_times > t_first) & (seq.frame_times <= t_last)]
+            return ((float(t), None, 0.0, 0) for t in times)
+        parts = [_tagged(_frames(self.data, config, t_first, t_last, gyro_bias=self._gyro_bias, stream=name,
+                                 reconstructor=self.reconstructor), k)
+                 for k, name in enumerate(self.streams)]
+        return parts[0] if len(parts) == 1 else heapq.merge(*parts, key=lambda item: item[0])
+
+    def process(self, t_last: float, progress: bool = False) -> None:
+        """Feed the filter every frame of (t_first, t_last] in time order (a frame not after the last one is
+        skipped), with a progress bar over the processed seconds when ``progress``."""
+        t_first = self.t_first
+        bar = None
+        if progress:
+            from tqdm import tqdm
+
+            total = round(t_last - t_first, 1)
+            bar = tqdm(total=total, unit="s", desc=self.config.label(), leave=False, bar_format="{l_bar}{bar}| {n:.1f}/"
+                       "{total:.1f} s [{elapsed}<{remaining}]")
+        t_prev = None
+        source = self._source(t_last)
+        # one BLAS thread: the front-end's and the filter's matrices are small, and threaded BLAS spins
+        # (evio_lib.threads)
+        with warnings.catch_warnings(), single_threaded_blas():
+            warnings.simplefilter("ignore", MsckfWarning)  # counted in filt.faults and reported in the summary
+            for t, image, t_rec, k in source:
+                if t <= t_first or (t_prev is not None and t <= t_prev):
+                    continue
+                self.step(t, image, t_rec, k)
+                if bar is not None:  # whole tenths of a second, never past the total
+                    bar.update(max(0.0, min(bar.total, round(t - t_first, 1)) - bar.n))
+                t_prev = t
+        if bar is not None:
+            bar.update(max(0.0, bar.total - bar.n))  # ends at its total
+            bar.refresh()
+            bar.close()
+        self.wall = time.perf_counter() - self.wall0
+
+    def step(self, t: float, image: np.ndarray | None, t_rec: float, k: int) -> None:
+        """Process one frame of stream ``k`` at time ``t`` (``image`` None: an IMU-only step to t): track it, then a
+        zero-velocity update where it stands still, else the visual update with its stream's pixel noise."""
+        filt, imu, timings, outputs = self.filt, self.imu, self.timings, self.outputs
+        timings["reconstruction"] += t_rec
+        if image is None:
+            start = time.perf_counter()
+            outputs.append(filt.process_image(t, np.zeros(0, np.int64), np.zeros((0, 2))))
+            timings["filter"] += time.perf_counter() - start
+        else:
+            R_prior = None
+            if self.t_prev_stream[k] is not None:
+                b_g = filt.state.imu.b_g
+                R_prior = camera_rotation_prior(imu.t, imu.gyro, self.t_prev_stream[k], t, self.data.R_CtoI,
+                                                gyro_bias=b_g)
+            frame = self.trackers[k].process(image, t, R_prior)
+            self.t_prev_stream[k] = t
+            if k:
+                frame = dataclasses.replace(frame, ids=frame.ids + k * STREAM_ID_OFFSET)
+            timings["detection"] += frame.stats.time_detect_s
+            timings["matching"] += frame.stats.time_match_s
+            timings["ransac"] += frame.stats.time_ransac_s
+            self.tracked.append(frame)
+            start = time.perf_counter()
+            out = None
+            if self.zv.enabled and self.standstills[k].test(t, frame.ids, frame.pixels, imu.t, imu.gyro, imu.accel,
+                                                            filt.state.imu, self.msckf_cfg.gravity).still:
+                out = filt.zero_velocity_update(t, self.zv)  # None: its gate refused; a visual update then
+                self.zupt_frames += out is not None
+            if out is None:
+                sigma = self.sigmas_px[k]
+                cov = observation_covariance(self.data.sequence.camera, frame.pixels, sigma) if len(frame) else None
+                out = filt.process_image(t, frame.ids, frame.xy, cov, stream=k)
+            outputs.append(out)
+            timings["filter"] += time.perf_counter() - start
+        if not (np.all(np.isfinite(outputs[-1].p_IinG)) and np.all(np.isfinite(outputs[-1].P_imu))):
+            raise ValueError(f"the filter's state became non-finite at t = {t:.3f} s (faults: {dict(filt.faults)})")
+
+    def result(self, t_last: float, init: str, unanchored: bool, has_truth: bool) -> PipelineResult:
+        """Return the run's :class:`PipelineResult`: the filter's outputs as arrays, the tracking statistics, the
+        timings and, with a ground truth, the metrics (``unanchored``: aligned errors only)."""
+        config, data, outputs, t_first, timings = self.config, self.data, self.outputs, self.t_first, self.timings
+        seq, tracked = data.sequence, self.tracked
+        if not outputs:
+            raise ValueError(f"no frame to process in [{t_first:.3f}, {t_last:.3f}] s (no events or frames there)")
+        lengths = _track_lengths(tracked)
+
+        t = np.array([o.t for o in outputs])
+        P = np.array([o.P_imu for o in outputs])
+        duration = float(t[-1] - t_first)
+        wall = self.wall
+        timings["total"] = wall  # reconstruction happens inside the loop, so it is part of the wall time
+        timings["realtime_factor"] = duration / wall if wall > 0 else float("inf")
+        result = PipelineResult(
+            config=config, dataset={"name": seq.name, "kind": data.kind, "source": data.source}, notes=self.notes,
+            t=t, q_GtoI=np.array([o.q_GtoI for o in outputs]), p_IinG=np.array([o.p_IinG for o in outputs]),
+            v_IinG=np.array([o.v_IinG for o in outputs]), b_g=np.array([o.b_g for o in outputs]),
+            b_a=np.array([o.b_a for o in outputs]), sigma=np.sqrt(np.clip(np.diagonal(P, axis1=1, axis2=2), 0.0, None)),
+            features_used=np.array([o.n_features_used for o in outputs]), R_CtoI=data.R_CtoI, p_CinI=data.p_CinI,
+            tracking=stats_table(tracked) if tracked else {}, track_lengths=lengths, truth={}, metrics={},
+            timings=timings, faults=dict(self.filt.faults), rejections=dict(self.filt.rejections),
+            reconstructor_precision=self.precision,
+        )
+        result.metrics = {"frames": int(len(t)), "duration_s": duration, "t_start": t_first, "t_end": float(t[-1]),
+                          "init": init, "zupt_frames": int(self.zupt_frames)}
+        if has_truth:
+            _score(result, data, aligned_only=unanchored)
+        return result
 
 
 def _score(result: PipelineResult, data: LoadedDataset, aligned_only: bool) -> None:
