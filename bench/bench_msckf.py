@@ -1,6 +1,6 @@
-"""Benchmark: real-time factor of the MSCKF back end (issue 5 target: >= 10x on one core).
+"""Benchmark: real-time factor of the MSCKF back end (target: >= 10x on one core).
 
-Setting of the issue: 20 Hz images, 1 kHz IMU, 60 tracked features per image, N_max = 20, one BLAS thread. The
+The setting: 20 Hz images, 1 kHz IMU, 60 tracked features per image, N_max = 20, one BLAS thread. The
 simulation of the IMU and of the feature tracks is done first and excluded from the timing; the timed part is
 ``Msckf.feed_imu`` + ``Msckf.process_image`` for every image (propagation, augmentation, triangulation, updates,
 marginalisation). Prints wall and CPU time and the real-time factor = simulated duration / time.
@@ -34,7 +34,7 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3, help="timed repetitions; the best is reported (default 3)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--window", type=int, default=20,
-                        help="N_max (default 20, the issue's setting; the library's default is 40)")
+                        help="N_max (default 20, S-MSCKF's window; the library's default is 40)")
     args = parser.parse_args()
 
     config = VioSimConfig(preset=args.preset, duration=args.duration, seed=args.seed, features=60,

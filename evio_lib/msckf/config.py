@@ -61,10 +61,10 @@ class MsckfConfig:
         min_track_length: minimum number of observations for a finished track to be used in an update [3].
         marginalize_third: when the window is full, marginalise the oldest third of it at once (Mourikis &
             Roumeliotis 2007; the thesis's future-work item) instead of S-MSCKF's two keyframe-selected states
-            [True]. Measured (20 Monte-Carlo runs of boxes_like, 20 s, gate 0.999): average pose NEES 7.46 with
-            the third vs 10.0 with the two-way rule at N_max = 20 (95 % band [4.58, 7.61]); with N_max = 40 and the
-            third, 60 s boxes_like runs end at 0.12 % / 0.11 % of distance (seeds 0, 1) vs 0.40 % / 0.51 % at 20.
-        keyframe_*: S-MSCKF's two-way keyframe selection thresholds (rotation, translation, tracking rate).
+            [True]. Both rules stay: lessons 12 and 13 compare them in exercises; the measured NEES and drift of
+            each are in docs/explanations/consistency.md ("Reaching the band").
+        keyframe_*: S-MSCKF's two-way keyframe selection thresholds (rotation, translation, tracking rate), read
+            when ``marginalize_third`` is False.
         pixel_noise_px, focal_length_px: feature measurement noise in pixels and the focal length that converts
             it to normalised image coordinates (``feature_noise_sigma``).
         observation_outlier_px: per-observation outlier test [None: off]. After a track is triangulated, its
@@ -79,9 +79,9 @@ class MsckfConfig:
             anchor camera's fitted bearing (α, β) and goes through the chi-square gate like any track (with
             ``chi2_gating`` off there is no gate, and the option does nothing). The nullspace projection
             (Eq. 50) removes the point's error to first order, so what remains constrains the rotation between
-            the cameras. Kept the CNN on course over the aerial terrain (docs/archive.md, "Tracks without
-            parallax"). Off by default (the thesis's filter), here and in the pipeline (``PipelineConfig.far_points``):
-            used always it cost SIFT and KLT accuracy (KLT in the room 0.29 -> 0.37 %).
+            the cameras. Off by default (the thesis's filter), here and in the pipeline
+            (``PipelineConfig.far_points``): it kept the CNN on course over the aerial terrain but cost SIFT and KLT
+            accuracy (measured: docs/archive.md, the row "tracks without parallax placed far on their bearing").
         max_track_gap: images of its stream a track may miss and still continue [0]. With 0 a track ends at the first
             image without it and is used then; with g > 0 it is kept (its observations need not come from
             consecutive clones) until more than g images in a row lack it, so a front-end that finds a feature
@@ -93,12 +93,10 @@ class MsckfConfig:
             applied to ALL of a feature's observations in the window (dof 2M - 3) even when a prune uses only
             some. A gate also throws away correct data, and which data depends on the residual: the kept
             residuals' mean shrinks by ``update.gating_mean_shrink`` (0.76 for the 1-row features of a
-            two-state prune gated alone at 95 %), so every update under-corrects while P shrinks in full.
-            Measured on boxes_like (seed 109, 20 s, two-way pruning, gate on the used rows only): pose NEES 37.3
-            at 0.95, 21.8 at 0.99, 8.6 at 0.999, 8.5 without gating. With outliers the gate earns its keep: 4
-            moving-point tracks at a time (tests/msckf/test_filter.py) leave the RMSE at 0.035 m at 0.95-0.97
-            and give 0.50 m from 0.98 up. Perfect-data-association experiments use 0.99
-            (``experiment.VioSimConfig.gate_probability``).
+            two-state prune gated alone at 95 %), so every update under-corrects while P shrinks in full. With
+            outliers the gate earns its keep, so real tracks keep 0.95 and the perfect-data-association
+            experiments use 0.99 (``experiment.VioSimConfig.gate_probability``); the pose NEES at each gate and
+            the error with moving-point tracks: docs/explanations/consistency.md.
         triangulation_*: inverse-depth Gauss-Newton settings and the checks that reject bad features.
         observability_constrained: OC-EKF on/off (thesis §3.3.8) [True]: first-estimate transition matrices
             (Eqs. 81-84) and, on the update side, each feature's nullspace-projected Jacobian changed minimally so
@@ -114,17 +112,12 @@ class MsckfConfig:
         imu_gap_accel_sigma, imu_gap_gyro_sigma: std of the specific force [10 m/s²] and angular rate [1 rad/s]
             that the IMU did not see over a longer gap; the covariance grows as for a constant unknown deviation
             of that size (white noise of density σ² T over a gap of length T: var δv = σ_a² T², var δθ = σ_g² T²).
-            Measured on the simulator's boxes_like (noise-free 1 kHz IMU, 200 random gaps each): the RMS
-            deviation of the true signal from the linear interpolation over a gap has a 95th percentile of
-            1.6 / 5.6 / 16 / 20 m/s² and 0.07 / 0.29 / 1.0 / 2.1 rad/s for gaps of 0.05 / 0.1 / 0.2 / 0.5 s
-            (aerial_like: < 0.1 m/s², < 0.06 rad/s up to 1 s).
+            How far the true signal strays from the interpolation over a gap, measured on the simulator's
+            presets: docs/results/msckf.md ("IMU gaps").
         imu_max_bridged_gap: a longer gap stops the propagation with ``propagation.ImuGapError`` [0.3 s]: the
-            attitude error over it (σ_g T > 0.3 rad) is too large for the linearised updates that follow. Measured
-            on boxes_like (per-observation noise, max |e| / σ per axis of the position): a 0.2 s gap at 3 s of a
-            5 s run (seed 0) gives 2.9σ over the gap and 4.1σ in the half second after it (the first updates after
-            a gap are overconfident, linearised at a large attitude uncertainty), 10.2σ without the inflation; on
-            8 s runs (4 seeds) 1.5-3.6σ after a 0.2 s gap and 2.4-6.8σ after a 0.45 s one (hence the 0.3 s
-            limit), against 27-35σ without the inflation (3 runs, 0.3-0.45 s gaps).
+            attitude error over it (σ_g T > 0.3 rad) is too large for the linearised updates that follow (the first
+            updates after a gap are overconfident, linearised at a large attitude uncertainty). The position errors
+            in σ after bridged gaps, which set the limit: docs/results/msckf.md ("IMU gaps").
         max_normalized_coordinate: |x| or |y| of an observation beyond this is outside any plausible field of
             view (10: 84° off axis) [10]; a frame mostly beyond it is refused as pixel coordinates, single ones are
             dropped (``rejections['outside_field_of_view']``).
@@ -181,7 +174,7 @@ class MsckfConfig:
     observability_constrained: bool = _param(True, "", "observability-constrained EKF (thesis §3.3.8)")
     imu_only: bool = _param(False, "", "propagate only, no visual updates")
     static_init_duration: float = _param(1.0, "s", "stationary IMU window of the static initialisation")
-    # input guards (issue 17): IMU range, IMU gaps, plausible observations
+    # input guards: IMU range, IMU gaps, plausible observations
     accel_full_scale: float = _param(16.0 * 9.80665, "m/s^2", "accelerometer range per axis (16 g)")
     gyro_full_scale: float = _param(math.radians(2000.0), "rad/s", "gyroscope range per axis (2000 deg/s)")
     imu_max_gap: float = _param(0.05, "s", "longer IMU gaps inflate the covariance (and are counted)")

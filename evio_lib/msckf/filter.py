@@ -261,7 +261,8 @@ class Msckf:
                 of its stream; the ids of different streams must differ (an id seen in another stream is refused).
 
         The step runs with one BLAS thread (:func:`evio_lib.threads.single_threaded_blas`): its matrices are small,
-        and threaded BLAS made it 6x slower in CPU time on a 2-core machine.
+        and threaded BLAS spends more CPU time waiting than computing (measured: docs/results/speed.md, "The
+        filter").
         """
         if isinstance(stream, bool) or not isinstance(stream, (int, np.integer)) or stream < 0:
             raise ValueError(f"stream must be an integer >= 0; got {stream!r}")

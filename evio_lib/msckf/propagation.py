@@ -36,7 +36,7 @@ Discretisation over each interval, with F and G frozen at its midpoint (ω, a, R
   Φ_tot = Φ_K-1 ... Φ_0 (the same in exact arithmetic; the sum is Y Y^T with Y = [S_k X_k], so it stays positive
   semi-definite); P_IC <- Φ_tot P_IC; P_CC is unchanged; P is symmetrised.
 
-IMU gaps (issue 17): the measurements are interpolated across any interval without samples, but what the platform
+IMU gaps: the measurements are interpolated across any interval without samples, but what the platform
 did there is unknown. An integration interval that lies in a data gap of length T > ``config.imu_max_gap`` (between
 two samples, before the first sample or after the last one) gets extra white noise of density σ_g² T on the gyro
 and σ_a² T on the accelerometer (``imu_gap_gyro_sigma``, ``imu_gap_accel_sigma``), so that over the whole gap

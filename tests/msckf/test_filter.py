@@ -546,7 +546,7 @@ def test_bad_input_raises_value_errors(rng):
     assert f.state.num_cameras == 1  # failed calls changed nothing
 
 
-# ---------------------------------------------------------------- bookkeeping on long tracks (issue 5 diagnosis)
+# ---------------------------------------------------------------- bookkeeping on long tracks
 
 
 def test_long_tracks_each_observation_enters_at_most_one_update_with_its_own_camera():

@@ -1,4 +1,4 @@
-"""Tests of the MSCKF's input guards and step checks (issue 17): IMU range limits and unit mistakes, IMU gaps
+"""Tests of the MSCKF's input guards and step checks: IMU range limits and unit mistakes, IMU gaps
 (covariance inflation against a closed form, the stop beyond the bridged limit, consistency on the simulator's
 ground truth), pixel coordinates given as observations, and the check after every propagation and update (the
 returned states are always finite, P always a covariance). The simulated runs are vio-sim's (boxes_like, seeded).
