@@ -27,13 +27,13 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                         "aps+events, aps+mc-events: both streams, each with its own tracker, fused by the filter")
     p.add_argument("--features", default="sift",
                    help="feature detector: sift (default), superpoint (the shipped CNN), distilled_narrow (the "
-                        "half-width CNN distilled from it, 3x faster), orb, fast, ...")
+                        "half-width CNN distilled from it, faster: docs/results/speed.md), orb, fast, ...")
     p.add_argument("--weights", type=Path, default=None,
                    help="a CNN checkpoint for --features superpoint (default: the shipped network)")
     p.add_argument("--cnn-inference", choices=["auto", "fused", "bf16", "int8"], default=None,
                    help="the CNN's arithmetic (--features superpoint): auto (default: bf16 where the CPU has it, else "
-                        "int8), fused (fp32), bf16, or int8 (about 1.7x faster than bf16 on one core, less accurate "
-                        "in the pipeline; docs/results/speed.md)")
+                        "int8), fused (fp32), bf16, or int8 (faster than bf16, less accurate in the pipeline; "
+                        "docs/results/speed.md)")
     p.add_argument("--tracker", choices=["descriptor", "klt"], default="descriptor",
                    help="descriptor: detect + match + two-point RANSAC (thesis); klt: optical flow (msckf_vio)")
     p.add_argument("--event-tracker", choices=["descriptor", "klt"], default=None,

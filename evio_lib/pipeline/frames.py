@@ -36,14 +36,14 @@ FRAME_SOURCES = ("aps", "events", "mc-events", "aps+events", "aps+mc-events")
 #: and the filter fuses their tracks, as Ultimate SLAM fuses standard frames and event frames.
 STREAM_ID_OFFSET = 1 << 40
 #: mc-events: the shortest and the longest window, s (at most 1 / MC_MIN_WINDOW_S frames per second in fast motion,
-#: at least 1 / MC_MAX_WINDOW_S while the camera moves slowly), and the fewest events that make a frame. Windows
-#: of 1/30 s at least doubled the error of the violent end of boxes_like (translation blurs them).
+#: at least 1 / MC_MAX_WINDOW_S while the camera moves slowly), and the fewest events that make a frame. A longer
+#: shortest window cost accuracy (the translation, which the gyroscope cannot undo, blurs a long window;
+#: docs/archive.md, the motion-compensated frame settings row).
 MC_MIN_WINDOW_S = 0.01
 MC_MAX_WINDOW_S = 0.1
 #: mc-events: n of the windows' N_e = n H W, one value for every recording (the thesis's n per scene serves the
-#: reconstructed frames). Chosen on the validation seed (3) of both whole presets with KLT: n = 1.0 (windows of
-#: 0.01-0.1 s) gave 0.53 % of the distance on boxes_like and 0.82 % on aerial_like, against 0.78 % and 16 % with the
-#: thesis's 0.7 and 0.2 (windows of 1/60-0.1 s); docs/archive.md has the whole search.
+#: reconstructed frames). Chosen on a validation seed of both whole presets with KLT, against the thesis's 0.7 and
+#: 0.2 and other window bounds (docs/archive.md, the motion-compensated frame settings row, has the whole search).
 MC_WINDOW_FRACTION = 1.0
 MC_MIN_EVENTS = 500
 #: The thesis's n (§4.1, Figs. 16/18): 0.7 for boxes_like, 0.2 for aerial_like.

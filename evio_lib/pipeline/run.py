@@ -29,7 +29,7 @@ place and the IMU's drift is stopped.
 
 Scoring: a ground truth that ends before (or starts after) the run is scored over the overlap, and the notes say so.
 The % of distance (thesis) is reported only for paths of at least :data:`MIN_PERCENT_DISTANCE_M` (0.5 m): over a
-shorter path it divides by almost nothing (a still MAV: "2590 % of 0.0 m").
+shorter path it divides by almost nothing (a still platform's millimetres of error would read as thousands of %).
 
 Every per-frame figure is kept (:class:`PipelineResult`); nothing is written here (see :mod:`.output`).
 """
@@ -69,11 +69,11 @@ INIT_MODES = ("auto", "groundtruth", "static")
 #: by the length measures the noise of standing still, not drift per metre travelled.
 MIN_PERCENT_DISTANCE_M = 0.5
 #: An event stream fused with the APS frames ('aps+mc-events', 'aps+events') gets this multiple of pixel_noise_px as
-#: its feature noise when event_pixel_noise_px is not given. Its tracks are about twice as far from their points
-#: (bench/track_accuracy.py) and come at two to four times the APS rate with errors that persist from frame to
-#: frame, so at equal sigma they outvote the APS tracks. Chosen on the validation seeds 3-5 of boxes_like with
-#: motion-compensated event frames (docs/results/pipeline.md, "Weighting the two streams"); 'aps+events' (FireNet frames)
-#: gets the same factor, unmeasured.
+#: its feature noise when event_pixel_noise_px is not given. Its tracks lie farther from their points than the APS
+#: tracks' (bench/track_accuracy.py) and come several times as often with errors that persist from frame to frame,
+#: so at equal sigma they outvote the APS tracks. Chosen on validation seeds of boxes_like with motion-compensated
+#: event frames (the measurements: docs/results/pipeline.md, "Weighting the two streams"); 'aps+events' (FireNet
+#: frames) gets the same factor, unmeasured.
 FUSED_EVENT_NOISE_FACTOR = 3.0
 #: 'auto' initialisation: fastest ground-truth speed (m/s) over the still window for which the start counts as still.
 _STILL_TRUTH_SPEED = 0.05
@@ -90,52 +90,53 @@ class PipelineConfig:
     """Every choice of one pipeline run (frozen, validated).
 
     Attributes:
-        frames: 'aps' (the recorded frames), 'events' (reconstructed from event windows) or 'mc-events' (event
-            windows warped with the gyroscope's rotation and counted:
+        frames: 'aps' (the recorded frames; the default), 'events' (reconstructed from event windows) or
+            'mc-events' (event windows warped with the gyroscope's rotation and counted:
             :func:`~evio_lib.pipeline.frames.mc_event_frames`),
             or two of them joined by '+' ('aps+mc-events', 'aps+events'): two frame streams, each with its own
             tracker, whose tracks the filter fuses (Ultimate SLAM's standard frames + events).
-        features: detector name of ``evio_lib.features`` ('sift', 'superpoint' = the shipped CNN, 'orb', ...).
-        detector_options: extra options of the detector as (name, value) pairs (e.g. ('weights', PATH)).
-        tracker: 'descriptor' (the thesis's front-end) or 'klt' (optical flow; ``features`` then detects new ones).
+        features: detector name of ``evio_lib.features`` ('sift', the default; 'superpoint' = the shipped CNN, 'orb',
+            ...).
+        detector_options: extra options of the detector as (name, value) pairs (e.g. ('weights', PATH)); default
+            none.
+        tracker: 'descriptor' (the thesis's front-end; the default) or 'klt' (optical flow; ``features`` then
+            detects new ones).
         event_tracker: a run that fuses APS frames with an event stream ('aps+mc-events', 'aps+events'): the event
             stream's tracker, 'descriptor' or 'klt' (None: ``tracker``, one front-end for both streams). KLT with the
             default ``features`` 'sift' detects FAST corners, as a lone KLT run does; ``max_track_gap`` applies to the
             descriptor stream only.
-        max_features: N, features kept per frame (thesis 60).
-        match_ratio: Lowe's ratio test of the descriptor matches (None: off, the pipeline's default). Measured on 10 s
-            of boxes_like (seed 0, SIFT on APS frames): with the front-end's stand-alone default 0.8, a third of the
-            tracks continue (the second-best match anywhere in the repetitive room is often close) and the error is
-            17.9 % of the distance; with the test off (guided window + mutual check + two-point RANSAC), 3.6 %.
-        reconstructor: event frames only: a reconstructor name ('firenet', 'high_pass', 'direct').
+        max_features: N, features kept per frame (default 60, the thesis's).
+        match_ratio: Lowe's ratio test of the descriptor matches (None: off, the pipeline's default: the guided
+            window, the mutual check and two-point RANSAC select the matches). With the front-end's stand-alone
+            default 0.8 fewer tracks continue, since the second-best match anywhere in the repetitive room is often
+            close, and the error grows (docs/archive.md, the ratio-test rows).
+        reconstructor: event frames only: a reconstructor name ('firenet', the default; 'high_pass', 'direct') or a
+            reconstruct-train checkpoint file.
         reconstructor_precision: event frames only: a network's arithmetic, 'auto' (default: int8 for FireNet on
-            an x86 CPU where Numba's kernels load, else float32), 'float32', 'bfloat16' (1.35x FireNet's frames per
-            second on two threads of a CPU with native bfloat16, the same SSIM within 0.001) or 'int8' (FireNet
-            only: int8 convolutions, 2.4-3x float32's frames per second, SSIM within 0.005; docs/results/reconstruction.md#int8-and-float32);
-            direct and high_pass ignore it.
+            an x86 CPU where Numba's kernels load, else float32), 'float32', 'bfloat16' (on a CPU with native
+            bfloat16) or 'int8' (FireNet only: int8 convolutions); direct and high_pass ignore it. Their speed and
+            their quality against float32: docs/results/reconstruction.md, "Speed" and "int8 and float32".
         window_fraction: event frames only: n of N_e = n H W; None: the thesis's n for the preset (0.7 / 0.2) for
             reconstructed frames, 1.0 for every recording for motion-compensated ones (``MC_WINDOW_FRACTION``).
-        adaptive_windows: event frames only: adaptive windows instead of fixed N_e.
+        adaptive_windows: event frames only: adaptive windows instead of fixed N_e (default False).
         min_window_s, max_window_s: event frames only: the least and the greatest window duration, s (None: the
             source's default; 'events': none, 'mc-events': 0.01 s and 0.1 s).
-        init: one of :data:`INIT_MODES`.
-        bias_init: 'zero', 'groundtruth', or six numbers (b_g [rad/s], b_a [m/s^2]).
-        imu_only: propagate the IMU only (no frames are processed: the IMU-only rows of Table 6).
+        init: one of :data:`INIT_MODES` (default 'auto'; module docstring).
+        bias_init: 'zero' (the default), 'groundtruth', or six numbers (b_g [rad/s], b_a [m/s^2]).
+        imu_only: propagate the IMU only (no frames are processed: the IMU-only rows of Table 6; default False).
         observability_constrained: the observability-constrained EKF (thesis §3.3.8;
-            ``MsckfConfig.observability_constrained``); False: the plain EKF.
-        pixel_noise_px: feature noise σ of the APS frames' tracks, pixels (and of a lone event stream's tracks when
-            ``event_pixel_noise_px`` is None).
+            ``MsckfConfig.observability_constrained``; True, the default); False: the plain EKF.
+        pixel_noise_px: feature noise σ of the APS frames' tracks, pixels (default 1.0; and of a lone event
+            stream's tracks when ``event_pixel_noise_px`` is None).
         event_pixel_noise_px: feature noise σ of the event streams' tracks ('events', 'mc-events'), pixels; None:
             :data:`FUSED_EVENT_NOISE_FACTOR` x ``pixel_noise_px`` when the run fuses them with the APS frames,
             else ``pixel_noise_px``; refused for a run without an event stream (it would change nothing). Each
             observation's covariance is σ² pushed through the undistortion, so with two streams ('aps+mc-events')
-            each stream is weighted by its own accuracy. Measured with
-            ``bench/track_accuracy.py`` (boxes_like, validation seed 3, KLT): observations on motion-compensated
-            event frames lie a median 0.28 / 0.53 px from their points (gentle / violent 3 s; 95th percentile 3.3 /
-            2.9 px), on the APS frames 0.15 / 0.32 px (1.2 / 1.7 px).
+            each stream is weighted by its own accuracy. How far each stream's observations lie from their points
+            (``bench/track_accuracy.py``): docs/results/pipeline.md, "Weighting the two streams".
         max_duration: seconds of the recording processed from the start (None: all).
-        seed: seed of the front-end's RANSAC.
-        zupt: detect standstill and apply zero-velocity updates there (module docstring).
+        seed: seed of the front-end's RANSAC (default 0).
+        zupt: detect standstill and apply zero-velocity updates there (default True; module docstring).
         observation_outlier_px: the filter drops a track's observations that reproject farther than this after
             triangulation and keeps the rest (``MsckfConfig.observation_outlier_px``; None: off).
         far_points: use a track whose triangulation lands behind a camera, beyond 1 000 m or without baseline with
@@ -147,10 +148,9 @@ class PipelineConfig:
             (``FrontendConfig.max_track_gap`` and ``MsckfConfig.max_track_gap``; 0: a missed detection ends the
             track, the thesis's tracker and the default). KLT never searches for a lost patch: with KLT on every
             stream the gap must be 0, and with ``event_tracker`` 'klt' it applies to the APS stream only (front-end
-            and filter). Measured on the validation seeds 3-5 of both whole presets (docs/archive.md): 2 gives SIFT
-            on APS frames tracks of 4.3-4.9 frames on boxes_like instead of 2.9-3.4 and a lower second-half RMSE on
-            all six recordings, but it is not the default: the CNN diverged with it on one of them, and the gentle
-            start of a recording gets worse.
+            and filter). A gap of 2 lengthens SIFT's tracks on APS frames and lowers their second-half error, but
+            it is not the default: the CNN diverged with it and the gentle start of a recording gets worse
+            (docs/archive.md, the track-gap rows).
     """
 
     frames: str = "aps"
@@ -527,10 +527,8 @@ def msckf_config_for(config: PipelineConfig, data: LoadedDataset) -> MsckfConfig
 
     With several frame streams every frame of each is a camera clone, so the one sliding window holds
     ``max_camera_states`` x the number of streams (80 for two). The streams fill it in proportion to their frame
-    rates: in boxes_like (APS 24 frames/s, motion-compensated event frames about 50/s on average, 86/s at the
-    violent end) 80 clones span about 1.1 s (0.7 s at the violent end) against the APS-only run's 1.7 s; with 40
-    they spanned about a third of that, and the APS tracks lost their parallax (docs/results/pipeline.md, "Weighting the
-    two streams")."""
+    rates, so with one stream's share the window would span a fraction of the APS-only run's time and the APS tracks
+    would lose their parallax (the spans measured: docs/results/pipeline.md, "Weighting the two streams")."""
     cam = data.sequence.camera
     gravity = data.sequence.metadata.get("gravity_G")  # Sequence.metadata is always a dict
     cfg = MsckfConfig().with_imu_noise(data.noise)
