@@ -4,7 +4,8 @@ Defaults follow the thesis (§3.3.5: N = 60 features, a 4 x 5 grid with N / 20 p
 the KLT option, msckf_vio's image processor (15 px window, 3 pyramid levels, 30 iterations, epsilon 0.01).
 
 ``match_radius_px`` (15 px) bounds the flow left after the gyroscope's rotation is removed, i.e. the flow of the
-translation: at most 11 px between 24 Hz frames over the whole boxes_like preset (measured with the simulator's depth).
+translation, with a margin over the largest such flow between 24 Hz frames of the whole boxes_like preset (measured
+with the simulator's depth: docs/results/pipeline.md#what-a-run-assumes).
 Descriptor matching over a wider window lets repeated textures through (a copy 20-40 px away wins when the true
 detection is missing), which two-point RANSAC cannot always reject while the translation is small. Without a
 rotation prior the rotation's flow must fit in the radius too: widen it (e.g. 60 px) or set None.

@@ -18,8 +18,7 @@ new track (the MSCKF uses a lost track's observations once and forgets it). With
 descriptor tracker keeps a lost track for g frames ("dormant": its last descriptor, its last position and the
 gyroscope's rotation since then) and matches it like the others: predicted by that rotation, within the same
 ``match_radius_px`` (a radius that grew with the gap, as the translation's flow adds up, let more wrong matches
-through on noisy frames: on the tests' frames with the APS noise of the simulator before 2026-11-27, 10 % against
-4 % of the revived tracks more than 3 px from their point; with today's noise neither has any), and checked by
+through on noisy frames: docs/archive.md, "a match radius that grows with the track gap"), and checked by
 the same two-point RANSAC with its own rotation removed (for a translation direction that changes little over a
 few frames, the epipolar constraint t . (g1 x f2) = 0 holds for the longer baseline too). A revived track keeps its
 id, so the MSCKF (``MsckfConfig.max_track_gap`` = g) continues one track instead of starting a second one. The
