@@ -2,9 +2,8 @@
 
 Why it matters here. The MSCKF multiplies small matrices (at most a few hundred rows) hundreds of times per frame.
 OpenBLAS starts one thread per core for each of them, and the threads spin while they wait for each other: on the
-2-core machine of this project, with one other busy process, the filter of the default ``run`` took 50 ms of CPU per
-frame with 2 BLAS threads against 7.6 ms with one (boxes_like, SIFT on APS frames, seconds 0-20;
-``docs/results/speed.md#the-pipeline``).
+2-core machine of this project, with one other busy process, the filter of the default ``run`` took several times the
+CPU per frame with 2 BLAS threads as with one (measured in ``docs/results/speed.md#the-filter``, "One BLAS thread").
 
 Environment variables such as ``OPENBLAS_NUM_THREADS`` only act if they are set before NumPy is first imported,
 which a command or a notebook cannot promise. threadpoolctl (the library scikit-learn and joblib use) changes the
@@ -14,7 +13,7 @@ thread count of the BLAS libraries already loaded, at any time:
   each job of ``table``);
 - :func:`single_threaded_blas` is a context manager that runs its block with one BLAS thread and restores the
   previous counts (the filter's step uses it, so a notebook or a script gets the fast path without asking). Entering
-  and leaving costs about 8 µs.
+  and leaving costs microseconds (``docs/results/speed.md#the-filter``).
 """
 from __future__ import annotations
 
@@ -35,8 +34,9 @@ _modules_seen = 0  # len(sys.modules) when the controller was made: an import si
 def _blas_controller() -> Any:
     """Return a threadpoolctl controller of the BLAS libraries loaded now.
 
-    Made again (about 1.5 ms) only when modules were imported since the last one: OpenCV or torch may bring their
-    own OpenBLAS. NumPy and SciPy's linear algebra (with its own OpenBLAS) are loaded first.
+    Made again only when modules were imported since the last one (making one costs far more than entering a block:
+    ``docs/results/speed.md#small-costs-behind-the-codes-choices``): OpenCV or torch may bring their own OpenBLAS.
+    NumPy and SciPy's linear algebra (with its own OpenBLAS) are loaded first.
     """
     global _controller, _modules_seen
     if _controller is None or len(sys.modules) != _modules_seen:

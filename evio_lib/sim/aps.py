@@ -14,11 +14,11 @@ variance of a pixel equals its signal divided by that capacity. The integral is 
 that the image moves by at most ~0.5 pixel between sub-renders (measured from the scene's own 3-D points).
 
 The default noise (read noise 0.001, shot-noise scale 5e-5) is matched to real DAVIS240C frames: Immerkaer's
-estimator over the flattest half of each frame (``bench/aps_realism.py``) gives 1.00 grey levels on the 87 APS frames
-of ECD slider_depth and 1.08 on the simulated boxes_like frames with these values (0.47 without any noise: the
-estimator's floor from texture). The values used until 2026-11-27 (read noise 0.01, shot-noise scale 0.003) gave
-7.3-7.6 grey levels, about seven times the real frames'. The exposure (10 ms) could not be checked: the real slider
-moves too slowly for its blur to be measured.
+estimator over the flattest half of each frame (``bench/aps_realism.py``) gives about the same noise on the simulated
+boxes_like frames with these values as on the APS frames of ECD slider_depth (the numbers, and the estimator's floor
+from texture: docs/results/pipeline.md, "The simulated APS frames against real ones"). The earlier values (read noise
+0.01, shot-noise scale 0.003) gave several times the real frames' noise (CHANGELOG.md, where the change is dated).
+The exposure (10 ms) could not be checked: the real slider moves too slowly for its blur to be measured.
 
 Reference: thesis §2.2 (DAVIS: events and APS frames from the same pixel array); G. Gallego et al.,
 "Event-based vision: a survey", TPAMI 2020 (APS frames, motion blur, dynamic range).

@@ -43,17 +43,17 @@ __all__ = ["PRESETS", "MAX_RECORDING_DURATION_S", "MIN_SPEED", "MAX_SPEED", "Cam
            "simulation_cache_path", "simulate_sequence_cached",
            "recording_settings_digest"]
 
-#: Longest recording with events or frames that one simulation makes, seconds (ten minutes). The presets make about
-#: 0.35 M events/s on average and up to 1 M/s in fast motion (13 B each) plus 24 frames/s of 43 KB, all held in memory:
-#: ten minutes are about 3-9 GB, and about 15 min of simulation on a 2-core CPU (1.5 min per minute recorded). An
-#: IMU-only simulation may run for MAX_TRAJECTORY_DURATION_S (an hour).
+#: Longest recording with events or frames that one simulation makes, seconds (ten minutes). The events (13 B each)
+#: and 24 frames/s of W x H bytes are all held in memory: at the presets' event rates ten minutes take gigabytes and
+#: many minutes of simulation on a 2-core CPU (measured: docs/results/speed.md#small-costs-behind-the-codes-choices).
+#: An IMU-only simulation may run for MAX_TRAJECTORY_DURATION_S (an hour).
 MAX_RECORDING_DURATION_S = 600.0
 
 #: Bounds of ``SimulationConfig.speed``. At speed 2 the violent end of boxes_like (3.1-3.6 m/s and about 5 rad/s
-#: over its last 5 s) makes about 9-11 M events/s, and from 28.2-29.2 s on (seeds 0, 1, 4, 5 of 0-5) one axis of its
+#: over its last 5 s) makes many times the preset's event rate, and before the end, on some seeds, one axis of its
 #: specific force exceeds the 16 g full scale that the filter accepts (``MsckfConfig.accel_full_scale``), which drops
-#: such samples; the gentler stretches of a preset stay within it at higher speeds, so the bound is four times the
-#: preset's speed.
+#: such samples (both measured in docs/results/pipeline.md#faster-motion); the gentler stretches of a preset stay
+#: within it at higher speeds, so the bound is four times the preset's speed.
 MIN_SPEED, MAX_SPEED = 0.25, 4.0
 
 
@@ -205,7 +205,7 @@ class CameraPoseTable:
 
 
 #: Fewer frames per process than this are rendered in this process: starting the workers (and making the scene in
-#: each) would cost more than it saves (72 frames: 1.59 s serial against 2.25 s with 2 processes).
+#: each) would cost more than it saves (measured in docs/results/speed.md#the-simulator, "Frames in worker processes").
 MIN_FRAMES_PER_JOB = 100
 
 
@@ -409,7 +409,8 @@ def recording_settings_digest(config: SimulationConfig) -> str:
     """Return 8 hex digits that name every setting of a simulated recording but which sensors were simulated.
 
     Cached preset recordings carry it in their file names, so that a recording made with other settings (e.g. the
-    APS noise of the simulator before 2026-11-27) is never read back as if it were current; the events and the
+    APS noise of the simulator before it was matched to the real camera, CHANGELOG.md) is never read back as if it
+    were current; the events and the
     frames-only recordings of one setting share it (a recording with events also serves a run that needs only the
     frames).
     """

@@ -1,12 +1,12 @@
 """Numba kernels of the scene renderer's float32 intensity path: the same numbers as the NumPy path, faster.
 
-:meth:`evio_lib.sim.scene.Scene.render_intensity` is called about 450 times per simulated second for the events and
-about 10 times per APS frame for the motion blur, so it is the simulator's hot loop. The NumPy path evaluates, per
-plane and then per pixel, the steps of the module docstring of :mod:`evio_lib.sim.scene`, each step a pass over
-whole arrays (about 2.8 ms at 240 x 180 on ``boxes_like``, most of it in ``np.take`` gathers and temporaries,
-against 1.3 ms with these kernels). These kernels do the
-same arithmetic one pixel at a time, in the same float32 operations and the same order, so the result is
-bit-identical (tested on random poses of both presets and on whole simulated recordings):
+:meth:`evio_lib.sim.scene.Scene.render_intensity` is called hundreds of times per simulated second for the events and
+several times per APS frame for the motion blur, so it is the simulator's hot loop. The NumPy path evaluates, per
+plane and then per pixel, the steps of the module docstring of :mod:`evio_lib.sim.scene`, each step a pass over whole
+arrays (most of its time in ``np.take`` gathers and temporaries; both paths' times per render:
+docs/results/speed.md#the-simulator). These kernels do the same arithmetic one pixel at a time, in the same float32
+operations and the same order, so the result is bit-identical (tested on random poses of both presets and on whole
+simulated recordings):
 
 1. :func:`visible_slots` -- the z-buffer. For each plane ``k`` and each pixel of its culling box, with
    ``(W, S, T) = (a x + b y) + c`` per form (float32), ``key = bits(copysign(W, min(S, T, W - S, W - T)))``,
@@ -14,14 +14,15 @@ bit-identical (tested on random poses of both presets and on whole simulated rec
 2. :func:`shade_slots` -- ``lambda W``, ``lambda span_u S``, ``lambda span_v T`` from the slot's pre-scaled forms,
    misses (``W <= 0``) to the background, then ``col = clip(span_u S / W)``, ``row = clip(span_v T / W)``.
 3. ``lod = max(footprint - 2 log2 W, 0)`` is computed by NumPy between the kernels: NumPy's float32 ``log2`` and
-   LLVM's differ in the last bit for about 4 % of inputs, and the level of detail must be NumPy's.
+   LLVM's differ in the last bit for some inputs (docs/results/speed.md#the-compiled-renderer), and the level of
+   detail must be NumPy's.
 4. :func:`sample_atlas` -- the trilinear mip-map lookup of ``_TextureAtlas.sample``: wrap, clamp the level,
    bilinear in levels ``floor(lod)`` and ``floor(lod) + 1`` (texel coordinate ``(c + 1/2) 2^-L - 1/2``), blend.
 
-Numba compiles the kernels on first use (about 2 s) and caches the machine code (``cache=True``) beside this file,
-else in its user cache folder or ``NUMBA_CACHE_DIR``; a later process's first render then takes about 0.6 s, Numba's
-import included. ``Scene`` falls back to the NumPy path when Numba is missing or when
-``EVIO_RENDERER=numpy`` is set (:func:`evio_lib.sim.scene.renderer_backend`).
+Numba compiles the kernels on first use and caches the machine code (``cache=True``) beside this file, else in its
+user cache folder or ``NUMBA_CACHE_DIR``; a later process's first render then loads that code instead of compiling
+(both times: docs/results/speed.md#small-costs-behind-the-codes-choices). ``Scene`` falls back to the NumPy path when
+Numba is missing or when ``EVIO_RENDERER=numpy`` is set (:func:`evio_lib.sim.scene.renderer_backend`).
 """
 from __future__ import annotations
 

@@ -69,9 +69,10 @@ def renderer_backend() -> str:
     """Return the backend of :meth:`Scene.render_intensity`: ``"numba"`` or ``"numpy"`` (same numbers, bit for bit).
 
     ``EVIO_RENDERER`` = ``numba`` | ``numpy`` | ``auto`` (default: the compiled kernels when they load, else NumPy
-    with one warning saying why). The kernels (:mod:`evio_lib.sim.render_kernels`) render about 2x faster; NumPy is
-    the reference they are tested against. They need the numba package and a writable cache folder for their machine
-    code (``evio_lib/sim/__pycache__``, else Numba's user cache, else ``NUMBA_CACHE_DIR``).
+    with one warning saying why). The kernels (:mod:`evio_lib.sim.render_kernels`) render faster
+    (docs/results/speed.md#the-simulator); NumPy is the reference they are tested against. They need the numba package
+    and a writable cache folder for their machine code (``evio_lib/sim/__pycache__``, else Numba's user cache, else
+    ``NUMBA_CACHE_DIR``).
     """
     from evio_lib.compiled import compiled_backend
 
@@ -701,8 +702,9 @@ class Scene:
     def hit_points(self, camera: Any, R_CtoG: np.ndarray, p_CinG: np.ndarray) -> np.ndarray:
         """Return the (H, W, 3) float64 hit points in G of :meth:`render` (NaN where nothing is hit), same numbers.
 
-        The textures are not sampled, so it costs about half of :meth:`render` (2.4 against 5.2 ms at 240 x 180);
-        the motion-blur planner of the APS frames needs only the geometry.
+        The textures are not sampled, so it costs less than :meth:`render`
+        (docs/results/speed.md#small-costs-behind-the-codes-choices); the motion-blur planner of the APS frames needs
+        only the geometry.
 
         Args:
             camera, R_CtoG, p_CinG: as in :meth:`render`.
