@@ -604,7 +604,8 @@ class FastFreakDetector(_ClassicalDetector):
         return points, _fast_detector_scores(img, points), kps
 
     def _freak(self) -> Any:
-        """Return this detector's FREAK extractor; made once, since its first use builds the pattern (~60 ms)."""
+        """Return this detector's FREAK extractor; made once, since its first use builds the pattern (its
+        cost: docs/results/speed.md#small-costs-behind-the-codes-choices)."""
         if getattr(self, "_freak_extractor", None) is None:
             self._freak_extractor = cv2.xfeatures2d.FREAK_create(
                 self.orientation_normalized, self.scale_normalized, self.pattern_scale, self.n_octaves

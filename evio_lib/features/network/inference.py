@@ -4,10 +4,11 @@ Modes: "eager" (the model as trained, fp32), "fused" (BN folded, channels-last, 
 autocast, final 1x1 layers in fp32) and "int8" (fused, static int8 quantisation with PyTorch's FX graph mode on the
 oneDNN backend (:func:`quantize_int8`), activation ranges calibrated on fixed synthetic images
 (:func:`calibration_images`), final 1x1 layers kept in fp32 so that logits and descriptors are not rounded to 8 bits).
-"auto" (the detector's default) is "bf16" on CPUs with native bfloat16 (AVX512-BF16/AMX; ~2.9x eager, logits within
-~0.2 % of fp32), else "int8" (~5x eager, ~97 % of keypoints within 1 px of fp32), and "fused" on CUDA. Everything
-runs under ``torch.inference_mode``. ``torch.compile`` was measured (a minute of compilation, no gain over the fused
-channels-last model on this CPU) and is not used; see bench/bench_superpoint.py.
+"auto" (the detector's default) is "bf16" on CPUs with native bfloat16 (AVX512-BF16/AMX), else "int8", and "fused"
+on CUDA: each mode's speed and agreement with fp32 are measured in docs/results/speed.md#the-cnns-inference-modes (and,
+against the eager model, in docs/results/speed.md#small-costs-behind-the-codes-choices). Everything runs under
+``torch.inference_mode``. ``torch.compile`` was measured (a long compilation, no gain over the fused channels-last
+model: docs/archive.md) and is not used; see bench/bench_superpoint.py.
 """
 from __future__ import annotations
 
@@ -101,7 +102,8 @@ def quantize_int8(
     Args:
         model: a SuperPointNet (BN or not); it is not modified.
         calibration: float32 (H, W) images in [0, 1] (any size); default :func:`calibration_images` (4 at
-            120x160; activation ranges hardly depend on the image size, calibration time does: ~0.5 s per image).
+            120x160; activation ranges hardly depend on the image size, calibration time does:
+            docs/results/speed.md#small-costs-behind-the-codes-choices).
         float_heads: keep the final 1x1 layers in fp32.
     """
     if not isinstance(model, SuperPointNet):

@@ -613,8 +613,9 @@ def image_pool(split: str, seed: int = 0, size: tuple[int, int] = (240, 320), n_
             event frames ignore it (photos already span native to 4x downsampled crops; textures keep their pixel
             scale). 1 (default) leaves the pool exactly as before.
         workers: processes that render the pool (1: this process). The result does not depend on it (image j
-            has its own generator); it only changes the time, about 155 ms per 120 x 160 image with ``render_zoom``
-            4 on one core. Needs the ``fork`` start method (Linux); elsewhere the pool is rendered here.
+            has its own generator); it only changes the time (per image:
+            docs/results/speed.md#small-costs-behind-the-codes-choices). Needs the ``fork`` start method (Linux);
+            elsewhere the pool is rendered here.
         photos: optional folder of photographs (:func:`list_sources`); its views are random crops of the
             photographs, like the bundled photos'.
 

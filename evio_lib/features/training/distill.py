@@ -15,9 +15,10 @@ outputs cell by cell (Hinton, Vinyals & Dean, "Distilling the knowledge in a neu
 Matching the whole output distribution, not only the teacher's final keypoints, passes on how confident the teacher
 is everywhere (where its second-best position is, how close a cell came to holding a point), which is what the
 keypoint threshold and the NMS later act on. Why distil rather than run the thesis's chain (synthetic shapes, two
-rounds of homographic adaptation, the DetDesc stage) for the smaller network: the chain takes about two hours on a
-2-core CPU and its result is a different detector; distillation reuses what the shipped network learned and aims at
-its outputs, so the pipeline's behaviour (thresholds, keypoint counts, descriptor distances) carries over.
+rounds of homographic adaptation, the DetDesc stage) for the smaller network: the chain takes hours on a 2-core CPU
+(docs/howto/train-features.md) and its result is a different detector; distillation reuses what the shipped network
+learned and aims at its outputs, so the pipeline's behaviour (thresholds, keypoint counts, descriptor distances)
+carries over.
 
 The loss covers the whole image, the black borders of a warped image included: the teacher's responses there are as
 much a part of its behaviour as anywhere else. The teacher runs BN-folded in float32

@@ -17,17 +17,16 @@ Label channel k of a cell is its pixel (row k // 8, col k % 8), the order of ``F
   see the weights below).
 - Total (Eq. 8): ``L = L_p(X, Y) + L_p(X', Y') + lambda L_d(D, D', S)``.
 
-Weights: each image-1 cell has about pi 8^2 / 8^2 ~ 3 positive cells (Eq. 10's 8 px disc) and Hc Wc - 3
-negatives, so lambda_d sets the balance ``lambda_d * 3 / (Hc Wc)`` between the pull of the positives and the push
-of the negatives. SuperPoint's lambda_d = 250 at 240 x 320 (1 200 cells) gives ~0.6; the same 250 on 120 x 160
-crops (300 cells) gives ~2.5, and there the positives win: every descriptor drifts towards every other (measured on
-this project's first CPU chains: mean cosine 0.91 for corresponding cells but 0.56 for the others, and
-nearest-neighbour retrieval of corresponding cells 10 %, although the loss kept falling). The DetDesc configs
-therefore use lambda_d = 62.5 = 250 * 300 / 1 200 at 120 x 160; :func:`descriptor_cell_stats` reports the two mean
-cosines and the retrieval, which the training validation records. The thesis's lambda_d = 0.05, lambda = 10 000
-belong to a differently normalised descriptor loss. With the mean over pairs used here, lambda = 1 (default) makes
-the descriptor term comparable to the detector terms (SuperPoint's 1e-4 assumes the sum over all pairs divided by
-(Hc Wc)^2 with an unnormalised positive count). All are arguments.
+Weights: each image-1 cell has about pi 8^2 / 8^2 ~ 3 positive cells (Eq. 10's 8 px disc) and Hc Wc - 3 negatives, so
+lambda_d sets the balance ``lambda_d * 3 / (Hc Wc)`` between the pull of the positives and the push of the negatives.
+SuperPoint's lambda_d = 250 at 240 x 320 (1 200 cells) gives ~0.6; the same 250 on 120 x 160 crops (300 cells) gives
+~2.5, and there the positives win: every descriptor drifts towards every other, although the loss keeps falling (as
+this project's early CPU chains showed: docs/archive.md, "Second CPU chain"). The DetDesc configs therefore use
+lambda_d = 62.5 = 250 * 300 / 1 200 at 120 x 160; :func:`descriptor_cell_stats` reports the two mean cosines and the
+retrieval, which the training validation records. The thesis's lambda_d = 0.05, lambda = 10 000 belong to a
+differently normalised descriptor loss. With the mean over pairs used here, lambda = 1 (default) makes the descriptor
+term comparable to the detector terms (SuperPoint's 1e-4 assumes the sum over all pairs divided by (Hc Wc)^2 with an
+unnormalised positive count). All are arguments.
 
 Reference: thesis §3.2.4.1, Eqs. 8-12; DeTone et al., "SuperPoint", CVPRW 2018, §3.4.
 """
