@@ -51,8 +51,9 @@ def mc_backend() -> str:
 
     ``EVIO_MC_BACKEND`` = ``numba`` | ``numpy`` | ``auto`` (default: the compiled kernel
     :func:`evio_lib.events.warp_kernels.warp_and_count` when it loads, else NumPy with one warning saying why). The
-    kernel makes a frame about 4-5x faster than the NumPy passes of :func:`warp_events` and
-    :func:`accumulate_bilinear`, which stay the reference it is tested against.
+    kernel makes a frame faster than the NumPy passes of :func:`warp_events` and :func:`accumulate_bilinear`
+    (measured: docs/results/speed.md#small-costs-behind-the-codes-choices), which stay the reference it is tested
+    against.
     """
     from evio_lib.compiled import compiled_backend
 

@@ -176,11 +176,12 @@ class LearnedReconstructor(Reconstructor):
         load_state(self.net, ckpt["state_dict"], path,
                    f"its state_dict does not fit the {ckpt['architecture']} network its settings describe")
         self.net.to(self.device).eval()
-        # the forward pass used: FireNetInference on CPU (same outputs within ~1e-6, ~1.2-1.5x faster), else the net;
-        # precision="bfloat16": the net under autocast (1.35x the frames/s on 2 threads, 1.56x on one, on this AVX-512
-        # machine with native bfloat16; images a few 1e-3 off, the same SSIM within 0.001: docs/results/reconstruction.md);
-        # "int8": FireNet with int8 convolutions (quantized.FireNetInt8; the checkpoint's stored calibration, else one
-        # calibration per process, ~4 s); "auto": int8 where it runs (resolve_precision), else float32
+        # the forward pass used: FireNetInference on CPU (same outputs within ~1e-6, faster: docs/archive.md, "float32
+        # FireNet forward-pass variants"), else the net; precision="bfloat16": the net under autocast (faster on CPUs
+        # with native bfloat16, images slightly off float32's: docs/results/reconstruction.md#speed); "int8": FireNet
+        # with int8 convolutions (quantized.FireNetInt8; the checkpoint's stored calibration, else one calibration per
+        # process: docs/results/reconstruction.md#int8-and-float32); "auto": int8 where it runs (resolve_precision),
+        # else float32
         precision = resolve_precision(self.net, precision)
         self.forward = inference_network(self.net, precision, ckpt.get("int8_ranges"))
         self.precision = precision  # what "auto" chose

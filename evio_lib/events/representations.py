@@ -22,7 +22,7 @@ Representations of one window (all vectorised with ``np.bincount``; no Python lo
 - voxel grids (E2VID's input): B temporal bins, each event spread over the two nearest bins with bilinear weights
   t* = (B - 1)(t - t_0)/(t_N - t_0), V[b, y, x] += p * max(0, 1 - |b - t*|), then the non-zero voxels are normalised to zero
   mean and unit standard deviation (E2VID's normalisation; its gather and write-back run in the Numba kernels of
-  :mod:`evio_lib.events.voxel_kernels` where they load, the same numbers as NumPy's boolean masks, about 7x faster).
+  :mod:`evio_lib.events.voxel_kernels` where they load: the same numbers as NumPy's boolean masks, faster).
 
 Every function leaves its inputs untouched.
 """
@@ -64,14 +64,15 @@ _VOXEL_KERNEL_PROBLEM: list[str] = []  # "" once the kernels loaded, else why th
 MAX_SENSOR_PIXELS = 4096 * 4096
 
 #: Most event frames per second of recording. Each frame goes through the reconstructor (and in ``run`` the
-#: front-end: 10-50 ms on a 2-core CPU), so 1000 frames per recorded second already run 10-50 times slower than real
-#: time; the thesis's windows give 10-40 per second. A window per event (--window-fraction 1e-9) is refused instead
-#: of running for hours.
+#: front-end: milliseconds per frame on a 2-core CPU, docs/results/speed.md#the-pipeline), so 1000 frames per recorded
+#: second already run many times slower than real time, far more frames than the thesis's windows give. A window per
+#: event (--window-fraction 1e-9) is refused instead of running for hours.
 MAX_EVENT_FRAME_RATE_HZ = 1000.0
 
-#: Most windows one cut of the stream may give. Each window is one reconstruction step (1-10 ms with the shipped
-#: FireNet at 240 x 180, so 10^6 windows is hours) and one frame of H x W floats kept or written (173 KB at 240 x 180:
-#: 10^6 frames are 173 GB); a window per event (--window-fraction 1e-9, --window-time 1e-9) would never end.
+#: Most windows one cut of the stream may give. Each window is one reconstruction step (milliseconds with the shipped
+#: FireNet at 240 x 180, docs/results/reconstruction.md#speed, so 10^6 windows take hours) and one frame of H x W
+#: floats kept or written (173 KB at 240 x 180: 10^6 frames are 173 GB); a window per event (--window-fraction 1e-9,
+#: --window-time 1e-9) would never end.
 MAX_WINDOWS = 1_000_000
 
 
@@ -321,9 +322,9 @@ def adaptive_windows(events: np.ndarray, width: int, height: int, events_per_act
         width: sensor width W [px].
         height: sensor height H [px].
         events_per_active_pixel: the ratio that closes a window (> 1). The default 2.0 was chosen on the course's
-            simulated evaluation stretches with an earlier network (bench/adaptive_windows.py): there it matched the
-            best fixed n of every stretch within 0.001 SSIM; with the network the library now uses it trails the
-            best fixed n by 0.006-0.093 (docs/results/reconstruction.md#adaptive-windows).
+            simulated evaluation stretches with an earlier network (bench/adaptive_windows.py), where it matched the
+            best fixed n of every stretch (docs/archive.md); with the network the library now uses it trails the best
+            fixed n (docs/results/reconstruction.md#adaptive-windows).
         min_fraction: smallest window, as a fraction n of H * W.
         max_fraction: largest window, as a fraction n of H * W.
     """
@@ -459,8 +460,8 @@ def _normalize_in_place(grid: np.ndarray) -> np.ndarray:
     """:func:`normalize_voxel_grid` on a float32 ``grid`` it may overwrite; returns it.
 
     The non-zero values are gathered and written back by the Numba kernels of :mod:`evio_lib.events.voxel_kernels`
-    where they load (about 7x faster than NumPy's boolean masks on a 240 x 180 x 5 grid, the same numbers bit for
-    bit), else by NumPy: :func:`voxel_backend`."""
+    where they load (faster than NumPy's boolean masks, docs/results/speed.md#small-costs-behind-the-codes-choices,
+    the same numbers bit for bit), else by NumPy: :func:`voxel_backend`."""
     kernels = voxel_backend() == "numba" and grid.flags.c_contiguous
     if kernels:
         from evio_lib.events import voxel_kernels

@@ -2,16 +2,17 @@
 
 E2VID's normalisation shifts and scales the non-zero voxels of a window's grid to zero mean and unit standard
 deviation, v <- (v - mu) / sigma over the set {v != 0}, and leaves the zeros alone. In NumPy the two boolean-mask
-passes (``grid[grid != 0]`` to gather the non-zero values, ``grid[mask] = ...`` to write them back) cost about 1 ms of
-the 1.4 ms a 240 x 180 x 5 grid of 0.35 H W events takes (2026-12-04, this 2-core CPU): boolean indexing over a
-sparse random mask branches on every element. Here each is one plain loop over the grid.
+passes (``grid[grid != 0]`` to gather the non-zero values, ``grid[mask] = ...`` to write them back) take most of the
+time a 240 x 180 x 5 grid of 0.35 H W events takes (measured:
+docs/results/speed.md#small-costs-behind-the-codes-choices): boolean indexing over a sparse random mask branches on
+every element. Here each is one plain loop over the grid.
 
 The numbers are the NumPy path's bit for bit: the non-zero values are gathered in the same (C) order, their mean and
 standard deviation are still computed by NumPy (:func:`evio_lib.events.representations._normalize_in_place`), and the
 kernel writes (v - mu) / sigma with float32 mu and sigma in float32, as NumPy's ``(values - mean) / std`` does (no
 ``fastmath``, so the subtraction and the division are not reassociated).
 
-Numba compiles each kernel on first use (about a second) and caches the machine code (``cache=True``).
+Numba compiles each kernel on first use and caches the machine code (``cache=True``).
 """
 from __future__ import annotations
 

@@ -1,11 +1,11 @@
 """Numba kernel of the motion-compensated event frame: warp, distort and count each event in one pass.
 
-:func:`evio_lib.events.motion_compensation.warp_events` and :func:`~evio_lib.events.motion_compensation.
-accumulate_bilinear` do the work of a frame as NumPy passes over all of a window's events: about twenty gathers and
-temporaries of N elements (a window of 90 000 events at the fast end of a recording took about 23 ms of CPU, two
-thirds of it in the warp). :func:`warp_and_count` does the same arithmetic one event at a time, in float64, without
-temporaries. For event e in the gyro interval k (t_k <= t_e < t_k+1, rate w_k in the camera frame) with the
-undistorted ray b = (x, y, 1)::
+:func:`evio_lib.events.motion_compensation.warp_events` and
+:func:`~evio_lib.events.motion_compensation.accumulate_bilinear` do the work of a frame as NumPy passes over all of a
+window's events: about twenty gathers and temporaries of N elements (most of the time in the warp; a measured window:
+docs/results/speed.md#small-costs-behind-the-codes-choices). :func:`warp_and_count` does the same arithmetic one event
+at a time, in float64, without temporaries. For event e in the gyro interval k (t_k <= t_e < t_k+1, rate w_k in the
+camera frame) with the undistorted ray b = (x, y, 1)::
 
     phi = w_k (t_e - t_k)
     b'  = b + phi x b + 1/2 phi x (phi x b)          exp([phi]x) b to second order

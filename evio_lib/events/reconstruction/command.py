@@ -114,9 +114,9 @@ def add_reconstruct_arguments(parser: argparse.ArgumentParser) -> argparse.Argum
                              f"network), a checkpoint file written by reconstruct-train, or published FireNet / FireNet+ "
                              f"weights (.pth: the event_cnn_minimal / EVREAL layout)")
     parser.add_argument("--precision", choices=PRECISIONS, default=PRECISIONS[0],
-                        help="a network's arithmetic (default auto: int8 for FireNet on an x86 CPU, 2.4-3x float32's "
-                             "frames per second with SSIM within 0.005 on the held-out stretches, else float32; "
-                             "bfloat16 gave 1.35x on two threads of a CPU with native bfloat16 (AVX512-BF16); ignored "
+                        help="a network's arithmetic (default auto: int8 for FireNet on an x86 CPU, faster than "
+                             "float32 at nearly the same SSIM, else float32; bfloat16 is faster than float32 on a CPU "
+                             "with native bfloat16 (AVX512-BF16); measured in docs/results/reconstruction.md; ignored "
                              "by direct and high_pass)")
     window = parser.add_mutually_exclusive_group()
     window.add_argument("--window-fraction", type=float, default=None, metavar="N",

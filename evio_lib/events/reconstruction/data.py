@@ -98,7 +98,7 @@ class PlanarSequence:
 
 @lru_cache(maxsize=16)
 def _photo(name: str) -> np.ndarray:
-    """Return the bundled photograph ``name`` (cached: decoding costs ~30 ms)."""
+    """Return the bundled photograph ``name`` (cached: decoding it again costs time, speed.md: small costs)."""
     return load_texture(name)
 
 

@@ -113,7 +113,8 @@ def _image(a: torch.Tensor, output: str) -> torch.Tensor:
 
 
 def _tanh_(a: torch.Tensor) -> torch.Tensor:
-    """Return tanh(a) = 2 sigmoid(2 a) - 1, computed in place (torch 2.13's CPU tanh is about 7x slower than its sigmoid)."""
+    """Return tanh(a) = 2 sigmoid(2 a) - 1, computed in place (torch's CPU tanh is much slower than its sigmoid:
+    docs/results/speed.md#small-costs-behind-the-codes-choices)."""
     return torch.sigmoid_(a.mul_(2)).mul_(2).sub_(1)
 
 
@@ -186,10 +187,10 @@ class FireNetInference(nn.Module):
 class AutocastForward(nn.Module):
     """``net``'s forward pass under ``torch.autocast`` in bfloat16; images returned as float32, state carried in bfloat16.
 
-    Convolutions run in bfloat16 (8 bits of mantissa), which oneDNN computes natively on CPUs with AVX512-BF16 (the
-    forward pass alone: 25.8 against 44.5 ms on one thread here, 14.3 against 22.7 ms on two). The images differ from
-    float32's by a few 1e-3, at the same SSIM within 0.001 (docs/results/reconstruction.md: ``bench/bench_reconstruction.py``
-    and ``bench/reconstruction_quality.py --precision``). CPUs without native bfloat16 emulate it, slowly.
+    Convolutions run in bfloat16 (8 bits of mantissa), which oneDNN computes natively on CPUs with AVX512-BF16, faster
+    than float32. The images differ slightly from float32's, at nearly the same SSIM (both measured in
+    docs/results/reconstruction.md#speed, ``bench/bench_reconstruction.py`` and ``bench/reconstruction_quality.py
+    --precision``). CPUs without native bfloat16 emulate it, slowly.
     """
 
     def __init__(self, net: nn.Module) -> None:

@@ -22,10 +22,9 @@ range [lo, hi] (s = (hi - lo) / 255, z = round(-lo / s)):
   then capped at +-:data:`GATE_INPUT_CAP` = 6. Past 6 the nonlinearities are flat (1 - sigmoid(6) = 0.0025, under
   one 8-bit grey level; 1 - tanh(6) = 1e-5), so clipping there costs almost nothing, while a calibrated range of
   (-35, 30) (``gru1_x`` of one network) spends 8 bits on values that all read as 0 or 1 and rounds the informative
-  ones near 0 to steps of 0.25. Measured on 2026-12-04 on validation sequences of 40 windows the calibration never
-  saw, ranges stored from :func:`calibration_voxels`: mean |int8 - float32| 0.023 -> 0.004, worst sequence 0.060 ->
-  0.005, per-window correlation 0.84 -> 0.98 (shipped weights, seeds 4-7); 0.030 -> 0.004 with a candidate network
-  (seeds 3-7), where caps of 3-12 all gave 0.003-0.006 (6 is the saturation argument's, not the best of them).
+  ones near 0 to steps of 0.25. On validation sequences the calibration never saw, the cap brought int8 several
+  times closer to float32 (docs/archive.md, "int8 FireNet without the gate-input cap"); 6 is the saturation
+  argument's value, not the best of the caps tried there.
 
 Measured on the validation stretches (``bench/reconstruction_quality.py --split val --precision int8``) and for speed
 (``bench/bench_reconstruction.py``): docs/results/reconstruction.md. PyTorch marks its quantised tensors as deprecated (a
@@ -404,11 +403,11 @@ def int8_unavailable() -> str:
 def int8_forward(net: FireNet, stored: dict | None = None) -> FireNetInt8:
     """Return the int8 forward pass of ``net``.
 
-    Its ranges come from ``stored`` (a checkpoint's ``int8_ranges``, :func:`stored_ranges`) when they were
-    calibrated for exactly these weights (same SHA-1), else from a calibration on :func:`calibration_voxels` (about
-    4 s on this 2-core CPU: 4 sequences simulated, then 160 float windows at 64 x 64), done once per set of weights
-    and process. Raises ValueError for anything but a FireNet on the CPU, and where the compiled kernels cannot load
-    (no numba, or no writable cache for its machine code)."""
+    Its ranges come from ``stored`` (a checkpoint's ``int8_ranges``, :func:`stored_ranges`) when they were calibrated
+    for exactly these weights (same SHA-1), else from a calibration on :func:`calibration_voxels` (4 sequences
+    simulated, then 160 float windows at 64 x 64; its time: docs/results/reconstruction.md#int8-and-float32), done
+    once per set of weights and process. Raises ValueError for anything but a FireNet on the CPU, and where the
+    compiled kernels cannot load (no numba, or no writable cache for its machine code)."""
     if type(net) is not FireNet or any(p.device.type != "cpu" for p in net.parameters()):
         where = next(net.parameters()).device.type
         raise ValueError(f"precision int8 runs a FireNet on the CPU only; got a {type(net).__name__} on {where}")

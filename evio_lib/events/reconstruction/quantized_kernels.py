@@ -2,9 +2,8 @@
 
 Between its int8 convolutions, FireNet's forward pass is pointwise: dequantise, add, sigmoid/tanh, the ConvGRU's
 state update, the residual sum and its ReLU, requantise, and the final 1x1 prediction. As separate PyTorch calls these
-took longer than the int8 convolutions themselves (about 12 ms against 5 ms per 240 x 180 frame on two threads,
-mostly passes over channel slices of channels-last tensors); here each step is one pass over the pixels, in parallel
-over image rows.
+took longer than the int8 convolutions themselves (docs/archive.md, "int8 pointwise steps"; mostly passes over channel
+slices of channels-last tensors); here each step is one pass over the pixels, in parallel over image rows.
 
 Every array is (R, W, C): the rows of all images, the columns, the channels (a channels-last tensor's memory).
 Quantised inputs arrive as their uint8 bytes with their (scale s, zero point z): x = s (q - z). Quantised outputs are

@@ -85,7 +85,7 @@ class ReconstructionTrainConfig:
     batch_size: int = 4
     crop: int = 48                     # random square crops of the samples (and flips) per step
     lr: float = 1e-3
-    steps: int = 3000                  # the default schedule: about an hour on this 2-core CPU, data included
+    steps: int = 3000                  # the default schedule (time per step: docs/howto/train-reconstructor.md)
     max_minutes: float | None = None   # wall-clock budget of one call; --resume continues
     lambda_ssim: float = 1.0
     lambda_tc: float = 1.0
@@ -176,8 +176,8 @@ def ssim_torch(a: torch.Tensor, b: torch.Tensor, data_range: float = 1.0) -> tor
     use_sample_covariance=False)`` on the same 'valid' region.
 
     The five local means (of a, b, a^2, b^2, a b) are one grouped convolution with the separable 11 x 11 Gaussian,
-    as an 11 x 1 and a 1 x 11 pass: the same sums as the 2-D window, and with its backward pass about 5x faster on
-    the CPU than five 2-D 11 x 11 convolutions (which took a third of a training step).
+    as an 11 x 1 and a 1 x 11 pass: the same sums as the 2-D window, and with its backward pass much faster on the
+    CPU than five 2-D 11 x 11 convolutions (measured: docs/results/speed.md#small-costs-behind-the-codes-choices).
     """
     g = _gaussian_kernel_1d().to(a.device, a.dtype)
     c1, c2 = (0.01 * data_range) ** 2, (0.03 * data_range) ** 2
@@ -508,7 +508,7 @@ def train_reconstructor(config: ReconstructionTrainConfig, out: str | Path, resu
     torch.set_num_threads(config.threads)
     torch.manual_seed(config.seed)
     net = build_network(config.architecture, config.data.num_bins, **config.network_options).to(config.device)
-    if config.device == "cpu":   # oneDNN's convolutions without reorders: a training step 15-20 % faster here
+    if config.device == "cpu":   # oneDNN's convolutions without reorders: a faster training step (speed.md: small costs)
         net = net.to(memory_format=torch.channels_last)
     optimizer = torch.optim.Adam(net.parameters(), lr=config.lr)
     rng = np.random.default_rng(config.seed)

@@ -16,7 +16,8 @@ def add_reconstruct_data_arguments(parser: argparse.ArgumentParser) -> argparse.
     parser.add_argument("--out", type=output_folder(), required=True,
                         help="the set's folder: training_set.json, train/, val/, test/ (run again to resume or extend)")
     parser.add_argument("--sequences", type=int, default=2000,
-                        help="training sequences (default 2000: about 20 minutes on two idle cores, 1.9 GB)")
+                        help="training sequences (default 2000, 1.9 GB; the time it takes: "
+                             "docs/howto/train-reconstructor.md)")
     parser.add_argument("--val", type=int, default=64, help="validation sequences (default 64)")
     parser.add_argument("--test", type=int, default=64, help="test sequences (default 64)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the set (default 0)")
@@ -43,7 +44,8 @@ def add_reconstruct_train_arguments(parser: argparse.ArgumentParser) -> argparse
                              "samples simulated on the fly")
     parser.add_argument("--architecture", choices=["firenet", "e2vid"], default="firenet",
                         help="firenet (38k parameters, the default) or e2vid (10.7 M parameters; needs a GPU to train)")
-    parser.add_argument("--steps", type=int, default=None, help="total optimisation steps (default 3000: about an hour on a 2-core CPU)")
+    parser.add_argument("--steps", type=int, default=None, help="total optimisation steps (default 3000; the time per "
+                        "step: docs/howto/train-reconstructor.md)")
     parser.add_argument("--max-minutes", type=float, default=None,
                         help="stop after this many minutes (checkpoint written); --resume continues")
     parser.add_argument("--resume", action="store_true", help="continue from OUT/last.pt")

@@ -34,8 +34,9 @@ every machine, for any number of worker processes, and in a set of any size.
   n log-uniform over [0.05, 1.0], else windows of a fixed duration (the sequence's length / L). The rule and n are
   drawn first; a sequence with fewer than L N_e events is simulated again, the same scene, sensor and motion over a
   longer time (up to ``duration_extend_max``; the motion's drift then runs back and forth), so that the windows
-  have the n drawn (generator version 2 cut n to the events there were: its median count-window n was 0.11 instead
-  of 0.22, and only 6 % of its count sequences had n >= 0.5 instead of 23 %). L windows per sequence (40 by default), each stored as a normalised voxel grid with
+  have the n drawn (generator version 2 cut n to the events there were, so its count windows were smaller than drawn:
+  docs/archive.md, "training-set generator version 2"). L windows per sequence (40 by default), each stored as a
+  normalised voxel grid with
   B bins, the sharp intensity at its end, and the true flow of every pixel into the previous window's end view (for the
   temporal-consistency loss): flow_k(u) = pi(H_j(t_k-1) H_j(t_k)^-1 u) - u with j the plane visible at u.
 
