@@ -81,7 +81,8 @@ def read_ecd_events(path: str | Path, *, sensor_size: tuple[int, int] | None = N
             non-integer or out-of-sensor pixel coordinates, polarity other than 0/1, or a timestamp smaller than
             the previous one (equal timestamps are allowed); "NAME: file not found ..." when missing.
 
-    Parsing runs at a few million events per second (``np.loadtxt`` with integer pixel columns).
+    Parsing uses ``np.loadtxt`` with integer pixel columns (its rate:
+    docs/results/speed.md#small-costs-behind-the-codes-choices).
 
     >>> import tempfile, os
     >>> f = os.path.join(tempfile.mkdtemp(), "events.txt")

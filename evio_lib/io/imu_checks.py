@@ -3,7 +3,7 @@
 Every reader and loader (:func:`evio_lib.io.ecd.read_ecd`, :func:`evio_lib.io.euroc.read_euroc`,
 :func:`evio_lib.io.aedat4.read_aedat4`, :func:`evio_lib.pipeline.dataset.load_dataset`) calls
 :func:`check_imu_units` on the samples it returns. Without it a recording with the accelerometer in g runs to
-the end and prints a confident, wrong trajectory (423 % of the distance instead of 23 %).
+the end and prints a confident, wrong trajectory (one such run: docs/results/pipeline.md#what-a-run-assumes).
 
 The physics the checks rely on (specific force ``a_m = R_GtoI (a - g_G)`` in m/s^2, gyro ``w_m = w + b_g`` in
 rad/s):
