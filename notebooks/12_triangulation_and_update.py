@@ -54,7 +54,8 @@ from evio_lib.msckf.augmentation import augment_state
 from evio_lib.msckf.config import MsckfConfig
 from evio_lib.geometry.pixel_noise import observation_covariance
 from evio_lib.msckf.experiment import VioSimConfig
-from evio_lib.msckf.filter import Msckf, whitening_matrices
+from evio_lib.msckf.feature_database import whitening_matrices
+from evio_lib.msckf.filter import Msckf
 from evio_lib.msckf.initialization import initial_state_from_truth
 from evio_lib.msckf.propagation import propagate
 from evio_lib.msckf.state import remove_camera_states

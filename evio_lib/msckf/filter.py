@@ -77,9 +77,7 @@ from evio_lib.msckf.updater import MsckfUpdater, UpdateResult, apply_correction
 from evio_lib.msckf.zero_velocity import ZeroVelocityConfig, zero_velocity_measurement
 from evio_lib.threads import single_threaded_blas
 
-__all__ = [
-    "FilterOutput", "Msckf", "MsckfWarning", "StepRefusedError", "apply_correction", "whitening_matrices",
-]
+__all__ = ["FilterOutput", "Msckf", "MsckfWarning"]
 
 
 class MsckfWarning(UserWarning):

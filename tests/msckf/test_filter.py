@@ -13,8 +13,8 @@ import pytest
 from evio_lib.evaluation.trajectory_metrics import orientation_errors
 from evio_lib.geometry.rotation import quat_to_rot
 from evio_lib.msckf.config import MsckfConfig
-from evio_lib.msckf.feature_database import FeatureUse
-from evio_lib.msckf.filter import FilterOutput, Msckf, apply_correction, whitening_matrices
+from evio_lib.msckf.feature_database import FeatureUse, whitening_matrices
+from evio_lib.msckf.filter import FilterOutput, Msckf
 from evio_lib.msckf.initialization import initial_state_from_truth
 from evio_lib.msckf.observability import constrain_transition, state_nullspace
 from evio_lib.msckf.propagation import propagate
@@ -28,7 +28,7 @@ from evio_lib.msckf.update import (
     measurement_compress,
     nullspace_project,
 )
-from evio_lib.msckf.updater import MsckfUpdater
+from evio_lib.msckf.updater import MsckfUpdater, apply_correction
 from evio_lib.sim.imu import ImuNoiseParams, synthesize_imu
 from evio_lib.sim.rig import CameraImuExtrinsics
 from evio_lib.sim.trajectory import trajectory_from_preset

@@ -21,7 +21,8 @@ from evio_lib.msckf.experiment import (
     observation_covariance,
     simulate_data,
 )
-from evio_lib.msckf.filter import Msckf, MsckfWarning, StepRefusedError
+from evio_lib.msckf.filter import Msckf, MsckfWarning
+from evio_lib.msckf.imu_buffer import StepRefusedError
 from evio_lib.msckf.propagation import ImuGapError, imu_gaps, propagate
 from evio_lib.msckf.state import FilterState, ImuState, covariance_problem, state_problem
 from evio_lib.msckf.augmentation import augment_state
