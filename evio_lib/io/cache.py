@@ -55,11 +55,18 @@ class CacheError(DataFileError):
 
 
 def default_cache_dir() -> Path:
-    """Return the project's one cache folder: ``$EVIO_CACHE_DIR`` if set, else ``<repository>/data/cache``
-    (git-ignored). Simulated recordings, evaluation stretches, training samples, feature labels and the event files of
-    ROS bags and HDF5 recordings are cached under it."""
+    """Return the project's one cache folder: ``$EVIO_CACHE_DIR`` if set; else, when ``evio_lib`` runs from a
+    checkout of the repository (``pyproject.toml`` beside the package), ``<repository>/data/cache`` (git-ignored);
+    else (an installed package) ``$XDG_CACHE_HOME/evio`` or ``~/.cache/evio``. Simulated recordings, evaluation
+    stretches, training samples, feature labels and the event files of ROS bags and HDF5 recordings are cached under
+    it, whatever the working folder."""
     env = os.environ.get("EVIO_CACHE_DIR")
-    return Path(env) if env else Path(__file__).resolve().parents[2] / "data" / "cache"
+    if env:
+        return Path(env)
+    repository = Path(__file__).resolve().parents[2]
+    if (repository / "pyproject.toml").is_file() and (repository / "evio_lib").is_dir():
+        return repository / "data" / "cache"
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "evio"
 
 
 def load_npz_arrays(path: str | Path, keys: tuple[str, ...] | None = None) -> dict[str, np.ndarray]:

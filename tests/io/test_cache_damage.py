@@ -6,6 +6,8 @@ member), the homographic-adaptation labels of features.training.datasets, the re
 """
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -139,3 +141,19 @@ def test_a_cache_folder_that_cannot_be_written_is_named_before_simulating(tmp_pa
                                          r"a_file\): Not a directory; set EVIO_CACHE_DIR to a writable folder"):
         dataset.simulate_preset("boxes_like", 0.5)
     assert blocker.read_text() == "not a folder"
+
+
+def test_the_default_cache_folder_is_the_checkouts_or_the_users(monkeypatch, tmp_path):
+    """$EVIO_CACHE_DIR first; from a checkout, its data/cache; an installed package, the user's cache folder."""
+    from evio_lib.io import cache
+
+    monkeypatch.setenv("EVIO_CACHE_DIR", str(tmp_path / "mine"))
+    assert cache.default_cache_dir() == tmp_path / "mine"
+    monkeypatch.delenv("EVIO_CACHE_DIR")
+    repository = Path(cache.__file__).resolve().parents[2]
+    assert cache.default_cache_dir() == repository / "data" / "cache"
+    installed = tmp_path / "site-packages" / "evio_lib" / "io"
+    installed.mkdir(parents=True)
+    monkeypatch.setattr(cache, "__file__", str(installed / "cache.py"))
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert cache.default_cache_dir() == tmp_path / "xdg" / "evio"
