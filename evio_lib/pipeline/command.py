@@ -25,9 +25,10 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="aps: the recorded frames (default); events: frames reconstructed from event windows; "
                         "mc-events: event windows warped with the gyroscope's rotation and counted (no network); "
                         "aps+events, aps+mc-events: both streams, each with its own tracker, fused by the filter")
-    p.add_argument("--features", default="sift",
-                   help="feature detector: sift (default), superpoint (the shipped CNN), distilled_narrow (the "
-                        "half-width CNN distilled from it, faster: docs/results/speed.md), orb, fast, ...")
+    p.add_argument("--features", default=None,
+                   help="feature detector: sift, superpoint (the shipped CNN), distilled_narrow (the half-width CNN "
+                        "distilled from it, faster: docs/results/speed.md), orb, fast, ... (default: the tracker's "
+                        "own, sift for the descriptor tracker and fast for klt)"),
     p.add_argument("--weights", type=Path, default=None,
                    help="a CNN checkpoint for --features superpoint (default: the shipped network)")
     p.add_argument("--cnn-inference", choices=["auto", "fused", "bf16", "int8"], default=None,
@@ -38,8 +39,8 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="descriptor: detect + match + two-point RANSAC (thesis); klt: optical flow (msckf_vio)")
     p.add_argument("--event-tracker", choices=["descriptor", "klt"], default=None,
                    help="--frames aps+mc-events or aps+events: the event stream's own tracker (default: --tracker "
-                        "for both streams; klt with --features sift detects FAST corners; --max-track-gap applies to "
-                        "the descriptor stream)")
+                        "for both streams; without --features each stream's tracker detects its own, sift or fast; "
+                        "--max-track-gap applies to the descriptor stream)")
     p.add_argument("--max-features", type=integer(minimum=20), default=60, help="N, features per frame (default 60)")
     p.add_argument("--reconstructor", default="firenet",
                    help="event frames: firenet (default, shipped), high_pass, direct, a reconstruct-train "
@@ -170,7 +171,11 @@ def main_run(args: argparse.Namespace) -> int:
     set_threads(args.threads)
     options = (("weights", str(args.weights)),) if args.weights is not None else ()
     _require_checkpoint_file("--weights", args.weights)
-    detector = _check_detector(args.features, options)  # an unknown name fails now, not after loading the recording
+    if args.features is None and args.weights is not None:
+        raise ValueError(f"--weights {args.weights} is a CNN checkpoint: name the network it is for, --features "
+                         f"superpoint (or distilled_narrow)")
+    # an unknown name fails now, not after loading the recording (None: each tracker's own, SIFT or FAST)
+    detector = _check_detector(args.features, options) if args.features is not None else None
     cnn_inference = getattr(args, "cnn_inference", None)
     if cnn_inference is not None:
         if not hasattr(detector, "inference"):  # the SuperPoint-style CNN's mode; classical detectors have none

@@ -50,9 +50,10 @@ from evio_lib.cli_args import as_option_error
 from evio_lib.events.reconstruct import Reconstructor, available_reconstructors, reconstructor_by_name_or_file
 from evio_lib.evaluation.trajectory_metrics import orientation_errors, relative_errors_by_length, summarize
 from evio_lib.frontend import FrontendConfig, camera_rotation_prior, create_tracker, stats_table
-from evio_lib.geometry.rotation import quat_to_rot
-from evio_lib.msckf.config import MsckfConfig
 from evio_lib.geometry.pixel_noise import observation_covariance
+from evio_lib.geometry.rotation import quat_to_rot, rot_to_quat
+from evio_lib.io.tum import TUM_BODIES, write_tum
+from evio_lib.msckf.config import MsckfConfig
 from evio_lib.msckf.filter import Msckf, MsckfWarning
 from evio_lib.msckf.initialization import initial_state_from_static, initial_state_from_truth
 from evio_lib.msckf.zero_velocity import StandstillDetector, ZeroVelocityConfig
@@ -95,16 +96,18 @@ class PipelineConfig:
             :func:`~evio_lib.pipeline.frames.mc_event_frames`),
             or two of them joined by '+' ('aps+mc-events', 'aps+events'): two frame streams, each with its own
             tracker, whose tracks the filter fuses (Ultimate SLAM's standard frames + events).
-        features: detector name of ``evio_lib.features`` ('sift', the default; 'superpoint' = the shipped CNN, 'orb',
-            ...).
+        features: detector name of ``evio_lib.features`` ('sift', 'superpoint' = the shipped CNN, 'orb', 'fast',
+            ...); None (the default): each tracker's own, SIFT for 'descriptor' and FAST corners for 'klt'. A name
+            given is used by every stream's tracker, KLT included (``features='sift'`` with ``tracker='klt'`` tracks
+            SIFT keypoints).
         detector_options: extra options of the detector as (name, value) pairs (e.g. ('weights', PATH)); default
             none.
         tracker: 'descriptor' (the thesis's front-end; the default) or 'klt' (optical flow; ``features`` then
             detects new ones).
         event_tracker: a run that fuses APS frames with an event stream ('aps+mc-events', 'aps+events'): the event
-            stream's tracker, 'descriptor' or 'klt' (None: ``tracker``, one front-end for both streams). KLT with the
-            default ``features`` 'sift' detects FAST corners, as a lone KLT run does; ``max_track_gap`` applies to the
-            descriptor stream only.
+            stream's tracker, 'descriptor' or 'klt' (None: ``tracker``, one front-end for both streams). With
+            ``features`` None each stream's tracker detects its own (SIFT, FAST corners); ``max_track_gap`` applies
+            to the descriptor stream only.
         max_features: N, features kept per frame (default 60, the thesis's).
         match_ratio: Lowe's ratio test of the descriptor matches (None: off, the pipeline's default: the guided
             window, the mutual check and two-point RANSAC select the matches). With the front-end's stand-alone
@@ -154,7 +157,7 @@ class PipelineConfig:
     """
 
     frames: str = "aps"
-    features: str = "sift"
+    features: str | None = None
     detector_options: tuple[tuple[str, Any], ...] = ()
     tracker: str = "descriptor"
     event_tracker: str | None = None
@@ -289,8 +292,7 @@ class PipelineConfig:
     def frontend_config(self, stream: str | None = None) -> FrontendConfig:
         """Return the front-end's configuration (of the frame stream ``stream``; None: the first stream's)."""
         tracker = self.stream_tracker(frame_streams(self.frames)[0] if stream is None else stream)
-        detector = self.features if tracker == "descriptor" or self.features != "sift" else None
-        return FrontendConfig(method=tracker, detector=detector, detector_options=self.detector_options,
+        return FrontendConfig(method=tracker, detector=self.features, detector_options=self.detector_options,
                               max_features=self.max_features, ratio=self.match_ratio, seed=self.seed,
                               max_track_gap=self.max_track_gap if tracker == "descriptor" else 0)
 
@@ -369,6 +371,16 @@ class PipelineResult:
         """Return (R_CtoG (K, 3, 3), p_CinG (K, 3)): the camera's estimated pose, R_CtoG = R_ItoG R_CtoI."""
         R_ItoG = self.R_ItoG
         return R_ItoG @ self.R_CtoI, self.p_IinG + R_ItoG @ self.p_CinI
+
+    def write_tum(self, path: str | Path, body: str = "imu") -> Path:
+        """Write the estimated trajectory to ``path`` in TUM format (``t x y z qx qy qz qw``, Hamilton quaternion of
+        R_BtoG) and return the path; ``body`` 'imu' (default, p_IinG and R_ItoG) or 'camera' (p_CinG and R_CtoG =
+        R_ItoG R_CtoI). The file's header names the body."""
+        if body not in TUM_BODIES:
+            raise ValueError(f"body must be one of {', '.join(TUM_BODIES)}; got {body!r}")
+        R_BtoG, p_BinG = (self.R_ItoG, self.p_IinG) if body == "imu" else self.camera_pose()
+        write_tum(path, self.t, p_BinG, rot_to_quat(np.swapaxes(R_BtoG, -1, -2)), body=body)  # JPL q_GtoB = Hamilton q of R_BtoG
+        return Path(path)
 
     def summary(self) -> str:
         """Return a few lines: the run, its speed and its errors."""

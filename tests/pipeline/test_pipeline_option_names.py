@@ -129,3 +129,16 @@ def test_the_renamed_options_reach_the_config(monkeypatch):
             command.main_run(parser.parse_args(argv + ["--quiet"]))
         config = configs[-1]
         assert (config.observability_constrained, config.observation_outlier_px, config.far_points) == expected
+
+
+def test_features_default_to_each_trackers_own_and_a_named_detector_is_used_by_klt_too():
+    """features None: SIFT for the descriptor tracker, FAST for KLT; a name given is used by KLT as well (it used to
+    turn 'sift' into FAST silently)."""
+    from evio_lib.pipeline.run import PipelineConfig
+
+    assert PipelineConfig().frontend_config().detector_name == "sift"
+    assert PipelineConfig(tracker="klt").frontend_config().detector_name == "fast"
+    assert PipelineConfig(tracker="klt", features="sift").frontend_config().detector_name == "sift"
+    fused = PipelineConfig(frames="aps+mc-events", event_tracker="klt")
+    assert [fused.frontend_config(s).detector_name for s in ("aps", "mc-events")] == ["sift", "fast"]
+    assert PipelineConfig(tracker="klt").label() == PipelineConfig(tracker="klt", features="fast").label()
