@@ -18,17 +18,11 @@ import argparse
 import dataclasses
 from pathlib import Path
 
-from evio_lib.events.array import event_count_image, events_between
-from evio_lib.evaluation.plots_events import plot_image_grid
-from evio_lib.evaluation.trajectory_metrics import format_table
-from evio_lib.io.output_dir import atomic_output_dir, check_output_dir
-from evio_lib.io.tum import groundtruth_to_tum, hamilton_BtoG_from_jpl_q_GtoB, write_tum
-from evio_lib.msckf.experiment import SimulatedData, VioSimConfig, run_vio_sim_config
+from evio_lib.evaluation import format_table, plot_image_grid
+from evio_lib.events import event_count_image, events_between
+from evio_lib.io import atomic_output_dir, check_output_dir, groundtruth_to_tum, write_tum
+from evio_lib.msckf import VioSimConfig, run_vio_sim_config, simulated_data_from_recording
 from evio_lib.pipeline import PipelineConfig, load_dataset, run_pipeline
-from evio_lib.sim.imu import ImuData
-from evio_lib.sim.rig import CameraImuExtrinsics
-from evio_lib.sim.tracks import simple_geometry, simulate_feature_tracks
-from evio_lib.sim.trajectory import trajectory_from_preset
 
 PRESET, SEED = "boxes_like", 0
 
@@ -54,17 +48,10 @@ k = len(counts) // 2  # counts[k] ends at APS frame k + 1; shown from 0 (black) 
 figure = plot_image_grid({f"APS frame, t = {seq.frame_times[k + 1]:.3f} s": seq.frames[k + 1],
                           f"event count, {counts[k].sum()} events": counts[k].clip(max=4) / 4}, columns=2)
 
-# 3. perfect tracks on this recording: its trajectory (the first seconds of the preset's whole motion), its IMU
-# samples with their true biases, its extrinsics and camera; the filter with the tracks and without (IMU only)
-truth = seq.groundtruth_imu.interpolate(seq.imu.t)
-trajectory = trajectory_from_preset(PRESET, seed=SEED)  # the preset's whole motion (60 s), as load_dataset's
-extrinsics = CameraImuExtrinsics(data.R_CtoI, data.p_CinI)
-tracks = simulate_feature_tracks(trajectory, extrinsics, seq.camera, simple_geometry(PRESET), seq.frame_times, SEED,
-                                 pixel_noise_px=1.0)
-simulated = SimulatedData(trajectory, ImuData(seq.imu.t, seq.imu.gyro, seq.imu.accel, truth.bias_gyro,
-                                              truth.bias_accel), tracks, extrinsics, seq.camera, data.noise)
-results = {name: run_vio_sim_config(config, baselines=False, data=simulated) for name, config in perfect.items()}
-poses = {name: (r.t, r.p_est, r.q_est, r.metrics) for name, r in results.items()}
+# 3. perfect tracks on this recording (its motion, its IMU samples with their true biases, its extrinsics and camera):
+# the filter with the tracks and without them (IMU only)
+results = {name: run_vio_sim_config(config, baselines=False, data=simulated_data_from_recording(data, config))
+           for name, config in perfect.items()}
 
 # 4. and 5. the pipeline: SIFT on APS frames, KLT on motion-compensated event frames, and SIFT with the filter's
 # gyro noise density ten times the recording's (the noise the filter assumes; the recording stays the same)
@@ -74,17 +61,16 @@ noisier = dataclasses.replace(data, noise=dataclasses.replace(data.noise,
                                                               gyro_noise_density=10 * data.noise.gyro_noise_density))
 for name, recording, config in (("sift_aps", data, sift), ("klt_mc_events", data, klt),
                                 ("sift_aps_gyro_noise_x10", noisier, sift)):
-    r = run_pipeline(recording, config)
-    poses[name] = (r.t, r.p_IinG, r.q_GtoI, r.metrics)
+    results[name] = run_pipeline(recording, config)
 
 # 6. the TUM files and the figure, written together (a failed run leaves no half-written folder)
 with atomic_output_dir(args.out, args.force) as folder:
-    write_tum(folder / "groundtruth.txt", *groundtruth_to_tum(seq.groundtruth_imu))
-    for name, (t, p_IinG, q_GtoI, _) in poses.items():
-        write_tum(folder / f"{name}.txt", t, p_IinG, hamilton_BtoG_from_jpl_q_GtoB(q_GtoI))
+    write_tum(folder / "groundtruth.txt", *groundtruth_to_tum(seq.groundtruth_imu), body="imu")
+    for name, result in results.items():
+        result.write_tum(folder / f"{name}.txt")  # the IMU's pose, like groundtruth.txt
     figure.savefig(folder / "count_frame.png", dpi=100)
 
 # 7. the table
 print(f"{PRESET}, first {args.duration:g} s, seed {SEED}; TUM files and count_frame.png in {args.out}")
-print(format_table([{**metrics, "name": name} for name, (*_, metrics) in poses.items()],
+print(format_table([{**r.metrics, "name": name} for name, r in results.items()],
                    (("name", "run"), ("rmse_m", "RMSE [m]"), ("percent_of_distance", "% of distance"))))

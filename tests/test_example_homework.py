@@ -50,6 +50,7 @@ def test_homework_writes_the_files_and_one_row_per_run(tmp_path):
         t, p, q = read_tum(out / f"{run}.txt")
         assert len(t) > 20 and np.all(np.isfinite(t)) and np.all(np.isfinite(p)) and np.all(np.isfinite(q)), run
         assert np.allclose(np.linalg.norm(q, axis=1), 1.0, atol=1e-6), run
+        assert (out / f"{run}.txt").read_text().startswith("# timestamp tx ty tz qx qy qz qw: pose of the IMU frame I")
         truth = np.column_stack([np.interp(t, t_gt, p_gt[:, i]) for i in range(3)])
         rmse = float(np.sqrt(np.mean(np.sum((truth - p) ** 2, axis=1))))
         assert rmse == pytest.approx(table[run][0], rel=0.01, abs=1e-4), run  # printed to 3 significant digits

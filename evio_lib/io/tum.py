@@ -25,6 +25,7 @@ from evio_lib.io.errors import QUATERNION_NORM_TOL, quaternion_norm_problem, rea
 from evio_lib.sequence import GroundTruth
 
 __all__ = [
+    "TUM_BODIES",
     "read_tum",
     "write_tum",
     "groundtruth_to_tum",
@@ -114,7 +115,11 @@ def read_tum(path: str | Path, *, name: str | None = None) -> tuple[np.ndarray, 
     return table["t"].copy(), p, q
 
 
-def write_tum(path: str | Path, t: Any, p: Any, q_xyzw: Any, *, header: bool = True) -> None:
+#: The bodies a TUM file written by evio can hold, as its header names them.
+TUM_BODIES = {"imu": "the IMU frame I", "camera": "the camera frame C"}
+
+
+def write_tum(path: str | Path, t: Any, p: Any, q_xyzw: Any, *, header: bool = True, body: str | None = None) -> None:
     """Write a TUM trajectory file ``timestamp tx ty tz qx qy qz qw`` (values exact: shortest round-trip digits).
 
     Args:
@@ -124,6 +129,8 @@ def write_tum(path: str | Path, t: Any, p: Any, q_xyzw: Any, *, header: bool = T
         q_xyzw: (N, 4) Hamilton quaternions, scalar last, of norm within 1e-3 of 1 (written as given; anything
             :func:`read_tum` would refuse, e.g. a zero quaternion, raises ValueError and writes nothing).
         header: write a "# timestamp tx ty tz qx qy qz qw" comment line first.
+        body: 'imu' or 'camera': the header also says whose pose the file holds
+            ("# timestamp tx ty tz qx qy qz qw: pose of the IMU frame I in the world frame G"); None: it does not.
 
     >>> import tempfile, os
     >>> f = os.path.join(tempfile.mkdtemp(), "traj.txt")
@@ -133,11 +140,13 @@ def write_tum(path: str | Path, t: Any, p: Any, q_xyzw: Any, *, header: bool = T
     >>> read_tum(f)[1][1].tolist()
     [0.1, 0.0, 0.0]
     """
+    if body is not None and body not in TUM_BODIES:
+        raise ValueError(f"body must be one of {', '.join(TUM_BODIES)} or None; got {body!r}")
     t, p, q = _check_pose_arrays(t, p, q_xyzw)
     normalise_quaternions(q)  # raises for a quaternion that read_tum would refuse; the numbers are written as given
     columns = [t, *p.T, *q.T]
-    write_table(path, columns, [time_format(t)] + ["%r"] * 7,
-                header="timestamp tx ty tz qx qy qz qw" if header else None)
+    text = "timestamp tx ty tz qx qy qz qw" + (f": pose of {TUM_BODIES[body]} in the world frame G" if body else "")
+    write_table(path, columns, [time_format(t)] + ["%r"] * 7, header=text if header else None)
 
 
 def groundtruth_to_tum(gt: GroundTruth) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

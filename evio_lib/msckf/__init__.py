@@ -41,6 +41,7 @@ _EXPORTS = {
     # the MSCKF on simulated tracks (vio-sim)
     "VioSimConfig": "experiment", "VioSimResult": "experiment", "run_vio_sim": "experiment",
     "run_vio_sim_config": "experiment", "run_vio_sim_seeds": "experiment", "simulate_data": "experiment",
+    "simulated_data_from_recording": "experiment",
 }
 __all__ = list(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, globals())

@@ -63,6 +63,7 @@ __all__ = [
     "MAX_SIM_FEATURES",
     "MAX_SIM_PIXEL_NOISE_PX",
     "simulate_data",
+    "simulated_data_from_recording",
     "initial_state",
     "pose_nees",
     "run_vio_sim",
@@ -255,18 +256,20 @@ class VioSimResult:
         """Return the filter's metric row (the first of ``rows``)."""
         return self.rows[0]
 
-    def write_tum(self, out_dir: str | Path) -> tuple[Path, Path]:
-        """Write ``trajectory.txt`` (estimate) and ``groundtruth.txt`` (truth) in TUM format; return their paths.
+    def write_tum(self, path: str | Path, truth: bool = False) -> Path:
+        """Write the estimated trajectory (``truth``: the ground truth at the same times) to ``path`` in TUM format
+        and return the path: the pose of the IMU frame I in G (Hamilton quaternions of R_ItoG, the numbers of the JPL
+        q_GtoI); the file's header names the body."""
+        p, q = (self.p_gt, self.q_gt) if truth else (self.p_est, self.q_est)
+        write_tum(path, self.t, p, hamilton_BtoG_from_jpl_q_GtoB(q), body="imu")
+        return Path(path)
 
-        Both hold the pose of the IMU frame I in G at the same timestamps (Hamilton quaternions of R_ItoG, which are
-        the numbers of the JPL q_GtoI).
-        """
+    def write_folder(self, out_dir: str | Path) -> tuple[Path, Path]:
+        """Write ``trajectory.txt`` (estimate) and ``groundtruth.txt`` (truth) into ``out_dir`` (made if absent) with
+        :meth:`write_tum`; return their paths."""
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
-        est, gt = out / "trajectory.txt", out / "groundtruth.txt"
-        write_tum(est, self.t, self.p_est, hamilton_BtoG_from_jpl_q_GtoB(self.q_est))
-        write_tum(gt, self.t, self.p_gt, hamilton_BtoG_from_jpl_q_GtoB(self.q_gt))
-        return est, gt
+        return self.write_tum(out / "trajectory.txt"), self.write_tum(out / "groundtruth.txt", truth=True)
 
     def report(self) -> str:
         """Return a printable summary: the metric table, NEES averages, rejections and timing."""
@@ -348,6 +351,53 @@ def simulate_data(config: VioSimConfig, noise: ImuNoiseParams | None = None) -> 
                                      rng_tracks, pixel_noise_px=config.pixel_noise_px,
                                      features_per_frame=config.features, max_track_length=config.max_track_length)
     return SimulatedData(trajectory, imu, frames, extrinsics, camera, noise)
+
+
+def simulated_data_from_recording(recording: Any, config: VioSimConfig | None = None) -> SimulatedData:
+    """Return the perfect-track experiment's data on a recording the simulator made (a preset), instead of a new one.
+
+    The recording's own IMU samples (with the true biases of its ground truth), extrinsics, camera and IMU noise
+    model, its motion (the simulator's trajectory, made again from the settings in its metadata), and perfect feature
+    tracks of the preset's landmarks at its APS frame times, with the pixel noise, features per image and track length
+    of ``config`` (default ``VioSimConfig(preset, seed=the recording's seed)``) and the track stream of
+    ``config.seed``. ``run_vio_sim_config(config, data=...)`` then runs the filter on it, so the MSCKF on perfect
+    tracks and the whole pipeline (``run_pipeline``) see the same IMU.
+
+    Args:
+        recording: a :class:`~evio_lib.sequence.Sequence` made by ``evio_lib.sim.simulate_sequence``, or a
+            ``LoadedDataset`` of a preset (``evio_lib.pipeline.load_dataset("boxes_like", ...)``; its ``noise`` is used).
+        config: the experiment's settings (its preset must be the recording's).
+    """
+    from evio_lib.sequence import Sequence
+    from evio_lib.sim.presets import SimulationConfig
+
+    seq = getattr(recording, "sequence", recording)
+    if not isinstance(seq, Sequence):
+        raise ValueError(f"recording must be a Sequence or a LoadedDataset; got {type(recording).__name__}")
+    settings = (seq.metadata or {}).get("config")
+    if not isinstance(settings, dict) or settings.get("preset") not in PRESETS:
+        raise ValueError(f"recording {seq.name!r} holds no simulator settings (metadata['config']): perfect tracks "
+                         f"need the landmarks and motion of a simulated preset ({', '.join(PRESETS)})")
+    if seq.groundtruth_imu is None or seq.frame_times is None or len(seq.frame_times) == 0:
+        raise ValueError(f"recording {seq.name!r} needs its IMU ground truth and frame times for perfect tracks")
+    sim = SimulationConfig(**{k: settings[k] for k in ("preset", "duration", "seed", "start_time",
+                                                      "trajectory_duration", "speed") if k in settings},
+                           with_events=False, with_frames=False)
+    config = VioSimConfig(sim.preset, seed=sim.seed) if config is None else config
+    if config.preset != sim.preset:
+        raise ValueError(f"config.preset {config.preset!r} differs from the recording's preset {sim.preset!r}")
+    trajectory = trajectory_from_preset(sim.preset, duration=sim.motion_duration(), seed=sim.seed, speed=sim.speed)
+    truth = seq.groundtruth_imu.interpolate(seq.imu.t)
+    imu = ImuData(seq.imu.t, seq.imu.gyro, seq.imu.accel, truth.bias_gyro, truth.bias_accel)
+    noise = getattr(recording, "noise", None)
+    if not isinstance(noise, ImuNoiseParams):
+        noise = ImuNoiseParams(**(seq.metadata.get("imu_noise") or {}))
+    extrinsics = CameraImuExtrinsics(seq.R_CtoI, seq.p_CinI)
+    _, rng_tracks, _ = _streams(config.seed)
+    frames = simulate_feature_tracks(trajectory, extrinsics, seq.camera, simple_geometry(sim.preset), seq.frame_times,
+                                     rng_tracks, pixel_noise_px=config.pixel_noise_px,
+                                     features_per_frame=config.features, max_track_length=config.max_track_length)
+    return SimulatedData(trajectory, imu, frames, extrinsics, seq.camera, noise)
 
 
 def initial_state(data: SimulatedData, msckf_config: MsckfConfig, rng: np.random.Generator | int,
@@ -504,7 +554,7 @@ def run_vio_sim_config(config: VioSimConfig, baselines: bool = True, out_dir: st
         sigma_yaw=nees["yaw_sigma"],
     )
     if out_dir is not None:
-        result.write_tum(out_dir)
+        result.write_folder(out_dir)
     return result
 
 
@@ -599,6 +649,6 @@ def main_vio_sim(args: argparse.Namespace) -> int:
     print(result.report())
     if args.out is not None:
         with atomic_output_dir(args.out, force) as tmp:
-            result.write_tum(tmp)
+            result.write_folder(tmp)
         print(f"wrote {Path(args.out) / 'trajectory.txt'} and {Path(args.out) / 'groundtruth.txt'}")
     return 0

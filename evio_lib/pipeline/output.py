@@ -89,20 +89,16 @@ def write_run(result: PipelineResult, data: LoadedDataset, out: str | Path, forc
     body = trajectory_body(data.kind)
     problems: list[str] = []
     with atomic_output_dir(out, force) as tmp:
-        q_imu = rot_to_quat(np.swapaxes(result.R_ItoG, -1, -2))  # JPL q_GtoI == Hamilton q of R_ItoG (same numbers)
-        write_tum(tmp / "trajectory_imu.txt", result.t, result.p_IinG, q_imu)
-        if body == "camera":
-            R_CtoG, p_CinG = result.camera_pose()
-            write_tum(tmp / "trajectory.txt", result.t, p_CinG, rot_to_quat(np.swapaxes(R_CtoG, -1, -2)))
-        else:
-            write_tum(tmp / "trajectory.txt", result.t, result.p_IinG, q_imu)
+        result.write_tum(tmp / "trajectory_imu.txt", body="imu")
+        result.write_tum(tmp / "trajectory.txt", body=body)
         if result.truth:
             R_ItoG, p_IinG = result.truth["R_ItoG"], result.truth["p_IinG"]
             inside = truth_rows(result.truth)
             R_ItoG, p_IinG = R_ItoG[inside], p_IinG[inside]
             if body == "camera":
                 R_ItoG, p_IinG = R_ItoG @ result.R_CtoI, p_IinG + R_ItoG @ result.p_CinI
-            write_tum(tmp / "groundtruth.txt", result.t[inside], p_IinG, rot_to_quat(np.swapaxes(R_ItoG, -1, -2)))
+            write_tum(tmp / "groundtruth.txt", result.t[inside], p_IinG, rot_to_quat(np.swapaxes(R_ItoG, -1, -2)),
+                      body=body)
         states = np.column_stack([result.t, result.p_IinG, result.q_GtoI, result.v_IinG, result.b_g, result.b_a,
                                   result.sigma])
         _write_csv(tmp / "states.csv", STATE_COLUMNS, states)

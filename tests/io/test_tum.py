@@ -179,3 +179,13 @@ def test_write_tum_refuses_what_read_tum_refuses_and_writes_nothing(tmp_path, q_
     with pytest.raises(ValueError, match=message):
         write_tum(path, [0.0, 0.1, 0.2, 0.3], np.zeros((4, 3)), q)
     assert path.read_text() == "keep me\n"  # an existing file is left as it was
+
+
+def test_the_header_names_the_body_and_a_bad_body_writes_nothing(tmp_path):
+    path = tmp_path / "traj.txt"
+    write_tum(path, [0.0, 0.1], [[0, 0, 0]] * 2, [[0, 0, 0, 1]] * 2, body="camera")
+    assert path.read_text().splitlines()[0] == ("# timestamp tx ty tz qx qy qz qw: pose of the camera frame C in the "
+                                               "world frame G")
+    with pytest.raises(ValueError, match="body must be one of imu, camera or None; got 'IMU'"):
+        write_tum(tmp_path / "other.txt", [0.0], [[0, 0, 0]], [[0, 0, 0, 1]], body="IMU")
+    assert not (tmp_path / "other.txt").exists()

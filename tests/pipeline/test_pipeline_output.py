@@ -3,6 +3,7 @@ import json
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from evio_lib.cli import main
 from evio_lib.io.tum import read_tum
@@ -31,6 +32,16 @@ def test_output_folder(short_run, boxes_aps, tmp_path):
     np.testing.assert_allclose(p_gt, expected, atol=1e-3)
     record = json.loads((out / "metrics.json").read_text())  # strict JSON: NaN would be refused by other readers
     assert record["trajectory_body"] == "camera"
+    for name, body in (("trajectory.txt", "camera frame C"), ("groundtruth.txt", "camera frame C"),
+                       ("trajectory_imu.txt", "IMU frame I")):  # each file says whose pose it holds
+        assert (out / name).read_text().splitlines()[0] == f"# timestamp tx ty tz qx qy qz qw: pose of the {body} in " \
+                                                           f"the world frame G", name
+    t_imu, p_imu, q_imu = read_tum(short_run.write_tum(tmp_path / "imu.txt"))  # the result writes itself: IMU by default
+    np.testing.assert_array_equal(p_imu, short_run.p_IinG)
+    np.testing.assert_allclose(Rotation.from_quat(q_imu).as_matrix(), short_run.R_ItoG, atol=1e-12)
+    np.testing.assert_array_equal(read_tum(short_run.write_tum(tmp_path / "c.txt", body="camera"))[1], p)
+    with pytest.raises(ValueError, match="body must be one of imu, camera; got 'world'"):
+        short_run.write_tum(tmp_path / "w.txt", body="world")
     assert record["metrics"]["rmse_m"] == pytest.approx(short_run.metrics["rmse_m"])
     states = np.loadtxt(out / "states.csv", delimiter=",", skiprows=1)
     assert states.shape == (len(short_run.t), 32)
