@@ -119,6 +119,9 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="threads of torch, OpenCV and BLAS (default 1: on a small, busy CPU more threads oversubscribe "
                         "it and run several times slower)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--verbose", action="store_true",
+                   help="also the measurements behind each note (what the start and the initialisation measured), "
+                        "the settings of the run, the time per stage and what the filter dropped, and why")
 
 
 def _bias(text: str):
@@ -207,11 +210,16 @@ def main_run(args: argparse.Namespace) -> int:
                         speed=args.speed, topics=getattr(args, "topics", None))
     print(f"loaded {data.sequence.name} ({data.kind}) in {time.perf_counter() - start:.1f} s")
     for note in data.notes:
-        print(f"  {note}")
+        print(f"  {note if args.verbose else plain_note(note)}")
+    if args.verbose:
+        print(f"  settings: {config}")
     result = run_pipeline(data, config, progress=not args.quiet)
     print(result.summary())
     for note in result.notes[len(data.notes):]:
-        print(f"  {note}")
+        print(f"  {note if args.verbose else plain_note(note)}")
+    if args.verbose:
+        for line in result.details():
+            print(f"  {line}")
     if args.out is not None:
         out = write_run(result, data, args.out, force=args.force, figures=not args.no_figures)
         problems = json.loads((out / "metrics.json").read_text(encoding="utf-8"))["output_problems"]
@@ -220,6 +228,37 @@ def main_run(args: argparse.Namespace) -> int:
         for problem in problems:
             print(f"warning: left out {problem}", file=sys.stderr)
     return 0
+
+
+def plain_note(note: str) -> str:
+    """Return a run's note without its measured details: every parenthesised part that holds a number goes
+    ("start: the recording moves in its first 1 s (the gyro ranges over 0.41 rad/s ...): the filter starts from the
+    ground truth's pose" -> "start: the recording moves in its first 1 s: the filter starts ..."). ``run --verbose``
+    prints notes whole, as ``metrics.json`` keeps them.
+
+    >>> plain_note("initialisation: static, IMU still over [0.000, 1.000] s (gravity error +0.012 m/s^2), velocity 0")
+    'initialisation: static, IMU still over [0.000, 1.000] s, velocity 0'
+    >>> plain_note("extrinsics: from the recording (simulator)")
+    'extrinsics: from the recording (simulator)'
+    """
+    out, depth, start = [], 0, 0
+    for i, ch in enumerate(note):  # outermost parenthesised parts, nested ones included in them
+        if ch == "(":
+            if depth == 0:
+                out.append(note[start:i])
+                start = i
+            depth += 1
+        elif ch == ")" and depth > 0:
+            depth -= 1
+            if depth == 0:
+                part = note[start:i + 1]
+                out.append("" if any(c.isdigit() for c in part) else part)
+                start = i + 1
+    out.append(note[start:])
+    text = "".join(out)
+    while "  " in text or " :" in text or " ," in text or " ;" in text:
+        text = text.replace("  ", " ").replace(" :", ":").replace(" ,", ",").replace(" ;", ";")
+    return text.strip()
 
 
 def _check_aps_exposure(seconds: float | None, uses_aps: bool = True,

@@ -406,6 +406,16 @@ class PipelineResult:
             lines.append("  faults: " + ", ".join(f"{k}={v}" for k, v in sorted(self.faults.items())))
         return "\n".join(lines)
 
+    def details(self) -> list[str]:
+        """Return the lines ``run --verbose`` adds: the time per stage and what the filter dropped, by reason."""
+        stages = ", ".join(f"{name} {seconds:.2f} s" for name, seconds in self.timings.items()
+                           if name != "realtime_factor" and isinstance(seconds, (int, float)))
+        dropped = ", ".join(f"{reason.replace('_', ' ')} {count}" for reason, count in sorted(self.rejections.items())
+                            if count)
+        used = float(np.mean(self.features_used)) if len(self.features_used) else 0.0
+        return [f"time per stage: {stages}",
+                f"filter: {used:.1f} features used per frame; tracks dropped by reason: {dropped or 'none'}"]
+
 
 # ==================================================================================================== set-up
 def _groundtruth(data: LoadedDataset):

@@ -81,6 +81,24 @@ def test_run_command(pipeline_cache, boxes_aps, tmp_path, capsys):
     assert err.startswith("error: ") and err.count("\n") == 1 and "--force" in err
 
 
+def test_a_default_run_prints_plain_notes_and_verbose_adds_the_measurements(pipeline_cache, boxes_aps, capsys):
+    """The default output says what was chosen and why in words; --verbose adds the numbers behind each note, the
+    settings, the time per stage and what the filter dropped."""
+    args = ["run", "boxes_like", "--duration", "3", "--max-duration", "1", "--tracker", "klt", "--quiet"]
+    assert main(args) == 0
+    plain = capsys.readouterr().out
+    assert main([*args, "--verbose"]) == 0
+    verbose = capsys.readouterr().out
+    start_plain = next(line for line in plain.splitlines() if line.strip().startswith("start:"))
+    start_full = next(line for line in verbose.splitlines() if line.strip().startswith("start:"))
+    assert "rad/s" in start_full and "rad/s" not in start_plain and not any(c.isdigit() for c in start_plain
+                                                                           .split(":", 1)[1].split("first")[0])
+    assert "settings: PipelineConfig(" in verbose and "time per stage:" in verbose and "tracks dropped" in verbose
+    assert "settings:" not in plain and "time per stage" not in plain
+    assert [line for line in plain.splitlines() if "RMSE" in line] == [line for line in verbose.splitlines()
+                                                                      if "RMSE" in line]
+
+
 def test_cnn_inference_reaches_the_detector(pipeline_cache, boxes_aps, monkeypatch, capsys):
     from evio_lib.pipeline import run as run_module
 
