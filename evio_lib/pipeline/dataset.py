@@ -390,8 +390,10 @@ def load_dataset(dataset: "str | Path | Sequence | None" = None, *, duration: fl
     _check_imu_against_truth(seq, kind, source, R_CtoI, assumed=extrinsics is None and seq.R_CtoI is None,
                              speed=speed)
     if need_frames and len(seq.frame_times) < 2:
-        raise ValueError(f"{source} has fewer than 2 frames (images.txt): use --frames events, or a recording with "
-                         f"frames")
+        where = {"euroc": "mav0/cam0/data.csv", "ecd": "images.txt"}.get(kind, "its frames")
+        advice = ("a EuRoC recording holds no events to make frames from; use one with its camera folder" if kind ==
+                  "euroc" else "use --frames events or mc-events, or a recording with frames")
+        raise ValueError(f"{source} has fewer than 2 frames ({where}): {advice}")
     if need_events and len(seq.events) == 0:
         raise ValueError(f"{source} has no events (events.txt is empty): use --frames aps")
     noise = _imu_noise(seq.metadata, source, notes)

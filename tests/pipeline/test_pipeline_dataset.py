@@ -249,3 +249,17 @@ def test_ecd_folder_without_calibration_is_refused(boxes_aps, tmp_path):
     (folder / "calib.txt").unlink()
     with pytest.raises(ValueError, match="no camera calibration"):
         load_dataset(folder)
+
+
+def test_a_euroc_recording_without_frames_is_told_about_its_camera_folder(real_data_dir, tmp_path):
+    """No images.txt and no --frames events advice for EuRoC: its frames are mav0/cam0, and it holds no events."""
+    import shutil
+
+    folder = tmp_path / "euroc"
+    shutil.copytree(real_data_dir / "euroc_V1_01_easy_micro", folder)
+    index = folder / "mav0" / "cam0" / "data.csv"
+    index.write_text("\n".join(index.read_text().splitlines()[:2]) + "\n")  # the header and one frame
+    with pytest.raises(ValueError, match=r"fewer than 2 frames \(mav0/cam0/data.csv\): a EuRoC recording holds no "
+                                         r"events") as error:
+        load_dataset(folder)
+    assert "images.txt" not in str(error.value) and "--frames events" not in str(error.value)
