@@ -119,9 +119,38 @@ def _read_sidecar(folder: Path) -> dict | None:
         raise DataFileError(f"{SIDECAR_NAME}: expected a JSON object at the top level; got {type(raw).__name__}")
     sidecar = from_json_value(raw)
     meta = sidecar.get("metadata")
+    if meta is not None and not isinstance(meta, dict):
+        raise DataFileError(f"{SIDECAR_NAME}: metadata must be a JSON object; got {type(meta).__name__}")
     if isinstance(meta, dict) and meta.get("gravity_G") is not None:
         _check_gravity(meta["gravity_G"])
+    if isinstance(meta, dict) and meta.get("imu_noise") is not None and not isinstance(meta["imu_noise"], dict):
+        raise DataFileError(f"{SIDECAR_NAME}: metadata.imu_noise must be an object of noise densities (e.g. "
+                            f'{{"gyro_noise_density": 8.73e-05, "accel_noise_density": 0.00392}}); got '
+                            f"{meta['imu_noise']!r}")
+    _check_extrinsics(sidecar)
     return sidecar
+
+
+def _check_extrinsics(sidecar: dict) -> None:
+    """Refuse a sidecar's R_CtoI that is no 3 x 3 rotation or p_CinI that is no 3 numbers, naming the file."""
+    for key, shape, what in (("R_CtoI", (3, 3), "a 3 x 3 rotation matrix (rows of 3 numbers), the camera's "
+                                                "orientation in the IMU frame"),
+                             ("p_CinI", (3,), "3 numbers [m], the camera's position in the IMU frame")):
+        value = sidecar.get(key)
+        if value is None:
+            continue
+        try:
+            array = np.asarray(value, dtype=np.float64)
+        except (TypeError, ValueError):
+            array = None
+        problem = None
+        if array is None or array.shape != shape or not np.all(np.isfinite(array)):
+            problem = "not " + ("3 x 3 finite numbers" if key == "R_CtoI" else "3 finite numbers")
+        elif key == "R_CtoI" and (np.abs(array @ array.T - np.eye(3)).max() > 1e-6
+                                  or abs(np.linalg.det(array) - 1.0) > 1e-6):
+            problem = f"R R^T is not I or det R = {np.linalg.det(array):.6g} is not 1, to 1e-6"
+        if problem:
+            raise DataFileError(f"{SIDECAR_NAME}: {key} must be {what}; got {value!r} ({problem})")
 
 
 def _check_gravity(value) -> None:

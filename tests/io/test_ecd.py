@@ -360,3 +360,20 @@ def test_a_damaged_frame_is_one_error_with_the_decoders_words_and_nothing_on_std
     with pytest.raises(DataFileError, match=r"could not decode image a.png \(libpng error: IHDR: CRC error\)$"):
         read_ecd(folder)
     assert capfd.readouterr().err == ""
+
+
+@pytest.mark.parametrize("sidecar, message", [
+    ({"R_CtoI": "down"}, r"^evio_sim.json: R_CtoI must be a 3 x 3 rotation matrix .*got 'down'"),
+    ({"R_CtoI": [1, 2, 3]}, r"^evio_sim.json: R_CtoI must be .*\(not 3 x 3 finite numbers\)"),
+    ({"R_CtoI": [[1, 0, 0], [0, 1, 0], [0, 0, -1]]}, r"^evio_sim.json: R_CtoI .*det R = -1 is not 1"),
+    ({"p_CinI": "down"}, r"^evio_sim.json: p_CinI must be 3 numbers \[m\]"),
+    ({"p_CinI": [0.1, 0.2]}, r"^evio_sim.json: p_CinI must be 3 numbers"),
+    ({"metadata": "down"}, r"^evio_sim.json: metadata must be a JSON object; got str"),
+    ({"metadata": {"imu_noise": "down"}}, r"^evio_sim.json: metadata.imu_noise must be an object of noise densities"),
+])
+def test_a_sidecar_value_of_the_wrong_form_is_refused_naming_the_file(tmp_path, sidecar, message):
+    """Extrinsics and noise in evio_sim.json are checked where they are read: one error naming the file and the
+    field, not a bare numpy text ('could not convert string to float') and never accepted silently."""
+    folder = _folder(tmp_path, evio_sim_json=json.dumps(sidecar))
+    with pytest.raises(DataFileError, match=message):
+        read_ecd(folder)
