@@ -224,8 +224,11 @@ def _diagnose(path: Path, name: str, columns: Sequence[str], int_columns: set[st
                 continue
             tokens = [tok.strip() for tok in stripped.split(delimiter)]
             if len(tokens) != len(columns):
+                other = next((d for d in (",", ";") if d != delimiter and stripped.count(d) == len(columns) - 1), None)
+                hint = (f" (its values are separated by '{other}'; this file's columns are separated by "
+                        f"{'spaces' if delimiter is None else repr(delimiter)})" if other else "")
                 return DataFileError(
-                    f"{name} line {number}: expected {len(columns)} columns ({layout}), got {len(tokens)}"
+                    f"{name} line {number}: expected {len(columns)} columns ({layout}), got {len(tokens)}{hint}"
                 )
             for column, tok in zip(columns, tokens):
                 if column in int_columns:

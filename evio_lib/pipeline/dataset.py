@@ -301,6 +301,16 @@ def _check_truth_times(gt: Any, imu_t: np.ndarray, name: str) -> None:
         raise ValueError(f"{name} covers [{t0:.6g}, {t1:.6g}] s and the IMU [{i0:.6g}, {i1:.6g}] s: they share no "
                          f"time, so the ground truth is on another clock or in other units (both must be seconds on "
                          f"the sensor's clock)")
+    # Both starting near 0 they overlap whatever the unit: a ground truth whose poses lie farther apart than the whole
+    # IMU recording, over a span hundreds of times the IMU's, is in ms, us or ns (a 200 Hz truth in ns: 5e6 "s" apart)
+    step, span, imu_span = float(np.median(np.diff(gt.t))), t1 - t0, i1 - i0
+    if imu_span > 0 and step > imu_span and span >= 300.0 * imu_span:
+        ratio = span / imu_span
+        unit = min(((1e3, "milliseconds"), (1e6, "microseconds"), (1e9, "nanoseconds")),
+                   key=lambda f: abs(math.log10(ratio / f[0])))[1]
+        raise ValueError(f"{name} covers [{t0:.6g}, {t1:.6g}] s with poses {step:.6g} s apart, while the IMU covers "
+                         f"[{i0:.6g}, {i1:.6g}] s: its times look like {unit}; write them in seconds on the sensor's "
+                         f"clock")
 
 
 def _is_bag_or_h5(text: str) -> bool:

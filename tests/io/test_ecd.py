@@ -377,3 +377,11 @@ def test_a_sidecar_value_of_the_wrong_form_is_refused_naming_the_file(tmp_path, 
     folder = _folder(tmp_path, evio_sim_json=json.dumps(sidecar))
     with pytest.raises(DataFileError, match=message):
         read_ecd(folder)
+
+
+def test_a_table_separated_by_commas_says_so(tmp_path):
+    """imu.txt written as CSV: the error says what separates its values, not only '1 column'."""
+    folder = _folder(tmp_path, imu_txt="0.0,0,0,9.8,0,0,0\n0.1,0,0,9.8,0,0,0\n")
+    with pytest.raises(DataFileError, match=r"imu.txt line 1: expected 7 columns \(t ax ay az gx gy gz\), got 1 \(its "
+                                            r"values are separated by ','; this file's columns are separated by spaces\)"):
+        read_ecd(folder)

@@ -388,6 +388,21 @@ def test_run_refuses_a_groundtruth_it_cannot_use(boxes, tmp_path, capsys, rows, 
     assert line.startswith(f"error: {folder}: {expected}"), line
 
 
+@pytest.mark.parametrize("scale, unit", [(1e9, "nanoseconds"), (1e6, "microseconds"), (1e3, "milliseconds")])
+def test_run_refuses_a_groundtruth_in_other_units_that_overlaps_the_imu(boxes, tmp_path, capsys, scale, unit):
+    """Starting at 0 like the IMU, a truth in ns (or us, ms) shares time with it and was scored as a still camera
+    ('path 0.000 m'); its poses lie farther apart than the whole IMU recording, which names the unit."""
+    seq = boxes.slice_time(0.0, 3.1)
+    seq.groundtruth_imu = None
+    folder = write_ecd(seq, tmp_path / "user_rec")
+    lines = (folder / "groundtruth.txt").read_text().splitlines()
+    lines = [" ".join([repr(float(line.split()[0]) * scale)] + line.split()[1:]) for line in lines
+             if line.strip() and not line.startswith("#")]
+    (folder / "groundtruth.txt").write_text("".join(line + "\n" for line in lines))
+    line = _run_refused(capsys, [str(folder)], folder)
+    assert line.startswith(f"error: {folder}: groundtruth.txt covers [0, ") and f"look like {unit}" in line, line
+
+
 @pytest.mark.parametrize("column, fix", [(4, "x = -wx"), (1, "x = -ax")])
 def test_run_checks_axes_under_the_extrinsics_it_assumes(boxes, tmp_path, capsys, column, fix):
     """An ECD folder with a camera ground truth and no extrinsics runs with camera = IMU frame; the axes check makes
