@@ -458,7 +458,7 @@ print(f"with the 5% quantile ({wrong_threshold:.2f}) only {100 * np.mean(np.arra
 wrong_rate = np.mean(np.array(gammas) < wrong_threshold)
 assert abs(rate - 0.95) < (0.035 if FAST else 0.012) and abs(wrong_rate - 0.05) < (0.035 if FAST else 0.012)
 
-outlier = r_o + 20 * np.r_[1.0, -1.0, np.zeros(dof - 2)]  # one observation off by ~20 px (20 σ)
+outlier = r_o + 20 * np.r_[1.0, -1.0, np.zeros(dof - 2)]  # two whitened rows of r_o off by 20 σ (σ = 1 px)
 print("a 20-pixel outlier passes?", chi_square_gate(H_o, outlier, P, 1.0)[0])
 assert not chi_square_gate(H_o, outlier, P, 1.0)[0]
 
@@ -486,6 +486,8 @@ for prob in (0.95, 0.99, 0.999):
     shrink_se[prob] = r_mc[kept, 0].std() / np.sqrt(kept.sum()) / mu  # standard error of the ratio
     print(f"gate {prob}: mean of kept residuals / mu = {shrink[prob]:.3f} ± {shrink_se[prob]:.3f}  "
           f"(closed form {gating_mean_shrink(k_rows, prob):.3f})")
+print(f"closed form s at 0.95: {gating_mean_shrink(1, 0.95):.2f} for k = 1, {gating_mean_shrink(37, 0.95):.2f} for "
+      f"k = 37 (20 observations); at 0.99: {gating_mean_shrink(37, 0.99):.2f} for k = 37")
 assert all(abs(shrink[p] - gating_mean_shrink(k_rows, p)) < 4 * shrink_se[p] for p in shrink)
 assert gating_mean_shrink(1, 0.95) < 0.8 < 0.98 < gating_mean_shrink(37, 0.99)
 assert round(gating_mean_shrink(1, 0.95), 2) == 0.76 and round(gating_mean_shrink(37, 0.95), 2) == 0.97
