@@ -157,6 +157,13 @@ def _read_camera(yaml: dict, where: str) -> PinholeRadtan:
     if not (isinstance(res, list) and len(res) == 2):
         raise DataFileError(f"{where}: resolution must be [width, height]; got {res!r}")
     k3 = dist[4] if len(dist) == 5 else 0.0
+    for key, values, kind in (("intrinsics", intr, "numbers [fu, fv, cu, cv] in pixels"),
+                              ("distortion_coefficients", dist, "numbers [k1, k2, p1, p2(, k3)]"),
+                              ("resolution", res, "whole numbers of pixels [width, height]")):
+        for value in values:
+            number = value if isinstance(value, (int, float)) and not isinstance(value, bool) else None
+            if number is None or (key == "resolution" and number != int(number)):
+                raise DataFileError(f"{where}: {key} must be {kind}; got {values!r} ({value!r} is not)")
     try:
         camera = PinholeRadtan(fx=float(intr[0]), fy=float(intr[1]), cx=float(intr[2]), cy=float(intr[3]),
                                width=int(res[0]), height=int(res[1]),

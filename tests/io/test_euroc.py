@@ -121,6 +121,11 @@ def test_synthetic_folder_values_and_extrinsics(tmp_path):
          r"mav0/cam0/sensor.yaml: resolution must be \[width, height\]; got \[16\]"),
         ({"cam_yaml": CAM_YAML.replace("resolution: [16, 12]", "resolution: [20, 12]")},
          r"differs from the resolution 20 x 12 in mav0/cam0/sensor.yaml"),
+        ({"cam_yaml": CAM_YAML.replace("resolution: [16, 12]", "resolution: [16, big]")},
+         r"mav0/cam0/sensor.yaml: resolution must be whole numbers of pixels \[width, height\]; got \[16, 'big'\] "
+         r"\('big' is not\)"),
+        ({"cam_yaml": CAM_YAML.replace("resolution: [16, 12]", "resolution: [16.5, 12]")},
+         r"mav0/cam0/sensor.yaml: resolution must be whole numbers of pixels"),
     ],
 )
 def test_errors_name_file_line_problem(tmp_path, kwargs, message):
