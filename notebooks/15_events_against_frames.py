@@ -203,8 +203,9 @@ assert contrast_first < 0.8 * contrast_k  # the first window: a network that has
 # Where does it matter? At the gentle start the camera turns at a few tenths of a radian per second, so a window's
 # rotation moves the image by a few pixels at most and compensation changes little. The room's violent end, played
 # twice as fast (`speed=2`: every velocity and rate doubled, every acceleration four times the preset's), turns
-# several times faster. One window of 40 ms in its middle (four times the 10 ms that the pipeline's windows last
-# there, so that the smear is easy to see), counted as it comes (a zero gyro) and motion-compensated:
+# more than ten times as fast (the line below prints both rates). One window of 40 ms in its middle (four times the
+# 10 ms that the pipeline's windows last there, so that the smear is easy to see), counted as it comes (a zero gyro)
+# and motion-compensated:
 
 # %%
 from evio_lib.events.motion_compensation import accumulate_bilinear, motion_compensated_frame, warp_events
@@ -336,10 +337,11 @@ assert smear_px > 10 and abs(window_ms - 1e3 * MC_MIN_WINDOW_S) < 1.0 and window
 # streams in one filter (`frames="aps+mc-events"`). In that third run each stream has its own KLT tracker, and every
 # frame of either stream is a camera clone with its own update. The filter gives the event tracks three times the APS
 # tracks' pixel noise (`FUSED_EVENT_NOISE_FACTOR`; the σ's are printed below): measured against the simulator's
-# world (`bench/track_accuracy.py`; `PipelineConfig`'s docstring gives the figures), their observations lie farther
-# from their true points than the APS tracks', and they come several times as often with errors that persist from
-# one frame to the next, so more of them do not average the errors out, and at equal noise they would outvote the
-# APS tracks. An observation's weight goes with $1/\sigma^2$.
+# world (`bench/track_accuracy.py`; the figures are on the pipeline results page, `docs/results/pipeline.md`,
+# "Weighting the two streams"), their observations lie farther from their true points than the APS tracks', and
+# they come several times as often (the table below) with errors that persist from one frame to the next, so more
+# of them do not average the errors out, and at equal noise they would outvote the APS tracks. An observation's
+# weight goes with $1/\sigma^2$.
 
 # %%
 from evio_lib.pipeline.run import FUSED_EVENT_NOISE_FACTOR
