@@ -30,8 +30,11 @@ ROOT = Path(__file__).resolve().parents[1]
 def _run(args: list[str], cwd: Path, after: float | None, signum: int) -> tuple[int, str, float]:
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     start = time.perf_counter()
+    # SIGINT as at a terminal: a script started in the background (`cmd &` in a non-interactive shell) inherits
+    # SIGINT ignored, and Python then installs no KeyboardInterrupt handler, so every try would "finish first"
     process = subprocess.Popen([sys.executable, "-m", "evio_lib", "run", *args, "--out", "out", "--quiet"],
-                               cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                               cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     if after is not None:
         try:
             process.wait(timeout=after)
@@ -74,6 +77,9 @@ def main() -> int:
                 counts["failed"] += 1
                 print(f"try {k} (signal after {after:.2f} s): exit {code}, left {left}, stderr {lines[-3:]}")
         print(", ".join(f"{v} {k}" for k, v in counts.items()))
+        if counts["interrupted"] == 0 and args.tries >= 10:
+            print("error: no try was interrupted: the signal did not reach the runs", file=sys.stderr)
+            return 1
         return 1 if counts["failed"] else 0
     finally:
         shutil.rmtree(work, ignore_errors=True)
