@@ -23,6 +23,7 @@ OPTION_EXCEPTIONS = {
                   "commands",
     "--threads": "a process setting (evio_lib.threads.set_threads), no parameter of the run",
     "--quiet": "the negation of run_pipeline's and load_dataset's progress=True, the usual name of that switch",
+    "--verbose": "what the command prints (the notes whole, the settings, times, dropped tracks), not a run setting",
 }
 #: PipelineConfig fields that no ``run`` option sets by their own name, and why.
 FIELD_EXCEPTIONS = {
