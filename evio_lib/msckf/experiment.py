@@ -631,8 +631,30 @@ def main_vio_sim(args: argparse.Namespace) -> int:
     from evio_lib.io.output_dir import atomic_output_dir, check_output_dir
 
     force = getattr(args, "force", False)
+    recording = getattr(args, "recording", None)
     if args.out is not None:
-        check_output_dir(args.out, force)
+        check_output_dir(args.out, force, name="--out",
+                         inputs=[("the --recording folder", recording)] if recording is not None else ())
+    sequence = None
+    if recording is not None:
+        if args.duration is not None:
+            raise ValueError(f"--duration {args.duration:g} and --recording: the recording's own length is used; "
+                             f"leave --duration out")
+        from evio_lib.io.ecd import read_ecd
+
+        if not Path(recording).is_dir():
+            raise ValueError(f"--recording {recording}: no such folder (expected a folder written by `python -m "
+                             f"evio_lib simulate {args.preset} --out DIR`)")
+        try:
+            sequence = read_ecd(recording, load_events=False)
+        except ValueError as error:
+            raise ValueError(f"--recording {recording} is no folder written by `python -m evio_lib simulate "
+                             f"{args.preset} --out DIR`: {error}") from None
+        made = (sequence.metadata.get("config") or {}).get("preset") if isinstance(sequence.metadata, dict) else None
+        if made is not None and made != args.preset:
+            raise ValueError(f"--recording {recording} is a {made} recording; run `vio-sim {made} --recording "
+                             f"{recording}`")
+        args.duration = float(sequence.imu.t[-1] - sequence.imu.t[0]) if sequence.imu is not None else None
     try:
         config = VioSimConfig(preset=args.preset, duration=args.duration, seed=args.seed, features=args.features,
                               observability_constrained=not args.no_observability_constrained,
@@ -645,7 +667,11 @@ def main_vio_sim(args: argparse.Namespace) -> int:
         raise as_option_error(error, {"features": "--features", "pixel_noise_px": "--pixel-noise",
                                       "duration": "--duration", "seed": "--seed",
                                       "gate_probability": "--gate"}) from None
-    result = run_vio_sim_config(config, baselines=not args.no_baselines)
+    try:
+        data = None if sequence is None else simulated_data_from_recording(sequence, config)
+    except ValueError as error:
+        raise ValueError(f"--recording {recording}: {error}") from None
+    result = run_vio_sim_config(config, baselines=not args.no_baselines, data=data)
     print(result.report())
     if args.out is not None:
         with atomic_output_dir(args.out, force) as tmp:

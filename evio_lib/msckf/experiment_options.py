@@ -16,6 +16,10 @@ def add_vio_sim_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("preset", choices=["boxes_like", "aerial_like"], help="simulated preset trajectory and scene")
     parser.add_argument("--duration", type=real(at_least=2.0), default=None,
                         help="seconds to simulate, >= 2 (default: the preset's, 60 s boxes_like, 40 s aerial_like)")
+    parser.add_argument("--recording", type=Path, default=None, metavar="DIR",
+                        help="a folder written by `simulate` of this preset: the perfect tracks and the filter run on "
+                             "its own IMU samples, motion and frame times instead of a new simulation (its length "
+                             "replaces --duration)")
     parser.add_argument("--seed", type=integer(minimum=0), default=0,
                         help="seed of every random stream, >= 0 (default 0)")
     parser.add_argument("--features", type=integer(minimum=1), default=60,

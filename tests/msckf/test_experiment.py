@@ -290,3 +290,27 @@ def test_perfect_tracks_on_a_simulated_recording_use_its_own_imu_motion_and_fram
                                                frame_times=seq.frame_times, frames=seq.frames, camera=seq.camera))
     with pytest.raises(ValueError, match="differs from the recording's preset"):
         simulated_data_from_recording(seq, VioSimConfig("aerial_like", 2.0))
+
+
+def test_vio_sim_runs_on_a_recording_folder_and_refuses_what_is_not_one(tmp_path, capsys):
+    """vio-sim --recording DIR: the perfect tracks on a folder written by `simulate` (its length, its IMU); the
+    preset must be the recording's, --duration is refused beside it, a folder of another kind names what it lacks."""
+    from evio_lib.cli import main
+    from evio_lib.io.ecd import write_ecd
+    from evio_lib.sim.presets import SimulationConfig, simulate_sequence
+
+    folder = write_ecd(simulate_sequence(SimulationConfig(duration=2.0, with_events=False)), tmp_path / "rec")
+    assert main(["vio-sim", "boxes_like", "--recording", str(folder), "--no-baselines", "--out",
+                 str(tmp_path / "out")]) == 0
+    assert "MSCKF, OC on" in capsys.readouterr().out
+    t, _, _ = read_tum(tmp_path / "out" / "trajectory.txt")
+    assert 1.9 < t[-1] <= 2.0  # the recording's length, not the preset's 60 s
+    for argv, message in (
+            (["aerial_like", "--recording", str(folder)], "is a boxes_like recording; run `vio-sim boxes_like"),
+            (["boxes_like", "--recording", str(folder), "--duration", "3"], "the recording's own length is used"),
+            (["boxes_like", "--recording", str(tmp_path / "none")], "no such folder"),
+            (["boxes_like", "--recording", str(tmp_path / "out")], "is no folder written by `python -m evio_lib "
+                                                                    "simulate boxes_like --out DIR`: events.txt")):
+        assert main(["vio-sim", *argv]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("error: --") and message in err and err.count("\n") == 1, err
