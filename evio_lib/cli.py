@@ -273,11 +273,11 @@ def build_parser(full: Container[str] | None = None) -> argparse.ArgumentParser:
 _WRITE_ERRORS = {
     errno.EFBIG: "a file grew beyond the largest file allowed (the shell's file-size limit, see ulimit -f, or the file "
                  "system's)",
-    errno.ENOSPC: "no space left on the device (free some, or write the output elsewhere)",
-    errno.EDQUOT: "the disk quota is used up (free some, or write the output elsewhere)",
+    errno.ENOSPC: "no space left on the device (free some, or write elsewhere)",
+    errno.EDQUOT: "the disk quota is used up (free some, or write elsewhere)",
 }
 #: The temporary folder an output folder is written into (``io.output_dir``: ``.NAME.tmp-XXXX`` beside NAME).
-_TEMPORARY_FOLDER = re.compile(r"(^|/)\.([^/]+)\.tmp-[A-Za-z0-9_]+(?=/|$)")
+_TEMPORARY_FOLDER = re.compile(r"(^|/)\.([^/]+)\.tmp-[A-Za-z0-9_]+(?![A-Za-z0-9_])")
 
 
 def _one_line(error: BaseException, output: object = None) -> str:
@@ -285,14 +285,20 @@ def _one_line(error: BaseException, output: object = None) -> str:
 
     A file is named as the user knows it (an output folder's temporary name, ``.NAME.tmp-XXXX``, as NAME); a write
     the system refused (file too large, disk full, quota) says so in words and, when the error names no
-    file, names ``output`` (the command's output folder) instead.
+    file, where the command writes (``output``, its output folder, and the cache).
     """
     text = str(error).strip()
     if isinstance(error, OSError) and error.strerror:
         reason = _WRITE_ERRORS.get(error.errno, error.strerror)
-        where = error.filename if error.filename is not None else (
-            output if error.errno in _WRITE_ERRORS and output is not None else None)
-        text = reason if where is None else f"{where}: {reason}"
+        if error.filename is not None:
+            text = f"{error.filename}: {reason}"
+        elif error.errno in _WRITE_ERRORS:  # the system names no file: say where the command writes
+            from evio_lib.io.cache import default_cache_dir
+
+            places = ([f"--out {output}"] if output is not None else []) + [f"the cache {default_cache_dir()}"]
+            text = f"a file could not be written: {reason}; this command writes into {' and '.join(places)}"
+        else:
+            text = reason
     text = _TEMPORARY_FOLDER.sub(r"\1\2", text)
     if isinstance(error, pickle.UnpicklingError) or not text:
         text = f"{type(error).__name__}: {text.splitlines()[0] if text else 'no message'}"

@@ -16,6 +16,7 @@ import pytest
 
 from evio_lib import cli, course
 from evio_lib.features.evaluation import benchmark
+from evio_lib.io.cache import default_cache_dir
 
 PROJECT_ROOT = Path(__file__).resolve().parents[1]
 
@@ -214,11 +215,12 @@ def test_simulate_failure_leaves_no_partial_output(inputs, monkeypatch, capsys, 
 
 @pytest.mark.parametrize("error, words", [
     (OSError(errno.EFBIG, "File too large"), "a file grew beyond the largest file allowed (the shell's file-size limit"),
-    (OSError(errno.ENOSPC, "No space left on device"), "no space left on the device (free some"),
+    (OSError(errno.ENOSPC, "No space left on device"), "no space left on the device (free some, or write elsewhere)"),
 ])
-def test_a_refused_write_names_the_output_folder_and_the_cause_in_words(inputs, monkeypatch, capsys, error, words):
-    """A write the system refuses without naming a file ('[Errno 27] File too large') names the output folder and
-    says what to do; a temporary folder's name never reaches the message."""
+def test_a_refused_write_says_the_cause_in_words_and_where_the_command_writes(inputs, monkeypatch, capsys, error, words):
+    """A write the system refuses without naming a file ('[Errno 27] File too large') says what happened in words and
+    where the command writes (its --out and the cache: the failing file may be either); a temporary folder's name
+    never reaches the message."""
     from evio_lib.io import ecd
 
     def fail(sequence, folder, progress=False):
@@ -227,12 +229,16 @@ def test_a_refused_write_names_the_output_folder_and_the_cause_in_words(inputs, 
     monkeypatch.setattr(ecd, "write_ecd", fail)
     assert _simulate(inputs / "new", "--no-frames") == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and err.startswith(f"error: {inputs / 'new'}: {words}") and "Errno" not in err
+    assert err.count("\n") == 1 and err.startswith(f"error: a file could not be written: {words}") and "Errno" not in err
+    assert err.rstrip().endswith(f"; this command writes into --out {inputs / 'new'} and the cache "
+                                 f"{default_cache_dir()}")  # the system named no file: where the command writes
     named = OSError(errno.ENOSPC, "No space left on device", str(inputs / ".new.tmp-ab_9x" / "events.txt"))
     monkeypatch.setattr(ecd, "write_ecd", lambda *a, **k: (_ for _ in ()).throw(named))
     assert _simulate(inputs / "new", "--no-frames") == 2
     assert capsys.readouterr().err == f"error: {inputs / 'new' / 'events.txt'}: no space left on the device (free " \
-                                      "some, or write the output elsewhere)\n"
+                                      "some, or write elsewhere)\n"
+    assert cli._one_line(PermissionError(errno.EACCES, "Permission denied", "/o/.run.tmp-ab_12cd")) == \
+        "/o/run: Permission denied"  # the temporary folder itself, as the last part of the name
 
 
 # ---------------------------------------------------------------------------------------------- features-benchmark

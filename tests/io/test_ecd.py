@@ -1,5 +1,6 @@
 """Tests of evio_lib.io.ecd: the ECD text layout (read, write, exact round trip, errors with file and line)."""
 import json
+import os
 import re
 
 import cv2
@@ -385,3 +386,18 @@ def test_a_table_separated_by_commas_says_so(tmp_path):
     with pytest.raises(DataFileError, match=r"imu.txt line 1: expected 7 columns \(t ax ay az gx gy gz\), got 1 \(its "
                                             r"values are separated by ','; this file's columns are separated by spaces\)"):
         read_ecd(folder)
+
+
+def test_decoding_from_several_threads_leaves_stderr_where_it_was(tmp_path, capfd):
+    """read_image points descriptor 2 elsewhere while it decodes; threads take turns, so stderr is the same after."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from evio_lib.io.image_files import read_image
+
+    path = tmp_path / "a.png"
+    cv2.imwrite(str(path), np.zeros((60, 80), np.uint8))
+    with ThreadPoolExecutor(4) as pool:
+        images = list(pool.map(lambda _: read_image(path)[0], range(200)))
+    assert all(image is not None and image.shape == (60, 80) for image in images)
+    os.write(2, b"still here\n")
+    assert capfd.readouterr().err == "still here\n"
