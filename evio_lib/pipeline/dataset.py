@@ -301,16 +301,17 @@ def _check_truth_times(gt: Any, imu_t: np.ndarray, name: str) -> None:
         raise ValueError(f"{name} covers [{t0:.6g}, {t1:.6g}] s and the IMU [{i0:.6g}, {i1:.6g}] s: they share no "
                          f"time, so the ground truth is on another clock or in other units (both must be seconds on "
                          f"the sensor's clock)")
-    # Both starting near 0 they overlap whatever the unit: a ground truth whose poses lie farther apart than the whole
-    # IMU recording, over a span hundreds of times the IMU's, is in ms, us or ns (a 200 Hz truth in ns: 5e6 "s" apart)
+    # Both starting near 0 they overlap whatever the unit. A ground truth spanning hundreds of times the IMU's time
+    # with under one pose per second inside it is in ms, us or ns (a 200 Hz truth in ns: poses 5e6 "s" apart); the
+    # unit is the one that gives its poses a rate of 1 Hz - 2 kHz
     step, span, imu_span = float(np.median(np.diff(gt.t))), t1 - t0, i1 - i0
-    if imu_span > 0 and step > imu_span and span >= 300.0 * imu_span:
-        ratio = span / imu_span
-        unit = min(((1e3, "milliseconds"), (1e6, "microseconds"), (1e9, "nanoseconds")),
-                   key=lambda f: abs(math.log10(ratio / f[0])))[1]
-        raise ValueError(f"{name} covers [{t0:.6g}, {t1:.6g}] s with poses {step:.6g} s apart, while the IMU covers "
-                         f"[{i0:.6g}, {i1:.6g}] s: its times look like {unit}; write them in seconds on the sensor's "
-                         f"clock")
+    inside = int(np.count_nonzero((gt.t >= i0) & (gt.t <= i1)))
+    if imu_span > 0 and span >= 300.0 * imu_span and inside < imu_span and step > 0:
+        units = [unit for scale, unit in ((1e3, "milliseconds"), (1e6, "microseconds"), (1e9, "nanoseconds"))
+                 if 1.0 <= scale / step <= 2000.0]
+        guess = f"its times look like {units[0]}" if units else "its times are not seconds on the IMU's clock"
+        raise ValueError(f"{name} covers [{t0:.6g}, {t1:.6g}] s with poses {step:.6g} s apart ({inside} within the "
+                         f"IMU's [{i0:.6g}, {i1:.6g}] s): {guess}; write them in seconds on the sensor's clock")
 
 
 def _is_bag_or_h5(text: str) -> bool:
@@ -400,10 +401,11 @@ def load_dataset(dataset: "str | Path | Sequence | None" = None, *, duration: fl
     _check_imu_against_truth(seq, kind, source, R_CtoI, assumed=extrinsics is None and seq.R_CtoI is None,
                              speed=speed)
     if need_frames and len(seq.frame_times) < 2:
-        where = {"euroc": "mav0/cam0/data.csv", "ecd": "images.txt"}.get(kind, "its frames")
-        advice = ("a EuRoC recording holds no events to make frames from; use one with its camera folder" if kind ==
-                  "euroc" else "use --frames events or mc-events, or a recording with frames")
-        raise ValueError(f"{source} has fewer than 2 frames ({where}): {advice}")
+        where = {"euroc": " (mav0/cam0/data.csv)", "ecd": " (images.txt)"}.get(kind, "")
+        advice = {"euroc": "a EuRoC recording holds no events to make frames from; it needs the images of mav0/cam0",
+                  "preset": "a longer --duration gives it more (24 a second)"}.get(
+            kind, "use --frames events or mc-events, or a recording with frames")
+        raise ValueError(f"{source} has fewer than 2 frames{where}: {advice}")
     if need_events and len(seq.events) == 0:
         raise ValueError(f"{source} has no events (events.txt is empty): use --frames aps")
     noise = _imu_noise(seq.metadata, source, notes)

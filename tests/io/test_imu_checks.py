@@ -453,3 +453,21 @@ def test_a_ground_truth_in_millimetres_or_wxyz_is_blamed_on_the_ground_truth(box
     fast = dataclasses.replace(truth, p_BinG=truth.p_BinG * 500.0)     # 500x the preset's speed: ~170 m/s
     assert truth_speed_problem(fast) is not None
     assert truth_speed_problem(fast, max_speed=100.0 * 4) is None   # check_imu_units' bound at speed 4
+
+
+def test_the_unit_check_of_a_groundtruth_over_long_and_short_imu_recordings():
+    """_check_truth_times on the time axes alone: a 200 Hz truth in ms beside 140 s of IMU (28 poses inside it) is
+    refused naming milliseconds, in us and ns likewise; in seconds, a 1 Hz truth over a 0.5 s IMU clip, and a truth
+    that starts long before the IMU pass."""
+    from types import SimpleNamespace
+
+    from evio_lib.pipeline.dataset import _check_truth_times
+
+    imu = np.arange(0.0, 140.0, 0.005)
+    for scale, unit in ((1e3, "milliseconds"), (1e6, "microseconds"), (1e9, "nanoseconds")):
+        truth = SimpleNamespace(t=np.arange(0.0, 145.0, 0.005) * scale)
+        with pytest.raises(ValueError, match=rf"groundtruth.txt covers \[0, .*its times look like {unit}"):
+            _check_truth_times(truth, imu, "groundtruth.txt")
+    _check_truth_times(SimpleNamespace(t=np.arange(0.0, 145.0, 0.005)), imu, "groundtruth.txt")
+    _check_truth_times(SimpleNamespace(t=np.arange(0.0, 60.0, 1.0)), np.arange(10.0, 10.5, 0.005), "gt")
+    _check_truth_times(SimpleNamespace(t=np.arange(-3600.0, 200.0, 0.01)), imu, "gt")
