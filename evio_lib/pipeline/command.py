@@ -28,7 +28,7 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--features", default=None,
                    help="feature detector: sift, superpoint (the shipped CNN), distilled_narrow (the half-width CNN "
                         "distilled from it, faster: docs/results/speed.md), orb, fast, ... (default: the tracker's "
-                        "own, sift for the descriptor tracker and fast for klt)"),
+                        "own, sift for the descriptor tracker and fast for klt)")
     p.add_argument("--weights", type=Path, default=None,
                    help="a CNN checkpoint for --features superpoint (default: the shipped network)")
     p.add_argument("--cnn-inference", choices=["auto", "fused", "bf16", "int8"], default=None,
@@ -183,7 +183,8 @@ def main_run(args: argparse.Namespace) -> int:
     if cnn_inference is not None:
         if not hasattr(detector, "inference"):  # the SuperPoint-style CNN's mode; classical detectors have none
             raise ValueError(f"--cnn-inference applies to a CNN detector (--features superpoint or a shipped network); "
-                             f"--features {args.features} has no inference modes")
+                             + (f"--features {args.features} has no inference modes" if args.features is not None
+                                else "add --features superpoint"))
         options = options + (("inference", cnn_inference),)
     try:
         config = PipelineConfig(frames=args.frames, features=args.features, detector_options=options,
@@ -230,17 +231,24 @@ def main_run(args: argparse.Namespace) -> int:
     return 0
 
 
+#: The notes whose measured details a default run leaves out (the filter's start, what it measured to choose it).
+PLAIN_NOTES = ("start:", "initialisation:")
+
+
 def plain_note(note: str) -> str:
-    """Return a run's note without its measured details: every parenthesised part that holds a number goes
-    ("start: the recording moves in its first 1 s (the gyro ranges over 0.41 rad/s ...): the filter starts from the
-    ground truth's pose" -> "start: the recording moves in its first 1 s: the filter starts ..."). ``run --verbose``
-    prints notes whole, as ``metrics.json`` keeps them.
+    """Return a run's note as a default run prints it: the notes of :data:`PLAIN_NOTES` without their measured
+    details (each parenthesised part, after a space, that holds a number), every other note whole ("start: the
+    recording moves in its first 1 s (the gyro ranges over 0.41 rad/s ...): the filter starts from the ground truth's
+    pose" -> "start: the recording moves in its first 1 s: the filter starts ..."). ``run --verbose`` prints every
+    note whole, as ``metrics.json`` keeps them.
 
     >>> plain_note("initialisation: static, IMU still over [0.000, 1.000] s (gravity error +0.012 m/s^2), velocity 0")
     'initialisation: static, IMU still over [0.000, 1.000] s, velocity 0'
-    >>> plain_note("extrinsics: from the recording (simulator)")
-    'extrinsics: from the recording (simulator)'
+    >>> plain_note("extrinsics: from runs/camchain (1).yaml")
+    'extrinsics: from runs/camchain (1).yaml'
     """
+    if not note.startswith(PLAIN_NOTES):
+        return note
     out, depth, start = [], 0, 0
     for i, ch in enumerate(note):  # outermost parenthesised parts, nested ones included in them
         if ch == "(":
@@ -252,7 +260,8 @@ def plain_note(note: str) -> str:
             depth -= 1
             if depth == 0:
                 part = note[start:i + 1]
-                out.append("" if any(c.isdigit() for c in part) else part)
+                detail = start > 0 and note[start - 1] == " " and any(c.isdigit() for c in part)
+                out.append("" if detail else part)
                 start = i + 1
     out.append(note[start:])
     text = "".join(out)

@@ -143,3 +143,16 @@ def test_features_default_to_each_trackers_own_and_a_named_detector_is_used_by_k
     fused = PipelineConfig(frames="aps+mc-events", event_tracker="klt")
     assert [fused.frontend_config(s).detector_name for s in ("aps", "mc-events")] == ["sift", "fast"]
     assert PipelineConfig(tracker="klt").label() == PipelineConfig(tracker="klt", features="fast").label()
+
+
+def test_a_default_run_shortens_only_the_start_notes_and_never_a_file_name():
+    from evio_lib.pipeline.command import plain_note
+
+    start = ("start: the recording moves in its first 1 s (the gyro ranges over 0.41 rad/s and the accelerometer over "
+             "2.66 m/s^2): the filter starts from the ground truth's pose and velocity")
+    assert plain_note(start) == ("start: the recording moves in its first 1 s: the filter starts from the ground "
+                                 "truth's pose and velocity")
+    for kept in ("extrinsics: from runs/camchain (1).yaml", "camera: from --calib calib (2).txt",
+                 "motion: the preset's played at speed 2 (rates x 2, accelerations x 4; its whole motion lasts 30 s)",
+                 "scored over the overlap with the ground truth: 40 of 48 frames (truth [0.000, 1.600] s)"):
+        assert plain_note(kept) == kept

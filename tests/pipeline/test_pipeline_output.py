@@ -200,9 +200,9 @@ def test_aps_exposure_reaches_the_recording(pipeline_cache, tmp_path, monkeypatc
     args = ["run", "boxes_like", "--duration", "1", "--aps-exposure", "0.02", "--quiet", "--no-figures", "--out",
             str(tmp_path / "run")]
     assert main(args) == 0 and asked == [0.02]
-    assert "  APS exposure 20 ms\n" in capsys.readouterr().out  # the default run's note, in words
+    assert "  APS exposure 20 ms (the simulator's default: 10 ms)\n" in capsys.readouterr().out
     notes = json.loads((tmp_path / "run" / "metrics.json").read_text())["notes"]
-    assert "APS exposure 20 ms (the simulator's default: 10 ms)" in notes  # whole in metrics.json (and --verbose)
+    assert "APS exposure 20 ms (the simulator's default: 10 ms)" in notes
     assert main(["table", "--fast", "--presets", "boxes_like", "--rows", "klt_aps", "--aps-exposure", "0.02",
                  "--out", str(tmp_path / "table")]) == 0
     (record,) = json.loads((tmp_path / "table" / "runs.json").read_text())
