@@ -272,11 +272,15 @@ def _read_camera_groundtruth(folder: Path) -> GroundTruth | None:
 def _read_groundtruth_imu(path: Path) -> GroundTruth:
     """Return the IMU-state ground truth of groundtruth_imu.txt (8, 11, 14 or 17 columns)."""
     first_line, n_columns = 0, 0
-    for number, line in enumerate(read_text(path).splitlines(keepends=True), start=1):
-        tokens = line.split("#", 1)[0].split()
-        if tokens:
-            first_line, n_columns = number, len(tokens)
-            break
+    try:  # the first data line only: the file may be large, and the table reader parses it whole next
+        with open(path, "r", encoding="utf-8") as f:
+            for number, line in enumerate(f, start=1):
+                tokens = line.split("#", 1)[0].split()
+                if tokens:
+                    first_line, n_columns = number, len(tokens)
+                    break
+    except UnicodeDecodeError:
+        read_text(path)  # raises the error that names the line and the byte
     if first_line == 0:
         raise DataFileError(f"{path.name}: the file holds no data (expected {' '.join(_POSE)} ...)")
     columns = _GT_IMU_LAYOUTS.get(n_columns)

@@ -225,7 +225,7 @@ def _diagnose(path: Path, name: str, columns: Sequence[str], int_columns: set[st
             tokens = [tok.strip() for tok in stripped.split(delimiter)]
             if len(tokens) != len(columns):
                 other = next((d for d in (",", ";") if d != delimiter and stripped.count(d) == len(columns) - 1), None)
-                hint = (f" (its values are separated by '{other}'; this file's columns are separated by "
+                hint = (f" (its values are separated by '{other}'; this format separates its columns by "
                         f"{'spaces' if delimiter is None else repr(delimiter)})" if other else "")
                 return DataFileError(
                     f"{name} line {number}: expected {len(columns)} columns ({layout}), got {len(tokens)}{hint}"

@@ -24,6 +24,7 @@ The camera ground truth is derived from the IMU one with the extrinsics (thesis 
 """
 from __future__ import annotations
 
+import math
 import warnings
 from pathlib import Path
 from typing import Any
@@ -162,7 +163,7 @@ def _read_camera(yaml: dict, where: str) -> PinholeRadtan:
                               ("resolution", res, "whole numbers of pixels [width, height]")):
         for value in values:
             number = value if isinstance(value, (int, float)) and not isinstance(value, bool) else None
-            if number is None or (key == "resolution" and number != int(number)):
+            if number is None or not math.isfinite(number) or (key == "resolution" and not float(number).is_integer()):
                 raise DataFileError(f"{where}: {key} must be {kind}; got {values!r} ({value!r} is not)")
     try:
         camera = PinholeRadtan(fx=float(intr[0]), fy=float(intr[1]), cx=float(intr[2]), cy=float(intr[3]),

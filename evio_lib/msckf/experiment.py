@@ -259,7 +259,10 @@ class VioSimResult:
     def write_tum(self, path: str | Path, truth: bool = False) -> Path:
         """Write the estimated trajectory (``truth``: the ground truth at the same times) to ``path`` in TUM format
         and return the path: the pose of the IMU frame I in G (Hamilton quaternions of R_ItoG, the numbers of the JPL
-        q_GtoI); the file's header names the body."""
+        q_GtoI); the file's header names the body. A folder is refused (:meth:`write_folder` writes both files)."""
+        if Path(path).is_dir():
+            raise ValueError(f"{path} is a folder: write_tum writes one file (e.g. {Path(path) / 'trajectory.txt'}); "
+                             f"write_folder({str(path)!r}) writes trajectory.txt and groundtruth.txt into it")
         p, q = (self.p_gt, self.q_gt) if truth else (self.p_est, self.q_est)
         write_tum(path, self.t, p, hamilton_BtoG_from_jpl_q_GtoB(q), body="imu")
         return Path(path)
@@ -391,7 +394,10 @@ def simulated_data_from_recording(recording: Any, config: VioSimConfig | None = 
     imu = ImuData(seq.imu.t, seq.imu.gyro, seq.imu.accel, truth.bias_gyro, truth.bias_accel)
     noise = getattr(recording, "noise", None)
     if not isinstance(noise, ImuNoiseParams):
-        noise = ImuNoiseParams(**(seq.metadata.get("imu_noise") or {}))
+        try:
+            noise = ImuNoiseParams.from_dict(seq.metadata.get("imu_noise") or {})
+        except (TypeError, ValueError) as error:
+            raise ValueError(f"recording {seq.name!r}: its metadata's imu_noise is not the simulator's: {error}") from None
     extrinsics = CameraImuExtrinsics(seq.R_CtoI, seq.p_CinI)
     _, rng_tracks, _ = _streams(config.seed)
     frames = simulate_feature_tracks(trajectory, extrinsics, seq.camera, simple_geometry(sim.preset), seq.frame_times,
@@ -654,7 +660,11 @@ def main_vio_sim(args: argparse.Namespace) -> int:
         if made is not None and made != args.preset:
             raise ValueError(f"--recording {recording} is a {made} recording; run `vio-sim {made} --recording "
                              f"{recording}`")
-        args.duration = float(sequence.imu.t[-1] - sequence.imu.t[0]) if sequence.imu is not None else None
+        length = float(sequence.imu.t[-1] - sequence.imu.t[0]) if sequence.imu is not None and len(sequence.imu.t) else 0.0
+        if length < 2.0:
+            raise ValueError(f"--recording {recording} lasts {length:.3g} s; the experiment needs at least 2 s (simulate "
+                             f"it with --duration 2 or more)")
+        args.duration = length
     try:
         config = VioSimConfig(preset=args.preset, duration=args.duration, seed=args.seed, features=args.features,
                               observability_constrained=not args.no_observability_constrained,

@@ -384,7 +384,7 @@ def test_a_table_separated_by_commas_says_so(tmp_path):
     """imu.txt written as CSV: the error says what separates its values, not only '1 column'."""
     folder = _folder(tmp_path, imu_txt="0.0,0,0,9.8,0,0,0\n0.1,0,0,9.8,0,0,0\n")
     with pytest.raises(DataFileError, match=r"imu.txt line 1: expected 7 columns \(t ax ay az gx gy gz\), got 1 \(its "
-                                            r"values are separated by ','; this file's columns are separated by spaces\)"):
+                                            r"values are separated by ','; this format separates its columns by spaces\)"):
         read_ecd(folder)
 
 
