@@ -122,8 +122,8 @@ BAD_OUTPUTS = [
     ("simulate boxes_like --out ''", "--out must be a folder path such as runs/out; got ''"),
     ("simulate boxes_like --out . --force", "--out . is the working folder {w}"),
     ("simulate boxes_like --out .. --force", "--out .. contains the working folder {w}"),
-    ("vio-sim boxes_like --out . --force", "output folder . is the working folder {w}"),
-    ("vio-sim boxes_like --out ''", "output folder . is the working folder {w}"),  # type=Path made it '.'
+    ("vio-sim boxes_like --out . --force", "--out . is the working folder {w}"),
+    ("vio-sim boxes_like --out ''", "--out must be a folder path such as runs/out; got ''"),
     ("vio-sim boxes_like --features 10000000", "--features must be <= 2000 per image (MAX_SIM_FEATURES"),
     ("vio-sim boxes_like --pixel-noise 1e9", "--pixel-noise must be <= 50 px (MAX_SIM_PIXEL_NOISE_PX"),
     ("features-benchmark --detectors fast --speed-shapes 100000x100000",

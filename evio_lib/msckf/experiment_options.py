@@ -11,7 +11,7 @@ __all__ = ["add_vio_sim_arguments"]
 
 def add_vio_sim_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of ``python -m evio_lib vio-sim`` to ``parser``."""
-    from evio_lib.cli_args import add_force_argument, integer, real
+    from evio_lib.cli_args import add_force_argument, integer, output_folder, real
 
     parser.add_argument("preset", choices=["boxes_like", "aerial_like"], help="simulated preset trajectory and scene")
     parser.add_argument("--duration", type=real(at_least=2.0), default=None,
@@ -36,7 +36,7 @@ def add_vio_sim_arguments(parser: argparse.ArgumentParser) -> None:
                              "hold no outliers; the library default 0.95 is for real tracks)")
     parser.add_argument("--imu-only", action="store_true", help="propagate only (no visual updates)")
     parser.add_argument("--no-baselines", action="store_true", help="skip the IMU-only baseline rows")
-    parser.add_argument("--out", type=Path, default=None,
+    parser.add_argument("--out", type=output_folder(), default=None,
                         help="folder for trajectory.txt and groundtruth.txt (TUM, IMU body; created, must be new or "
                              "empty unless --force; written when the run is complete)")
     add_force_argument(parser)
