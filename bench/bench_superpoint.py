@@ -12,7 +12,7 @@ Each number is ``SuperPointDetector.detect_and_describe(image)`` end to end (uin
 unit descriptors out: conversion, padding to multiples of 8, network, softmax, NMS, top-k, bicubic descriptor
 sampling) with ``torch.set_num_threads(2)``: warm-up calls, then the median over ``--runs`` calls; this is repeated
 ``--repeats`` times (the modes interleaved, so that load from other processes hits them alike) and the range of the
-medians is printed. Issue 4 targets: >= 15 frames/s at 180x240 and >= 8 frames/s at 240x320 on the 2-core CPU.
+medians is printed. Targets: >= 15 frames/s at 180x240 and >= 8 frames/s at 240x320 on the 2-core CPU.
 Also printed: the relative difference of each fast path's logits and descriptors from the fp32 eager model, and the
 share of its keypoints within 1 px of the fp32 ones (top 300, NMS 4), so speed is never bought blindly.
 
