@@ -1,6 +1,6 @@
-"""Benchmark: MSCKF propagation cost per IMU sample (moved here from tests/msckf/test_propagation.py, issue 17).
+"""Benchmark: MSCKF propagation cost per IMU sample (a script that prints figures, not a timed test).
 
-Setting (issue 5's): one image interval at 20 Hz with a 1 kHz IMU, i.e. 50 samples per ``propagate`` call, N = 20
+Setting: one image interval at 20 Hz with a 1 kHz IMU, i.e. 50 samples per ``propagate`` call, N = 20
 camera states in the window, one BLAS thread. Each repetition times 20 calls; the best repetition is reported as
 microseconds per IMU sample, with and without the OC-EKF transition hook, and with an IMU gap (the inflated-noise
 path) for comparison.

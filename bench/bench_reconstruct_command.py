@@ -1,4 +1,4 @@
-"""Print how long ``python -m evio_lib reconstruct`` takes on a 4 s, 21 M-event ECD folder (issue 23: under 60 s).
+"""Print how long ``python -m evio_lib reconstruct`` takes on a 4 s, 21 M-event ECD folder (target: under 60 s).
 
 Usage:  python bench/bench_reconstruct_command.py [--repeats 420] [--precisions auto float32] [--threads 2]
 

@@ -5,12 +5,10 @@ Usage:  python bench/bench_reconstruction.py [--frames N] [--threads T] [--varia
 Each frame is one window of N_e = 0.35 * 240 * 180 events (uniform random events, seed 0); the rate includes building
 the voxel grid. The large E2VID-style network runs with random weights (none are shipped): its speed does not depend on
 them. FireNet runs in each precision (float32; bfloat16; int8, what the default precision "auto" picks on an x86
-CPU). Goal (issue 23): at least 100 frames/s on a 2-core CPU; measured on the idle machine (2026-11-27 evening),
-frames/s with one / two threads: float32 22-23 / 38-43, bfloat16 33-35 / 56-59, int8 57-61 / 92-107 (median 102 over
-six runs); since 2026-12-04 the voxel grid's normalisation takes 0.3 ms instead of 1.0 (docs/results/reconstruction.md#speed, Speed).
+CPU). Goal: at least 100 frames/s on a 2-core CPU; the measured rates are in docs/results/reconstruction.md#speed.
 
 ``--variants`` also times FireNet's forward pass alone (state carried, on the same voxel grids) in the variants tried
-for issue 23, with each one's largest difference from the eager float32 network's images:
+for that goal, with each one's largest difference from the eager float32 network's images:
 ``eager`` (FireNet as trained), ``channels_last`` (the same module in channels-last memory), ``fast`` (the
 FireNetInference the reconstructor uses: channels-last, split GRU convolutions, tanh via sigmoid, in-place steps),
 ``bf16`` (autocast to bfloat16: about twice as fast on CPUs with AVX512-BF16, but 5e-3 off, over the 1e-3 allowed),

@@ -5,9 +5,9 @@ Run from the repository root::
     python bench/bench_shapes.py               # 90 images (every kind in turn), best of 3 passes
     python bench/bench_shapes.py --images 300 --repeats 5
 
-Target (issue 4): >= 1 000 images per minute on one core, i.e. < 60 ms per image, so that MagicPoint's training
-data can be drawn on the fly. This was a unit test until issue 17 (a wall-clock assertion fails on a loaded
-machine); the figure is printed here instead. Reported: wall and CPU time (``time.process_time``, what one core
+Target: >= 1 000 images per minute on one core, i.e. < 60 ms per image, so that MagicPoint's training
+data can be drawn on the fly. A script, not a test: a wall-clock assertion fails on a loaded machine,
+so the figure is printed. Reported: wall and CPU time (``time.process_time``, what one core
 spends; less sensitive to other processes) per image, overall and per shape kind, best of the passes.
 
 Measured (2-core machine shared with ~7 other jobs, 2026-11-25): 10.6 ms per image wall, 3.6 ms CPU (90 images,

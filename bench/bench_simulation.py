@@ -4,8 +4,8 @@ Usage:  python bench/bench_simulation.py [--duration 10] [--presets boxes_like a
                                         [--jobs 2]
 
 Prints, per preset, the wall time of each sensor, the number of renders the adaptive event sampler needed, the event count and
-the event rate. Issue target: the full 10 s ``boxes_like`` simulation in under two minutes on the 2-core development machine.
-Issue 26 targets: the 60 s ``boxes_like`` without events in <= 30 s (``--duration 60 --no-events --jobs 2``) and 5 s
+the event rate. Target: the full 10 s ``boxes_like`` simulation in under two minutes on the 2-core development machine.
+Targets: the 60 s ``boxes_like`` without events in <= 30 s (``--duration 60 --no-events --jobs 2``) and 5 s
 with events in <= 10 s (``--duration 5``). ``--jobs``: processes that render the APS frames (default 2; the frames do
 not depend on it). This is a script that prints figures, not a timed test.
 """

@@ -1,11 +1,11 @@
 """Output folders that are never overwritten by accident and never left half-written.
 
-Every command that writes a folder follows two rules (issue 17, docs/reference/reliability.md):
+Every command that writes a folder follows two rules (docs/reference/reliability.md, section 2):
 
 * :func:`check_output_dir`, called before any work starts, refuses an existing non-empty folder unless the user
   said ``--force``, a path that is a file, and a place where the folder cannot be created; and, with or without
   ``--force``, the working folder, an input of the command, a folder inside an input and a folder that contains one
-  (issue 25: replacing it would delete what the user gave);
+  (replacing it would delete what the user gave);
 * :func:`atomic_output_dir` yields a fresh temporary folder beside the target (same parent, so the final
   ``rename`` is atomic on one file system), and moves it into place only when the ``with`` block ends normally.
   On any exception, Ctrl-C included, the temporary folder is removed and the target is exactly as it was.

@@ -2,7 +2,7 @@
 
 The MSCKF (thesis §3.3) consumes, per image, a list of (track id, undistorted normalised coordinates). This module
 produces exactly that from the simulator's ground truth, with no matching errors, so the back end can be tested
-alone (issue 5, "perfect-data-association runs").
+alone ("perfect-data-association runs").
 
 At each frame time t_k the camera pose follows from the IMU pose and the extrinsics (thesis Eqs. 27-28)::
 
