@@ -35,6 +35,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
+    "as_float_array",
+    "check_rotation",
     "skew",
     "cross3",
     "quat_normalize",
@@ -213,7 +215,7 @@ def quat_to_rot(q: ArrayLike) -> NDArray[np.float64]:
     return out
 
 
-def _check_rotation(R: ArrayLike, name: str) -> NDArray[np.float64]:
+def check_rotation(R: ArrayLike, name: str) -> NDArray[np.float64]:
     """Return R as float64 (..., 3, 3) after checking it is a rotation (det = 1, R R^T = I within 1e-6)."""
     R = as_float_array(R, name, (3, 3))
     orth_err = np.abs(R @ np.swapaxes(R, -1, -2) - np.eye(3)).max(axis=(-2, -1)) if R.size else np.zeros(0)
@@ -245,7 +247,7 @@ def rot_to_quat(R: ArrayLike) -> NDArray[np.float64]:
     >>> rot_to_quat(np.diag([1.0, -1.0, -1.0]))      # 180 deg about x
     array([1., 0., 0., 0.])
     """
-    return _rot_to_quat_unchecked(_check_rotation(R, "R"))
+    return _rot_to_quat_unchecked(check_rotation(R, "R"))
 
 
 def _rot_to_quat_unchecked(R: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -363,7 +365,7 @@ def so3_log(R: ArrayLike) -> NDArray[np.float64]:
     >>> np.round(so3_log(so3_exp([0.3, -0.2, 0.1])), 6)
     array([ 0.3, -0.2,  0.1])
     """
-    R = _check_rotation(R, "R")
+    R = check_rotation(R, "R")
     # C(quat_from_rotvec(θ)) = exp(-[θ x])  =>  log(R) = -rotvec(q(R))
     return -quat_to_rotvec(_rot_to_quat_unchecked(R))
 

@@ -42,6 +42,7 @@ import numpy as np
 
 from evio_lib.events.array import EVENT_DTYPE
 from evio_lib.geometry.camera import PinholeRadtan, intrinsics_problem
+from evio_lib.geometry.rotation import as_float_array, check_rotation
 from evio_lib.io.cache import from_json_value, to_json_value
 from evio_lib.io.errors import DataFileError, read_table, read_text, require_file, time_format, write_table
 from evio_lib.io.image_files import decoder_note, read_image
@@ -132,23 +133,20 @@ def _read_sidecar(folder: Path) -> dict | None:
 
 
 def _check_extrinsics(sidecar: dict) -> None:
-    """Refuse a sidecar's R_CtoI that is no 3 x 3 rotation or p_CinI that is no 3 numbers, naming the file."""
-    for key, shape, what in (("R_CtoI", (3, 3), "a 3 x 3 rotation matrix (rows of 3 numbers), the camera's "
-                                                "orientation in the IMU frame"),
-                             ("p_CinI", (3,), "3 numbers [m], the camera's position in the IMU frame")):
+    """Refuse a sidecar's R_CtoI that is no 3 x 3 rotation or p_CinI that is no 3 numbers, naming the file (the
+    library's own checks: ``geometry.rotation.check_rotation`` and ``as_float_array``)."""
+    for key, what, check, ndim in (
+            ("R_CtoI", "a 3 x 3 rotation matrix (rows of 3 numbers), the camera's orientation in the IMU frame",
+             lambda value: check_rotation(value, "R_CtoI"), 2),
+            ("p_CinI", "3 numbers [m], the camera's position in the IMU frame",
+             lambda value: as_float_array(value, "p_CinI", (3,)), 1)):
         value = sidecar.get(key)
         if value is None:
             continue
         try:
-            array = np.asarray(value, dtype=np.float64)
-        except (TypeError, ValueError):
-            array = None
-        problem = None
-        if array is None or array.shape != shape or not np.all(np.isfinite(array)):
-            problem = "not " + ("3 x 3 finite numbers" if key == "R_CtoI" else "3 finite numbers")
-        elif key == "R_CtoI" and (np.abs(array @ array.T - np.eye(3)).max() > 1e-6
-                                  or abs(np.linalg.det(array) - 1.0) > 1e-6):
-            problem = f"R R^T is not I or det R = {np.linalg.det(array):.6g} is not 1, to 1e-6"
+            problem = None if check(value).ndim == ndim else "one, not a stack of them"
+        except ValueError as error:
+            problem = str(error)
         if problem:
             raise DataFileError(f"{SIDECAR_NAME}: {key} must be {what}; got {value!r} ({problem})")
 

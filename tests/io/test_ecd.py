@@ -364,9 +364,11 @@ def test_a_damaged_frame_is_one_error_with_the_decoders_words_and_nothing_on_std
 
 
 @pytest.mark.parametrize("sidecar, message", [
-    ({"R_CtoI": "down"}, r"^evio_sim.json: R_CtoI must be a 3 x 3 rotation matrix .*got 'down'"),
-    ({"R_CtoI": [1, 2, 3]}, r"^evio_sim.json: R_CtoI must be .*\(not 3 x 3 finite numbers\)"),
-    ({"R_CtoI": [[1, 0, 0], [0, 1, 0], [0, 0, -1]]}, r"^evio_sim.json: R_CtoI .*det R = -1 is not 1"),
+    ({"R_CtoI": "down"}, r"^evio_sim.json: R_CtoI must be a 3 x 3 rotation matrix .*got 'down' \(R_CtoI must be a "
+                         r"numeric array"),
+    ({"R_CtoI": [1, 2, 3]}, r"^evio_sim.json: R_CtoI must be .*\(R_CtoI must have shape \(\.\.\., 3, 3\); got \(3,\)\)"),
+    ({"R_CtoI": [[[1, 0, 0], [0, 1, 0], [0, 0, 1]]] * 2}, r"^evio_sim.json: R_CtoI must be .*\(one, not a stack"),
+    ({"R_CtoI": [[1, 0, 0], [0, 1, 0], [0, 0, -1]]}, r"^evio_sim.json: R_CtoI .*det\(R_CtoI\) == 1 .*got det -1"),
     ({"p_CinI": "down"}, r"^evio_sim.json: p_CinI must be 3 numbers \[m\]"),
     ({"p_CinI": [0.1, 0.2]}, r"^evio_sim.json: p_CinI must be 3 numbers"),
     ({"metadata": "down"}, r"^evio_sim.json: metadata must be a JSON object; got str"),
