@@ -113,6 +113,7 @@ def test_load_config_files_overrides_and_round_trip(tmp_path):
         ({"select_on": "precision"}, "select_on must be one of"),
         ({"snapshot_every": 0}, "snapshot_every must be an int >= 1"),
         ({"max_minutes": 0}, "max_minutes must be a finite number > 0"),
+        ({"lambda_reprojection": -1.0}, "lambda_reprojection must be a finite number >= 0"),
         ({"event_fraction": 1.5, "stage": "detector", "labels_from": "magicpoint"}, "event_fraction must be"),
     ],
 )
@@ -218,7 +219,18 @@ def test_each_stage_type_runs_two_steps(tmp_path, label_cache, capsys):
     assert torch.equal(model.state_dict()["encoder.0.conv.weight"], mp_state["encoder.0.conv.weight"])
     dd = tr.train(dd_cfg, progress=False)
     assert dd.steps == 2 and set(dd.validation[-1]) >= {"loss", "detector", "descriptor", "precision", "recall",
-                                                        "desc_positive_dot", "desc_negative_dot", "desc_nn_accuracy"}
+                                                        "desc_positive_dot", "desc_negative_dot", "desc_nn_accuracy",
+                                                        "reprojection"}
+    assert 0.0 <= dd.validation[-1]["reprojection"] <= 3.0  # pixels, capped at d_max
+    # the same pairs with the reprojection term in the loss: its weight changes the total, not the term
+    rp_cfg = tr.load_config({"name": "rp", "stage": "detdesc", "init_from": "mp", "lambda_reprojection": 2.0, **real})
+    batch = next(iter(torch.utils.data.DataLoader(train_data, batch_size=2)))
+    model = tr.build_training_model(rp_cfg)
+    with_term, parts, _ = tr._batch_loss(model, batch, rp_cfg, torch.Generator().manual_seed(0), torch.device("cpu"))
+    without, plain_parts, _ = tr._batch_loss(model, batch, dd_cfg, torch.Generator().manual_seed(0),
+                                             torch.device("cpu"))
+    assert "reprojection" not in plain_parts  # lambda_r = 0: training computes no extra term
+    assert torch.isclose(with_term, without + 2.0 * parts["reprojection"])
     assert 0.0 <= dd.validation[-1]["desc_nn_accuracy"] <= 1.0
     # choosing among the snapshots on the validation benchmark (one val image, one pair per split)
     report = tr.benchmark_snapshots(dd.run_dir, n_images=1, pairs_per_image=1, progress=False)

@@ -4,6 +4,8 @@
   (MagicPoint, detector rounds, detector + descriptor), chains and the ``features-train`` command;
 - :mod:`~evio_lib.features.training.options`: the options of ``features-train`` alone (no torch: fast ``--help``);
 - :mod:`~evio_lib.features.training.losses`: detector cross-entropy, descriptor hinge loss, total loss;
+- :mod:`~evio_lib.features.training.reprojection`: the optional reprojection loss that trains sub-pixel keypoints
+  to follow the pair's homography;
 - :mod:`~evio_lib.features.training.metrics`: precision and recall of detections against labels (validation);
 - :mod:`~evio_lib.features.training.shapes`: Synthetic Shapes, the labelled images that bootstrap MagicPoint;
 - :mod:`~evio_lib.features.training.adaptation`: homographic adaptation, which labels real images;

@@ -70,6 +70,7 @@ from evio_lib.features.network import (
 from evio_lib.features.training.augment import HOMOGRAPHIC_PAIR, HomographicConfig, PairSample
 from evio_lib.features.training.losses import descriptor_cell_stats, detector_loss, superpoint_loss
 from evio_lib.features.training.metrics import detection_counts, keypoints_to_map
+from evio_lib.features.training.reprojection import reprojection_loss
 from evio_lib.features.training.options import add_train_arguments  # the command's options (no torch)
 
 __all__ = [
@@ -149,6 +150,10 @@ class TrainConfig:
         lr: Adam learning rate (other Adam parameters at their defaults, as in the thesis).
         lambda_d: weight of the positive pairs in the descriptor hinge loss (Eq. 12).
         lambda_loss: weight lambda of the descriptor loss in Eq. 8 (of the descriptor term for "distill").
+        lambda_reprojection: weight lambda_r of the reprojection loss added to Eq. 8 for DetDesc pairs
+            (:func:`evio_lib.features.training.reprojection.reprojection_loss`: a cell's refined peak must land
+            where the homography maps it, sub-pixel); 0 (default) keeps the thesis's loss. Validation reports the
+            term (``reprojection``, pixels) for every DetDesc run.
         seed: seed of the initialisation, the data order, the augmentation and the label choice.
         pool_seed: seed of the real-image pool (crops, render poses) and of the label export's homographies.
         render_zoom: rendered pool scenes are drawn this many times larger before the random crop (``datasets.image_pool``),
@@ -202,6 +207,7 @@ class TrainConfig:
     lr: float = 1e-3
     lambda_d: float = 250.0
     lambda_loss: float = 1.0
+    lambda_reprojection: float = 0.0
     seed: int = 0
     pool_seed: int = 0
     render_zoom: float = 1.0
@@ -260,6 +266,7 @@ class TrainConfig:
         _real("lr", self.lr, 0.0, strict=True)
         _real("lambda_d", self.lambda_d, 0.0)
         _real("lambda_loss", self.lambda_loss, 0.0)
+        _real("lambda_reprojection", self.lambda_reprojection, 0.0)
         _int("seed", self.seed, 0)
         _int("pool_seed", self.pool_seed, 0)
         _real("render_zoom", self.render_zoom, 1.0)
@@ -838,11 +845,17 @@ def _batch_loss(model: SuperPointNet, batch: Sequence[torch.Tensor], config: Tra
                                 valid_mask_warped=wmask, lambda_loss=config.lambda_loss, lambda_d=config.lambda_d)
         parts: dict[str, Any] = {"detector": (terms.detector + terms.detector_warped) / 2,
                                  "descriptor": terms.descriptor}
+        total = terms.total
+        if config.lambda_reprojection > 0 or descriptor_stats:
+            reprojection = reprojection_loss(out1["logits"], out2["logits"], H, valid_mask=mask, valid_mask_warped=wmask)
+            parts["reprojection"] = reprojection
+            if config.lambda_reprojection > 0:
+                total = total + config.lambda_reprojection * reprojection  # L + lambda_r L_r
         if descriptor_stats and "descriptors" in out:
             stats = descriptor_cell_stats(out1["descriptors"], out2["descriptors"], H, valid_mask=mask,
                                           valid_mask_warped=wmask)
             parts.update({f"desc_{key}": value for key, value in stats._asdict().items()})
-        return terms.total, parts, out1  # L = L_p(X, Y) + L_p(X', Y') + lambda L_d (Eq. 8)
+        return total, parts, out1  # L = L_p(X, Y) + L_p(X', Y') + lambda L_d (Eq. 8) [+ lambda_r L_r]
     image, kmap, mask = tensors
     out = model(image)
     loss = detector_loss(out["logits"], kmap, generator=generator, valid_mask=mask)  # L_p (Eq. 9)

@@ -1,0 +1,161 @@
+"""Reprojection loss: a keypoint found in one image of a pair must land, sub-pixel, where the homography puts it.
+
+The detector loss (Eq. 9) only says in which pixel of a cell a label lies. It never asks the heat map to follow the
+image when it moves by a fraction of a cell, and a network trained on it alone keeps favoured positions inside its
+8 x 8 cells (``bench/detector_localisation.py``: after a 1 px shift the points are off by 0.6-0.8 px). This term
+trains the localisation the post-processing uses (the peak of a cell, then the heat centroid of a 5 x 5 window
+around it, :func:`evio_lib.features.network.refine_keypoints`) to be equivariant under the pair's homography, in the
+spirit of the reprojection losses of SuperPoint's descendants (ALIKE's differentiable keypoint detection; Zhao et
+al., "ALIKE", IEEE TMM 2022, §III-C), without any label:
+
+1. In image 1, every cell's most probable pixel (x0, y0) (argmax of its 64 non-dustbin logits) is refined to the
+   heat centroid of the (2r + 1)^2 window around it (differentiable in the heat map)::
+
+       c1 = (x0, y0) + sum_{u,v} p1(x0 + u, y0 + v) (u, v) / sum_{u,v} p1(x0 + u, y0 + v)
+
+2. c1 is mapped by H to q = H c1 in image 2, and image 2's heat centroid c2 is taken in the window around the pixel
+   nearest q (the same operator, so a point that follows the image gives c2 = q).
+3. ``L_r = sum_i w_i min(||c2_i - q_i||, d_max) / sum_i w_i``, with w_i the cell's keypoint probability
+   ``1 - p(dustbin)`` in image 1 (not differentiated), over cells whose window and mapped window lie inside the
+   valid pixels of both images; the same from image 2 back to image 1 with H^-1, and the mean of the two.
+
+The distance is capped at ``d_max`` (default 3 px) so that cells without a counterpart (occlusion by the warp, a
+repeated texture) pull no harder than a near miss. The term enters the total as ``L + lambda_r L_r``
+(``TrainConfig.lambda_reprojection``; 0, the default, leaves the thesis's loss unchanged).
+"""
+from __future__ import annotations
+
+import math
+
+import torch
+import torch.nn.functional as F
+
+from evio_lib.features.network.postprocessing import logits_to_heatmap
+from evio_lib.features.training.losses import CELL, DUSTBIN, _as_homographies, _check_logits
+
+__all__ = ["cell_peaks", "window_centroids", "reprojection_loss"]
+
+
+def cell_peaks(logits: torch.Tensor) -> torch.Tensor:
+    """Return (B, Hc Wc, 2) float (x, y) pixels of every cell's most probable non-dustbin pixel, cells row-major.
+
+    >>> logits = torch.zeros(1, 65, 1, 2); logits[0, 8 * 2 + 5, 0, 1] = 5.0   # cell (0, 1): pixel row 2, col 5
+    >>> cell_peaks(logits)[0, 1].tolist()
+    [13.0, 2.0]
+    """
+    logits = _check_logits(logits)
+    b, _, hc, wc = logits.shape
+    k = logits[:, :DUSTBIN].argmax(dim=1)  # (B, Hc, Wc) channel = row * 8 + col inside the cell
+    rows = torch.arange(hc, device=logits.device)[:, None] * CELL + torch.div(k, CELL, rounding_mode="floor")
+    cols = torch.arange(wc, device=logits.device)[None, :] * CELL + k % CELL
+    return torch.stack([cols, rows], dim=-1).reshape(b, hc * wc, 2).float()
+
+
+def window_centroids(heat: torch.Tensor, centres: torch.Tensor, radius: int = 2) -> tuple[torch.Tensor, torch.Tensor]:
+    """Return the heat centroids (B, N, 2) of the windows around the pixels nearest ``centres``, and their masses.
+
+    ``heat`` is (B, H, W); ``centres`` (B, N, 2) float (x, y) pixels; each is rounded to the nearest pixel (x0, y0)
+    and the (2r + 1)^2 window there (pixels outside the image count as 0) gives
+    ``(x0, y0) + sum p (u, v) / sum p``, differentiable in ``heat``. Centres outside the image are clamped to its
+    nearest pixel; callers mask them.
+
+    >>> heat = torch.zeros(1, 8, 8); heat[0, 3, 4], heat[0, 3, 5] = 0.6, 0.2
+    >>> c, m = window_centroids(heat, torch.tensor([[[4.2, 2.9]]]), radius=1)
+    >>> c[0, 0].tolist(), round(float(m[0, 0]), 3)
+    ([4.25, 3.0], 0.8)
+    """
+    b, height, width = heat.shape
+    padded = F.pad(heat, (radius,) * 4)  # zeros outside the image
+    cols = centres[..., 0].round().clamp(0, width - 1).long()
+    rows = centres[..., 1].round().clamp(0, height - 1).long()
+    offsets = torch.arange(-radius, radius + 1, device=heat.device)
+    du, dv = offsets[None, None, None, :], offsets[None, None, :, None]  # column and row offsets of the window
+    batch = torch.arange(b, device=heat.device)[:, None, None, None]
+    window = padded[batch, rows[..., None, None] + radius + dv, cols[..., None, None] + radius + du]  # (B, N, k, k)
+    mass = window.sum(dim=(2, 3))
+    safe = mass.clamp_min(1e-12)
+    x = cols.float() + (window * du).sum(dim=(2, 3)) / safe
+    y = rows.float() + (window * dv).sum(dim=(2, 3)) / safe
+    return torch.stack([x, y], dim=-1), mass
+
+
+def _map_points(h: torch.Tensor, points: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Return H applied to (B, N, 2) points and a mask of those in front (w > 0)."""
+    ph = torch.cat([points.double(), torch.ones_like(points[..., :1]).double()], dim=-1)
+    mapped = ph @ h.transpose(1, 2)
+    w = mapped[..., 2]
+    ahead = w > 1e-9
+    xy = mapped[..., :2] / torch.where(ahead, w, torch.ones_like(w))[..., None]
+    return xy.to(points.dtype), ahead
+
+
+def _inside(points: torch.Tensor, mask: torch.Tensor | None, shape: tuple[int, int], margin: int) -> torch.Tensor:
+    """Return (B, N) bool: the window of ``margin`` around each point's pixel lies in the image and its valid mask."""
+    height, width = shape
+    x, y = points[..., 0].round(), points[..., 1].round()
+    inside = (x >= margin) & (x <= width - 1 - margin) & (y >= margin) & (y <= height - 1 - margin)
+    if mask is None:
+        return inside
+    eroded = -F.max_pool2d(-mask.float()[:, None], 2 * margin + 1, stride=1, padding=margin)[:, 0]  # min filter
+    b = points.shape[0]
+    xi = x.long().clamp(0, width - 1)
+    yi = y.long().clamp(0, height - 1)
+    return inside & (eroded[torch.arange(b, device=points.device)[:, None], yi, xi] > 0.5)
+
+
+def _one_way(logits_src: torch.Tensor, heat_src: torch.Tensor, heat_dst: torch.Tensor, h: torch.Tensor,
+             mask_src: torch.Tensor | None, mask_dst: torch.Tensor | None, radius: int, d_max: float) -> torch.Tensor:
+    """Return the weighted mean capped distance ||c_dst - H c_src|| of one direction (see the module docstring)."""
+    peaks = cell_peaks(logits_src)
+    c_src, _ = window_centroids(heat_src, peaks, radius)
+    q, ahead = _map_points(h, c_src)
+    c_dst, mass = window_centroids(heat_dst, q, radius)
+    shape = tuple(heat_src.shape[1:])
+    valid = ahead & _inside(peaks, mask_src, shape, radius) & _inside(q, mask_dst, shape, radius)
+    valid &= mass.detach() > 1e-6
+    score = 1.0 - torch.softmax(logits_src.float(), dim=1)[:, DUSTBIN]  # keypoint probability per cell
+    weight = score.reshape(score.shape[0], -1).detach() * valid.float()
+    dist = torch.linalg.vector_norm(c_dst - q, dim=-1).clamp(max=d_max)
+    return (weight * dist).sum() / weight.sum().clamp_min(1e-12)
+
+
+def reprojection_loss(
+    logits: torch.Tensor,
+    logits_warped: torch.Tensor,
+    homographies: torch.Tensor,
+    *,
+    valid_mask: torch.Tensor | None = None,
+    valid_mask_warped: torch.Tensor | None = None,
+    radius: int = 2,
+    d_max: float = 3.0,
+) -> torch.Tensor:
+    """Return L_r (pixels): the mean of both directions' weighted capped reprojection distances (module docstring).
+
+    Args:
+        logits, logits_warped: (B, 65, Hc, Wc) detector logits of image 1 and of image 2 = warp of image 1 by H.
+        homographies: (B, 3, 3) H (image-1 pixels -> image-2 pixels).
+        valid_mask, valid_mask_warped: optional (B, 8 Hc, 8 Wc) masks of the pixels holding image content.
+        radius: half-size r of the centroid windows (that of the detector's ``subpixel_radius``, default 2).
+        d_max: cap of each distance in pixels.
+
+    >>> _ = torch.manual_seed(0); logits = torch.randn(1, 65, 4, 4)
+    >>> shift = torch.tensor([[[1.0, 0, 8], [0, 1, 0], [0, 0, 1]]])   # one cell to the right
+    >>> moved = torch.roll(logits, 1, dims=3)                        # a network that follows the shift exactly
+    >>> round(float(reprojection_loss(logits, moved, shift)), 6)
+    0.0
+    """
+    logits = _check_logits(logits)
+    logits_warped = _check_logits(logits_warped, "logits_warped")
+    if logits.shape != logits_warped.shape:
+        raise ValueError(f"logits and logits_warped must have the same shape; got {tuple(logits.shape)} and "
+                         f"{tuple(logits_warped.shape)}")
+    if isinstance(radius, bool) or not isinstance(radius, int) or radius < 1:
+        raise ValueError(f"radius must be an integer >= 1 (pixels); got {radius!r}")
+    if not (isinstance(d_max, (int, float)) and math.isfinite(d_max) and d_max > 0):
+        raise ValueError(f"d_max must be a positive number of pixels; got {d_max!r}")
+    h = _as_homographies(homographies, logits.shape[0], logits.device)
+    heat1, heat2 = logits_to_heatmap(logits), logits_to_heatmap(logits_warped)
+    forward = _one_way(logits, heat1, heat2, h, valid_mask, valid_mask_warped, radius, float(d_max))
+    backward = _one_way(logits_warped, heat2, heat1, torch.linalg.inv(h), valid_mask_warped, valid_mask, radius,
+                        float(d_max))
+    return (forward + backward) / 2
