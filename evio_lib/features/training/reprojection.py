@@ -13,11 +13,15 @@ al., "ALIKE", IEEE TMM 2022, §III-C), without any label:
 
        c1 = (x0, y0) + sum_{u,v} p1(x0 + u, y0 + v) (u, v) / sum_{u,v} p1(x0 + u, y0 + v)
 
-2. c1 is mapped by H to q = H c1 in image 2, and image 2's heat centroid c2 is taken in the window around the pixel
-   nearest q (the same operator, so a point that follows the image gives c2 = q).
+2. c1 is mapped by H to q = H c1 in image 2. There the detection that the post-processing would report is the
+   cell peak of image 2 nearest q (within 2r pixels; farther means no counterpart), refined the same way to c2
+   (so a network whose points follow the image gives c2 = q). Taking the window around image 2's own peak, not
+   around q, matters: a window centred on q would let a flat heat map score well, its centroid being the window's
+   centre, while the reported peaks stayed where they were.
 3. ``L_r = sum_i w_i min(||c2_i - q_i||, d_max) / sum_i w_i``, with w_i the cell's keypoint probability
    ``1 - p(dustbin)`` in image 1 (not differentiated), over cells whose window and mapped window lie inside the
-   valid pixels of both images; the same from image 2 back to image 1 with H^-1, and the mean of the two.
+   valid pixels of both images and that have a counterpart; the same from image 2 back to image 1 with H^-1, and
+   the mean of the two.
 
 The distance is capped at ``d_max`` (default 3 px) so that cells without a counterpart (occlusion by the warp, a
 repeated texture) pull no harder than a near miss. The term enters the total as ``L + lambda_r L_r``
@@ -103,15 +107,21 @@ def _inside(points: torch.Tensor, mask: torch.Tensor | None, shape: tuple[int, i
     return inside & (eroded[torch.arange(b, device=points.device)[:, None], yi, xi] > 0.5)
 
 
-def _one_way(logits_src: torch.Tensor, heat_src: torch.Tensor, heat_dst: torch.Tensor, h: torch.Tensor,
+def _one_way(logits_src: torch.Tensor, logits_dst: torch.Tensor, heat_src: torch.Tensor, heat_dst: torch.Tensor,
+             h: torch.Tensor,
              mask_src: torch.Tensor | None, mask_dst: torch.Tensor | None, radius: int, d_max: float) -> torch.Tensor:
     """Return the weighted mean capped distance ||c_dst - H c_src|| of one direction (see the module docstring)."""
     peaks = cell_peaks(logits_src)
     c_src, _ = window_centroids(heat_src, peaks, radius)
     q, ahead = _map_points(h, c_src)
-    c_dst, mass = window_centroids(heat_dst, q, radius)
+    peaks_dst = cell_peaks(logits_dst)
+    gap = torch.cdist(q.detach().float(), peaks_dst)  # (B, N, N'): distance of each mapped point to every peak
+    nearest_gap, nearest = gap.min(dim=-1)
+    found = torch.gather(peaks_dst, 1, nearest[..., None].expand(-1, -1, 2))  # the detection the target makes
+    c_dst, mass = window_centroids(heat_dst, found, radius)
     shape = tuple(heat_src.shape[1:])
     valid = ahead & _inside(peaks, mask_src, shape, radius) & _inside(q, mask_dst, shape, radius)
+    valid &= nearest_gap <= 2 * radius  # a target peak near enough to be the same point
     valid &= mass.detach() > 1e-6
     score = 1.0 - torch.softmax(logits_src.float(), dim=1)[:, DUSTBIN]  # keypoint probability per cell
     weight = score.reshape(score.shape[0], -1).detach() * valid.float()
@@ -155,7 +165,7 @@ def reprojection_loss(
         raise ValueError(f"d_max must be a positive number of pixels; got {d_max!r}")
     h = _as_homographies(homographies, logits.shape[0], logits.device)
     heat1, heat2 = logits_to_heatmap(logits), logits_to_heatmap(logits_warped)
-    forward = _one_way(logits, heat1, heat2, h, valid_mask, valid_mask_warped, radius, float(d_max))
-    backward = _one_way(logits_warped, heat2, heat1, torch.linalg.inv(h), valid_mask_warped, valid_mask, radius,
-                        float(d_max))
+    forward = _one_way(logits, logits_warped, heat1, heat2, h, valid_mask, valid_mask_warped, radius, float(d_max))
+    backward = _one_way(logits_warped, logits, heat2, heat1, torch.linalg.inv(h), valid_mask_warped, valid_mask,
+                        radius, float(d_max))
     return (forward + backward) / 2
