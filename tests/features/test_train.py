@@ -114,6 +114,7 @@ def test_load_config_files_overrides_and_round_trip(tmp_path):
         ({"snapshot_every": 0}, "snapshot_every must be an int >= 1"),
         ({"max_minutes": 0}, "max_minutes must be a finite number > 0"),
         ({"lambda_reprojection": -1.0}, "lambda_reprojection must be a finite number >= 0"),
+        ({"lambda_reprojection": 1.0}, "lambda_reprojection must be 0 for stage 'magicpoint'"),
         ({"event_fraction": 1.5, "stage": "detector", "labels_from": "magicpoint"}, "event_fraction must be"),
     ],
 )
@@ -230,7 +231,10 @@ def test_each_stage_type_runs_two_steps(tmp_path, label_cache, capsys):
     without, plain_parts, _ = tr._batch_loss(model, batch, dd_cfg, torch.Generator().manual_seed(0),
                                              torch.device("cpu"))
     assert "reprojection" not in plain_parts  # lambda_r = 0: training computes no extra term
+    assert float(parts["reprojection"].detach()) > 0.0  # an untrained network's points do not follow the warp
     assert torch.isclose(with_term, without + 2.0 * parts["reprojection"])
+    with_term.backward()  # the term's gradient reaches the network
+    assert all(torch.isfinite(p.grad).all() for p in model.parameters() if p.grad is not None)
     assert 0.0 <= dd.validation[-1]["desc_nn_accuracy"] <= 1.0
     # choosing among the snapshots on the validation benchmark (one val image, one pair per split)
     report = tr.benchmark_snapshots(dd.run_dir, n_images=1, pairs_per_image=1, progress=False)

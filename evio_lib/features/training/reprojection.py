@@ -3,24 +3,26 @@
 The detector loss (Eq. 9) only says in which pixel of a cell a label lies. It never asks the heat map to follow the
 image when it moves by a fraction of a cell, and a network trained on it alone keeps favoured positions inside its
 8 x 8 cells (``bench/detector_localisation.py``: after a 1 px shift the points are off by 0.6-0.8 px). This term
-trains the localisation the post-processing uses (the peak of a cell, then the heat centroid of a 5 x 5 window
-around it, :func:`evio_lib.features.network.refine_keypoints`) to be equivariant under the pair's homography, in the
+trains the localisation the post-processing uses (peaks kept by box NMS, then the heat centroid of a 5 x 5 window
+around each, :func:`evio_lib.features.network.refine_keypoints`) to be equivariant under the pair's homography, in the
 spirit of the reprojection losses of SuperPoint's descendants (ALIKE's differentiable keypoint detection; Zhao et
 al., "ALIKE", IEEE TMM 2022, §III-C), without any label:
 
-1. In image 1, every cell's most probable pixel (x0, y0) (argmax of its 64 non-dustbin logits) is refined to the
-   heat centroid of the (2r + 1)^2 window around it (differentiable in the heat map)::
+1. In image 1, every cell's most probable pixel (x0, y0) (argmax of its 64 non-dustbin logits) that the detector
+   would keep (probability >= 1/65 and no larger heat within 4 px: a detection, not the tail of a neighbour's point
+   or flat background) is refined to the heat
+   centroid of the (2r + 1)^2 window around it (differentiable in the heat map)::
 
        c1 = (x0, y0) + sum_{u,v} p1(x0 + u, y0 + v) (u, v) / sum_{u,v} p1(x0 + u, y0 + v)
 
 2. c1 is mapped by H to q = H c1 in image 2. There the detection that the post-processing would report is the
-   cell peak of image 2 nearest q (within 2r pixels; farther means no counterpart), refined the same way to c2
+   detection of image 2 nearest q (within 2r pixels; farther means no counterpart), refined the same way to c2
    (so a network whose points follow the image gives c2 = q). Taking the window around image 2's own peak, not
    around q, matters: a window centred on q would let a flat heat map score well, its centroid being the window's
    centre, while the reported peaks stayed where they were.
 3. ``L_r = sum_i w_i min(||c2_i - q_i||, d_max) / sum_i w_i``, with w_i the cell's keypoint probability
    ``1 - p(dustbin)`` in image 1 (not differentiated), over cells whose window and mapped window lie inside the
-   valid pixels of both images and that have a counterpart; the same from image 2 back to image 1 with H^-1, and
+   valid pixels of both images (the counterpart's window too) and that have a counterpart; the same from image 2 back to image 1 with H^-1, and
    the mean of the two.
 
 The distance is capped at ``d_max`` (default 3 px) so that cells without a counterpart (occlusion by the warp, a
@@ -107,21 +109,37 @@ def _inside(points: torch.Tensor, mask: torch.Tensor | None, shape: tuple[int, i
     return inside & (eroded[torch.arange(b, device=points.device)[:, None], yi, xi] > 0.5)
 
 
+def _detections(logits: torch.Tensor, heat: torch.Tensor, nms: int, threshold: float
+                ) -> tuple[torch.Tensor, torch.Tensor]:
+    """Return every cell's peak (B, N, 2) and whether it is a detection: at least ``threshold`` and the largest heat
+    within ``nms`` pixels (Chebyshev), as the detector keeps it, so that a cell whose peak is only the tail of a
+    neighbour's point, or flat background, counts not."""
+    peaks = cell_peaks(logits)
+    box_max = F.max_pool2d(heat[:, None].detach(), 2 * nms + 1, stride=1, padding=nms)[:, 0]
+    b = peaks.shape[0]
+    rows, cols = peaks[..., 1].long(), peaks[..., 0].long()
+    batch = torch.arange(b, device=heat.device)[:, None]
+    value = heat.detach()[batch, rows, cols]
+    return peaks, (value >= box_max[batch, rows, cols]) & (value >= threshold)
+
+
 def _one_way(logits_src: torch.Tensor, logits_dst: torch.Tensor, heat_src: torch.Tensor, heat_dst: torch.Tensor,
              h: torch.Tensor,
-             mask_src: torch.Tensor | None, mask_dst: torch.Tensor | None, radius: int, d_max: float) -> torch.Tensor:
+             mask_src: torch.Tensor | None, mask_dst: torch.Tensor | None, radius: int, d_max: float, nms: int,
+             threshold: float) -> torch.Tensor:
     """Return the weighted mean capped distance ||c_dst - H c_src|| of one direction (see the module docstring)."""
-    peaks = cell_peaks(logits_src)
+    peaks, is_peak = _detections(logits_src, heat_src, nms, threshold)
     c_src, _ = window_centroids(heat_src, peaks, radius)
     q, ahead = _map_points(h, c_src)
-    peaks_dst = cell_peaks(logits_dst)
+    peaks_dst, is_peak_dst = _detections(logits_dst, heat_dst, nms, threshold)
     gap = torch.cdist(q.detach().float(), peaks_dst)  # (B, N, N'): distance of each mapped point to every peak
+    gap = torch.where(is_peak_dst[:, None, :], gap, torch.full_like(gap, float("inf")))  # detections only
     nearest_gap, nearest = gap.min(dim=-1)
     found = torch.gather(peaks_dst, 1, nearest[..., None].expand(-1, -1, 2))  # the detection the target makes
     c_dst, mass = window_centroids(heat_dst, found, radius)
     shape = tuple(heat_src.shape[1:])
-    valid = ahead & _inside(peaks, mask_src, shape, radius) & _inside(q, mask_dst, shape, radius)
-    valid &= nearest_gap <= 2 * radius  # a target peak near enough to be the same point
+    valid = ahead & is_peak & _inside(peaks, mask_src, shape, radius) & _inside(q, mask_dst, shape, radius)
+    valid &= (nearest_gap <= 2 * radius) & _inside(found, mask_dst, shape, radius)  # a near detection, valid window
     valid &= mass.detach() > 1e-6
     score = 1.0 - torch.softmax(logits_src.float(), dim=1)[:, DUSTBIN]  # keypoint probability per cell
     weight = score.reshape(score.shape[0], -1).detach() * valid.float()
@@ -138,6 +156,8 @@ def reprojection_loss(
     valid_mask_warped: torch.Tensor | None = None,
     radius: int = 2,
     d_max: float = 3.0,
+    nms: int = 4,
+    threshold: float = 1.0 / 65.0,
 ) -> torch.Tensor:
     """Return L_r (pixels): the mean of both directions' weighted capped reprojection distances (module docstring).
 
@@ -147,6 +167,9 @@ def reprojection_loss(
         valid_mask, valid_mask_warped: optional (B, 8 Hc, 8 Wc) masks of the pixels holding image content.
         radius: half-size r of the centroid windows (that of the detector's ``subpixel_radius``, default 2).
         d_max: cap of each distance in pixels.
+        nms: a cell's peak is a detection only if no larger heat lies within this many pixels (box NMS; the
+            detector's default radius 4).
+        threshold: ... and only if its keypoint probability is at least this (the detector's default 1/65).
 
     >>> _ = torch.manual_seed(0); logits = torch.randn(1, 65, 4, 4)
     >>> shift = torch.tensor([[[1.0, 0, 8], [0, 1, 0], [0, 0, 1]]])   # one cell to the right
@@ -163,9 +186,14 @@ def reprojection_loss(
         raise ValueError(f"radius must be an integer >= 1 (pixels); got {radius!r}")
     if not (isinstance(d_max, (int, float)) and math.isfinite(d_max) and d_max > 0):
         raise ValueError(f"d_max must be a positive number of pixels; got {d_max!r}")
+    if not (isinstance(threshold, (int, float)) and 0.0 <= threshold < 1.0):
+        raise ValueError(f"threshold must be a probability in [0, 1); got {threshold!r}")
+    if isinstance(nms, bool) or not isinstance(nms, int) or nms < 0:
+        raise ValueError(f"nms must be an integer >= 0 (pixels); got {nms!r}")
     h = _as_homographies(homographies, logits.shape[0], logits.device)
     heat1, heat2 = logits_to_heatmap(logits), logits_to_heatmap(logits_warped)
-    forward = _one_way(logits, logits_warped, heat1, heat2, h, valid_mask, valid_mask_warped, radius, float(d_max))
+    forward = _one_way(logits, logits_warped, heat1, heat2, h, valid_mask, valid_mask_warped, radius, float(d_max),
+                       nms, threshold)
     backward = _one_way(logits_warped, logits, heat2, heat1, torch.linalg.inv(h), valid_mask_warped, valid_mask,
-                        radius, float(d_max))
+                        radius, float(d_max), nms, threshold)
     return (forward + backward) / 2

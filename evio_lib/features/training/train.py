@@ -279,6 +279,9 @@ class TrainConfig:
             raise _bad("select_on", self.select_on, f"one of {sorted(SELECTION_METRICS)}")
         if self.stage == "distill" and self.select_on != "loss":
             raise _bad("select_on", self.select_on, "'loss' for stage 'distill' (it measures no descriptor retrieval)")
+        if self.lambda_reprojection > 0 and self.stage != "detdesc":
+            raise _bad("lambda_reprojection", self.lambda_reprojection,
+                       f"0 for stage {self.stage!r} (the reprojection loss needs the warped pairs of stage 'detdesc')")
         _int("snapshot_every", self.snapshot_every, 1, allow_none=True)
         _int("n_train_images", self.n_train_images, 1)
         _int("n_val_images", self.n_val_images, 1)
