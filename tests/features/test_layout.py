@@ -14,7 +14,7 @@ FORMER = {"superpoint": "network", "train": "training.train", "train_options": "
 # the public names of evio_lib.features.network (the former single module's __all__)
 NETWORK_ALL = ["CELL", "MODEL_CONFIGS", "DEFAULT_WEIGHTS", "WEIGHTS_DIR", "TRAINING_COMMAND", "INFERENCE_MODES",
                "SuperPointNet", "build_model", "count_parameters", "pad_to_cells", "logits_to_heatmap",
-               "nms_heatmap", "extract_keypoints", "refine_keypoints", "sample_descriptors", "postprocess",
+               "nms_heatmap", "extract_keypoints", "refine_keypoints", "window_centroids", "sample_descriptors", "postprocess",
                "calibration_images", "quantize_int8", "inference_model", "save_checkpoint", "load_checkpoint",
                "load_model", "resolve_weights", "shipped_weights", "SuperPointDetector"]
 

@@ -8,7 +8,8 @@ import torch
 import torch.nn.functional as F
 
 from evio_lib.features.network import logits_to_heatmap, refine_keypoints
-from evio_lib.features.training.reprojection import cell_peaks, reprojection_loss, window_centroids
+from evio_lib.features.network.postprocessing import window_centroids
+from evio_lib.features.training.reprojection import cell_peaks, reprojection_loss
 
 
 def _blob_logits(centres: np.ndarray, shape: tuple[int, int], sigma: float = 0.8) -> torch.Tensor:

@@ -33,6 +33,7 @@ __all__ = [
     "nms_heatmap",
     "extract_keypoints",
     "refine_keypoints",
+    "window_centroids",
     "sample_descriptors",
     "postprocess",
 ]
@@ -239,15 +240,36 @@ def refine_keypoints(heatmap: torch.Tensor, keypoints: torch.Tensor, radius: int
     rows = keypoints[:, 1].round().long()
     if (cols < 0).any() or (cols >= width).any() or (rows < 0).any() or (rows >= height).any():
         raise ValueError(f"keypoints must lie inside the ({height}, {width}) heatmap")
-    heat = heatmap.float().clamp_min(0.0)
+    centroids, _ = window_centroids(heatmap.float().clamp_min(0.0)[None], keypoints[None], radius)
+    return centroids[0]
+
+
+def window_centroids(heat: torch.Tensor, centres: torch.Tensor, radius: int = 2) -> tuple[torch.Tensor, torch.Tensor]:
+    """Return the heat centroids (B, N, 2) of the windows around the pixels nearest ``centres``, and their masses.
+
+    ``heat`` is (B, H, W); ``centres`` (B, N, 2) float (x, y) pixels; each is rounded to the nearest pixel (x0, y0)
+    and the (2r + 1)^2 window there (pixels outside the image count as 0) gives
+    ``(x0, y0) + sum p (u, v) / sum p``, differentiable in ``heat`` (the batched form of :func:`refine_keypoints`,
+    also used by the training's reprojection loss). Centres outside the image are clamped to its nearest pixel.
+
+    >>> heat = torch.zeros(1, 8, 8); heat[0, 3, 4], heat[0, 3, 5] = 0.6, 0.2
+    >>> c, m = window_centroids(heat, torch.tensor([[[4.2, 2.9]]]), radius=1)
+    >>> c[0, 0].tolist(), round(float(m[0, 0]), 3)
+    ([4.25, 3.0], 0.8)
+    """
+    b, height, width = heat.shape
     padded = F.pad(heat, (radius,) * 4)  # zeros outside the image
+    cols = centres[..., 0].round().clamp(0, width - 1).long()
+    rows = centres[..., 1].round().clamp(0, height - 1).long()
     offsets = torch.arange(-radius, radius + 1, device=heat.device)
-    du, dv = offsets[None, :], offsets[:, None]  # (1, k) column offsets, (k, 1) row offsets
-    window = padded[rows[:, None, None] + radius + dv, cols[:, None, None] + radius + du]  # (N, k, k)
-    mass = window.sum(dim=(1, 2)).clamp_min(torch.finfo(torch.float32).tiny)
-    x = cols.float() + (window * du).sum(dim=(1, 2)) / mass
-    y = rows.float() + (window * dv).sum(dim=(1, 2)) / mass
-    return torch.stack([x, y], dim=1)
+    du, dv = offsets[None, None, None, :], offsets[None, None, :, None]  # column and row offsets of the window
+    batch = torch.arange(b, device=heat.device)[:, None, None, None]
+    window = padded[batch, rows[..., None, None] + radius + dv, cols[..., None, None] + radius + du]  # (B, N, k, k)
+    mass = window.sum(dim=(2, 3))
+    safe = mass.clamp_min(torch.finfo(torch.float32).tiny)
+    x = cols.float() + (window * du).sum(dim=(2, 3)) / safe
+    y = rows.float() + (window * dv).sum(dim=(2, 3)) / safe
+    return torch.stack([x, y], dim=-1), mass
 
 
 def sample_descriptors(

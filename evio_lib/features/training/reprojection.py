@@ -36,10 +36,10 @@ import math
 import torch
 import torch.nn.functional as F
 
-from evio_lib.features.network.postprocessing import logits_to_heatmap
+from evio_lib.features.network.postprocessing import logits_to_heatmap, window_centroids
 from evio_lib.features.training.losses import CELL, DUSTBIN, _as_homographies, _check_logits
 
-__all__ = ["cell_peaks", "window_centroids", "reprojection_loss"]
+__all__ = ["cell_peaks", "reprojection_loss"]
 
 
 def cell_peaks(logits: torch.Tensor) -> torch.Tensor:
@@ -55,34 +55,6 @@ def cell_peaks(logits: torch.Tensor) -> torch.Tensor:
     rows = torch.arange(hc, device=logits.device)[:, None] * CELL + torch.div(k, CELL, rounding_mode="floor")
     cols = torch.arange(wc, device=logits.device)[None, :] * CELL + k % CELL
     return torch.stack([cols, rows], dim=-1).reshape(b, hc * wc, 2).float()
-
-
-def window_centroids(heat: torch.Tensor, centres: torch.Tensor, radius: int = 2) -> tuple[torch.Tensor, torch.Tensor]:
-    """Return the heat centroids (B, N, 2) of the windows around the pixels nearest ``centres``, and their masses.
-
-    ``heat`` is (B, H, W); ``centres`` (B, N, 2) float (x, y) pixels; each is rounded to the nearest pixel (x0, y0)
-    and the (2r + 1)^2 window there (pixels outside the image count as 0) gives
-    ``(x0, y0) + sum p (u, v) / sum p``, differentiable in ``heat``. Centres outside the image are clamped to its
-    nearest pixel; callers mask them.
-
-    >>> heat = torch.zeros(1, 8, 8); heat[0, 3, 4], heat[0, 3, 5] = 0.6, 0.2
-    >>> c, m = window_centroids(heat, torch.tensor([[[4.2, 2.9]]]), radius=1)
-    >>> c[0, 0].tolist(), round(float(m[0, 0]), 3)
-    ([4.25, 3.0], 0.8)
-    """
-    b, height, width = heat.shape
-    padded = F.pad(heat, (radius,) * 4)  # zeros outside the image
-    cols = centres[..., 0].round().clamp(0, width - 1).long()
-    rows = centres[..., 1].round().clamp(0, height - 1).long()
-    offsets = torch.arange(-radius, radius + 1, device=heat.device)
-    du, dv = offsets[None, None, None, :], offsets[None, None, :, None]  # column and row offsets of the window
-    batch = torch.arange(b, device=heat.device)[:, None, None, None]
-    window = padded[batch, rows[..., None, None] + radius + dv, cols[..., None, None] + radius + du]  # (B, N, k, k)
-    mass = window.sum(dim=(2, 3))
-    safe = mass.clamp_min(1e-12)
-    x = cols.float() + (window * du).sum(dim=(2, 3)) / safe
-    y = rows.float() + (window * dv).sum(dim=(2, 3)) / safe
-    return torch.stack([x, y], dim=-1), mass
 
 
 def _map_points(h: torch.Tensor, points: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
