@@ -16,7 +16,8 @@ NETWORK_ALL = ["CELL", "MODEL_CONFIGS", "DEFAULT_WEIGHTS", "WEIGHTS_DIR", "TRAIN
                "SuperPointNet", "build_model", "count_parameters", "pad_to_cells", "logits_to_heatmap",
                "nms_heatmap", "extract_keypoints", "refine_keypoints", "window_centroids", "sample_descriptors", "postprocess",
                "calibration_images", "quantize_int8", "inference_model", "save_checkpoint", "load_checkpoint",
-               "load_model", "resolve_weights", "shipped_weights", "SuperPointDetector"]
+               "load_model", "resolve_weights", "shipped_weights", "SuperPointDetector",
+               "PYRAMID_LEVELS_ABOVE", "PYRAMID_MIN_SIDE", "PYRAMID_STEP", "check_scales", "merge_levels", "pyramid_scales", "resize_level"]
 
 
 @pytest.mark.parametrize("old,new", sorted(FORMER.items()))

@@ -18,6 +18,7 @@ from evio_lib.features.network.checks import _check_count, _check_device, _check
 from evio_lib.features.network.inference import INFERENCE_MODES, _auto_mode, inference_model
 from evio_lib.features.network.model import DEFAULT_WEIGHTS, build_model, load_model, resolve_weights, shipped_weights
 from evio_lib.features.network.postprocessing import logits_to_heatmap, pad_to_cells, postprocess
+from evio_lib.features.network.pyramid import check_scales, merge_levels, pyramid_scales, resize_level
 
 __all__ = ["SuperPointDetector"]
 
@@ -43,6 +44,10 @@ class SuperPointDetector(FeatureDetector):
         subpixel_radius: half-size of the heat-centroid window that moves each peak off the pixel grid
             (:func:`refine_keypoints`; default 2, i.e. 5 x 5); 0 keeps the thesis's integer peaks.
         num_threads: if given, ``torch.set_num_threads(num_threads)`` (process-wide).
+        scales: the image pyramid the network runs on (:mod:`evio_lib.features.network.pyramid`): "auto" (default)
+            takes levels 2^(-k/4) down to a shorter side of 240 pixels and one enlarged level 2^(1/4) on top, so a
+            480 x 640 image gets six levels and a 180 x 240 event frame one; a sequence such as ``(1.0,)`` fixes the levels (``(1.0,)`` is the thesis's
+            single-scale detector). Every level has its own NMS; the best ``max_keypoints`` of all levels are kept.
 
     Any image size works: the image is padded to multiples of 8 (edge replication) and the heatmap cropped back.
     Scores are keypoint probabilities; descriptors are float32 with unit L2 norm (D = 256), (N, 0) for a
@@ -73,6 +78,7 @@ class SuperPointDetector(FeatureDetector):
         descriptor_interpolation: str = "bicubic",
         subpixel_radius: int = 2,
         num_threads: int | None = None,
+        scales: str | Sequence[float] = "auto",
         **options: Any,
     ) -> None:
         super().__init__(max_keypoints=max_keypoints, nms_radius=nms_radius, **options)
@@ -84,6 +90,7 @@ class SuperPointDetector(FeatureDetector):
             )
         self.descriptor_interpolation = descriptor_interpolation
         self.subpixel_radius = _check_count("subpixel_radius", subpixel_radius)
+        self.scales = check_scales(scales)
         if inference not in INFERENCE_MODES:
             raise ValueError(f"inference must be one of {INFERENCE_MODES}; got {inference!r}")
         if num_threads is not None:
@@ -111,6 +118,10 @@ class SuperPointDetector(FeatureDetector):
         """Return D (0 for a detector-only checkpoint)."""
         return self.model.descriptor_dim
 
+    def scales_for(self, shape: tuple[int, int]) -> tuple[float, ...]:
+        """Return the pyramid levels used for an image of ``shape`` (H, W)."""
+        return pyramid_scales(shape) if self.scales == "auto" else self.scales  # type: ignore[return-value]
+
     def _run(self, image: np.ndarray) -> tuple[dict[str, torch.Tensor], tuple[int, int]]:
         """Return the network outputs for one image and its (H, W)."""
         img = to_float_image(image)
@@ -120,12 +131,25 @@ class SuperPointDetector(FeatureDetector):
         return out, img.shape
 
     def heatmap(self, image: np.ndarray) -> np.ndarray:
-        """Return the (H, W) float32 keypoint probability map of a grayscale image (before threshold and NMS)."""
+        """Return the (H, W) float32 keypoint probability map of a grayscale image (before threshold and NMS).
+
+        The map is the network's output on the image itself (the pyramid's first level at scale 1).
+        """
         out, (height, width) = self._run(image)
         return logits_to_heatmap(out["logits"])[0, :height, :width].cpu().numpy()
 
     def detect_and_describe(self, image: np.ndarray) -> Features:
         """Return keypoints (N, 2) (x, y), probabilities (N,) and unit descriptors (N, D) of a grayscale image."""
+        img = to_float_image(image)
+        scales = self.scales_for(img.shape)
+        if scales == (1.0,):
+            return self._detect_level(img)
+        levels = [resize_level(img, s) for s in scales]
+        found = [self._detect_level(level) for level in levels]
+        return merge_levels(found, [level.shape for level in levels], img.shape, self.max_keypoints)
+
+    def _detect_level(self, image: np.ndarray) -> Features:
+        """Return the detections of one level (the thesis's single-scale post-processing)."""
         out, shape = self._run(image)
         with torch.inference_mode():
             return postprocess(
@@ -145,7 +169,7 @@ class SuperPointDetector(FeatureDetector):
         return (
             f"SuperPointDetector(weights={source!r}, inference={self.inference!r}, device={str(self.device)!r}, "
             f"max_keypoints={self.max_keypoints}, nms_radius={self.nms_radius}, threshold={self.threshold:.4g}, "
-            f"subpixel_radius={self.subpixel_radius})"
+            f"subpixel_radius={self.subpixel_radius}, scales={self.scales!r})"
         )
 
 
