@@ -295,6 +295,29 @@ def test_main_benchmark_passes_weights_to_the_superpoint_detector(tmp_path, came
     assert "| tiny_net |" in capsys.readouterr().out
 
 
+def test_main_benchmark_gives_the_networks_the_pyramid_asked_for(tmp_path, camera, capsys):
+    sp = pytest.importorskip("evio_lib.features.network")
+    weights = sp.save_checkpoint(sp.build_model("narrow", seed=3), tmp_path / "tiny_net.pt")
+    frames = np.stack([camera[:120, :160], camera[120:, 160:]])
+    np.save(tmp_path / "frames.npy", frames)
+    out = tmp_path / "out"
+    code = main_benchmark(["--dataset", "events", "--event-frames", str(tmp_path / "frames.npy"), "--detectors",
+                           "superpoint", "fast", "--weights", str(weights), "--cnn-scales", "1,0.5", "--fast",
+                           "--quiet", "--speed-shapes", "64x80", "--out", str(out)])
+    assert code == 0
+    summary = json.loads((out / "results.json").read_text())
+    assert [row["detector"] for row in summary] == ["tiny_net (scales 1,0.5)", "fast"]  # FAST has no pyramid
+
+
+@pytest.mark.parametrize("bad", ["0", "1,1", "1,x", "5", ""])
+def test_the_command_refuses_a_bad_pyramid(bad, capsys):
+    from evio_lib.cli import main
+
+    assert main(["features-benchmark", "--cnn-scales", bad, "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: --cnn-scales") and "1,0.71,0.5" in err[0]
+
+
 def test_main_benchmark_reports_bad_arguments(capsys):
     assert main_benchmark(["--dataset", "hpatches", "--quiet"]) == 2
     assert "--hpatches-root" in capsys.readouterr().err

@@ -924,8 +924,22 @@ def main_benchmark(args: argparse.Namespace | Sequence[str] | None = None) -> in
     weights = getattr(args, "weights", None)
     names = list(args.detectors) if args.detectors else available_detectors()
 
+    cnn_scales = getattr(args, "cnn_scales", None)
+
     def options_of(detector_name: str) -> dict[str, Any]:
-        return {"weights": weights} if weights is not None and detector_name == "superpoint" else {}
+        options: dict[str, Any] = {}
+        if weights is not None and detector_name == "superpoint":
+            options["weights"] = weights
+        if cnn_scales is not None and _is_network(detector_name):
+            options["scales"] = cnn_scales
+        return options
+
+    def row_name_of(detector_name: str, options: dict[str, Any]) -> str | None:
+        name = Path(str(weights)).stem if "weights" in options else None
+        if "scales" in options:
+            label = options["scales"] if isinstance(options["scales"], str) else ",".join(f"{v:g}" for v in options["scales"])
+            name = f"{name or detector_name} (scales {label})"
+        return name
 
     failed: list[str] = []
     try:  # every check before the first pair is evaluated
@@ -984,7 +998,7 @@ def main_benchmark(args: argparse.Namespace | Sequence[str] | None = None) -> in
     rows = []
     for detector_name in names:
         options = options_of(detector_name)
-        row_name = Path(str(weights)).stem if options else None
+        row_name = row_name_of(detector_name, options)
         try:
             row = run_benchmark(detector_name, pairs, settings, name=row_name, detector_options=options or None,
                                 progress=not args.quiet)
@@ -1025,6 +1039,13 @@ def main_benchmark(args: argparse.Namespace | Sequence[str] | None = None) -> in
             (tmp / "tables.md").write_text(text)
         print(f"wrote {args.out / 'results.json'} and {args.out / 'tables.md'}")
     return 0
+
+
+def _is_network(detector_name: str) -> bool:
+    """Return whether ``detector_name`` is a network detector (``superpoint`` or a shipped checkpoint's name)."""
+    from evio_lib.features.network import shipped_weights
+
+    return detector_name == "superpoint" or detector_name in shipped_weights()
 
 
 def _json_default(value: Any) -> Any:
