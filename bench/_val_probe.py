@@ -43,14 +43,21 @@ def probe_parser(description: str, *, detectors: list[str], size: str, images: i
     parser.add_argument("--keypoints", type=int, default=keypoints)
     parser.add_argument("--nms", type=int, default=nms)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--cnn-scales", default="auto",
+                        help="the networks' pyramid: auto (their default) or comma-separated scales, e.g. 1 (one level)")
     return parser
+
+
+def cnn_scales(text: str) -> str | tuple[float, ...]:
+    """Return the ``scales`` option of the networks from --cnn-scales ("auto" or "1,0.71,...")."""
+    return "auto" if text == "auto" else tuple(float(v) for v in text.split(","))
 
 
 def probe_setup(args: argparse.Namespace) -> tuple[tuple[int, int], list[np.ndarray], dict[str, Any]]:
     """Return (shape, validation images, {name: detector}) for parsed probe options (CNN weights first)."""
     shape = tuple(int(v) for v in args.size.lower().split("x"))
     images = image_pool("val", seed=args.seed, size=shape, n_images=args.images)
-    detectors = {w: create_detector("superpoint", weights=w, max_keypoints=args.keypoints, nms_radius=args.nms)
-                 for w in args.weights}
+    detectors = {w: create_detector("superpoint", weights=w, max_keypoints=args.keypoints, nms_radius=args.nms,
+                                    scales=cnn_scales(args.cnn_scales)) for w in args.weights}
     detectors |= {n: create_detector(n, max_keypoints=args.keypoints, nms_radius=args.nms) for n in args.detectors}
     return shape, images, detectors

@@ -30,9 +30,10 @@ from evio_lib.sim.photos import resolve_photo_option
 SETTINGS = {
     "SIFT": None,
     "network, one level": (1.0,),
-    "network, levels 1 to 0.5": tuple(s for s in pyramid_scales((480, 640), levels_above=0)),
-    "network, levels 1.19 to 0.5 (auto)": "auto",
-    "network, levels 1.41 to 0.5": tuple(s for s in pyramid_scales((480, 640), levels_above=2)),
+    "network, levels 1 to 0.5": pyramid_scales((480, 640), levels_above=0),
+    "network, levels 1.19 to 0.5": pyramid_scales((480, 640), levels_above=1),
+    "network, levels 1.41 to 0.5": pyramid_scales((480, 640), levels_above=2),
+    "network, levels 2 to 0.5": pyramid_scales((480, 640), levels_above=4),
 }
 
 
@@ -49,7 +50,8 @@ def main() -> None:
         raise SystemExit("error: no photo folder (give --photos DIR)")
     pairs = [p for p in photo_pairs(folder, args.split, 0, n_images=args.n_images, pairs_per_image=3)
              if p.split == "viewpoint"]
-    print(f"{len(pairs)} viewpoint pairs of the {args.split} photographs; weights: {args.weights or 'shipped default'}")
+    print(f"{len(pairs)} viewpoint pairs of the {args.split} photographs; weights: {args.weights or 'shipped default'}; "
+          f"scales='auto' at 480 x 640: {tuple(round(s, 2) for s in pyramid_scales((480, 640)))}")
     print("| setting | eps = 1 | eps = 3 | eps = 5 | mutual matches | ms per image |")
     print("|---|---|---|---|---|---|")
     for row, scales in SETTINGS.items():

@@ -12,14 +12,14 @@ from evio_lib.features.network.pyramid import (PYRAMID_LEVELS_ABOVE, PYRAMID_MIN
 
 def test_the_automatic_levels_follow_the_shorter_side():
     step = PYRAMID_STEP
-    assert step == pytest.approx(2.0 ** -0.25) and PYRAMID_MIN_SIDE == 240 and PYRAMID_LEVELS_ABOVE == 1
-    assert pyramid_scales((480, 640)) == pytest.approx([2.0 ** (-k / 4) for k in range(-1, 5)])  # 1.19 ... 0.5
+    assert step == pytest.approx(2.0 ** -0.25) and PYRAMID_MIN_SIDE == 240 and PYRAMID_LEVELS_ABOVE == 2
+    assert pyramid_scales((480, 640)) == pytest.approx([2.0 ** (-k / 4) for k in range(-2, 5)])  # 1.41 ... 0.5
     assert pyramid_scales((640, 480)) == pyramid_scales((480, 640))  # portrait: the same shorter side
     assert pyramid_scales((480, 752)) == pyramid_scales((480, 640))  # EuRoC frames
     for shape in [(180, 240), (260, 346), (240, 320), (100, 100)]:
         assert pyramid_scales(shape) == (1.0,)  # event frames keep the single-scale network, no enlarged level
     assert pyramid_scales((285, 400)) == (1.0,)  # 285 * 2^(-1/4) = 239.7 < 240
-    assert pyramid_scales((286, 400)) == pytest.approx([1 / step, 1.0, step])  # 240.5
+    assert pyramid_scales((286, 400)) == pytest.approx([step**-2, 1 / step, 1.0, step])  # 240.5
     assert len(pyramid_scales((960, 1280), levels_above=0)) == 9  # two octaves
     assert pyramid_scales((480, 640), min_side=400, levels_above=2) == pytest.approx([step**-2, 1 / step, 1.0, step])
     for bad in [dict(step=1.0), dict(step=0.0), dict(min_side=0), dict(levels_above=-1), dict(levels_above=True)]:
@@ -80,7 +80,7 @@ def test_single_scale_is_the_thesis_detector_and_small_images_stay_single_scale(
     a, b = auto.detect_and_describe(small), single.detect_and_describe(small)
     np.testing.assert_array_equal(a.keypoints, b.keypoints)
     np.testing.assert_array_equal(a.descriptors, b.descriptors)
-    assert auto.scales_for(small.shape) == (1.0,) and len(auto.scales_for(textured.shape)) == 6
+    assert auto.scales_for(small.shape) == (1.0,) and len(auto.scales_for(textured.shape)) == 7
     assert "scales='auto'" in repr(auto)
 
 

@@ -45,8 +45,8 @@ class SuperPointDetector(FeatureDetector):
             (:func:`refine_keypoints`; default 2, i.e. 5 x 5); 0 keeps the thesis's integer peaks.
         num_threads: if given, ``torch.set_num_threads(num_threads)`` (process-wide).
         scales: the image pyramid the network runs on (:mod:`evio_lib.features.network.pyramid`): "auto" (default)
-            takes levels 2^(-k/4) down to a shorter side of 240 pixels and one enlarged level 2^(1/4) on top, so a
-            480 x 640 image gets six levels and a 180 x 240 event frame one; a sequence such as ``(1.0,)`` fixes the levels (``(1.0,)`` is the thesis's
+            takes levels 2^(-k/4) down to a shorter side of 240 pixels and two enlarged levels (2^(1/4), 2^(1/2)) on
+            top, so a 480 x 640 image gets seven levels and a 180 x 240 event frame one; a sequence such as ``(1.0,)`` fixes the levels (``(1.0,)`` is the thesis's
             single-scale detector). Every level has its own NMS; the best ``max_keypoints`` of all levels are kept.
 
     Any image size works: the image is padded to multiples of 8 (edge replication) and the heatmap cropped back.

@@ -7,19 +7,23 @@ the first, a descriptor computed at nearly the same scale (levels 2^(1/4) apart)
 
 The levels (:func:`pyramid_scales`): s_k = 2^(-k/4), k = 0, 1, ..., kept while the shorter side of the level,
 s_k min(H, W), is at least ``min_side`` (default :data:`PYRAMID_MIN_SIDE` = 240 pixels), and, when there is such a
-level below the image, :data:`PYRAMID_LEVELS_ABOVE` = 1 enlarged level 2^(1/4) on top (as SIFT starts from an
-enlarged image). A 480 x 640 image gets six levels (1.19, 1, 0.84, 0.71, 0.59, 0.5: about 4.2 times the pixels of
-one); a 180 x 240 or 260 x 346 event frame gets one (the thesis's single-scale network). A level is an
-area-averaged copy (``cv2.INTER_AREA``; bicubic, clipped to [0, 1], when enlarging); its keypoints (x_s, y_s) map
-back to the image as x = (x_s + 1/2) W / W_s - 1/2 (pixel centres at integers, the level covering the image's area),
-and likewise y. Every level keeps its own NMS (in its own pixels), so a corner may be found at several levels, each
-time with that level's descriptor: :func:`merge_levels` pools them and keeps the best ``max_keypoints`` by
-probability.
+level below the image, :data:`PYRAMID_LEVELS_ABOVE` = 2 enlarged levels 2^(1/4) and 2^(1/2) on top (SIFT, too,
+starts from an enlarged image). A 480 x 640 image gets seven levels (1.41, 1.19, 1, 0.84, 0.71, 0.59, 0.5: about
+6.2 times the pixels of one); a 180 x 240 or 260 x 346 event frame gets one (the thesis's single-scale network). A
+level is an area-averaged copy (``cv2.INTER_AREA``; bicubic, clipped to [0, 1], when enlarging); its keypoints
+(x_s, y_s) map back to the image as x = (x_s + 1/2) W / W_s - 1/2 (pixel centres at integers, the level covering
+the image's area), and likewise y. Every level keeps its own NMS (in its own pixels), so a corner may be found at
+several levels, each time with that level's descriptor: :func:`merge_levels` pools them and keeps the best
+``max_keypoints`` by probability. (One NMS across the levels, one descriptor per place, loses most of the gain:
+docs/archive.md.)
 
-Measured on the 111 viewpoint pairs of the 37 validation photographs (480 x 640, best 1000 points, NMS 8, mutual
-nearest neighbours and RANSAC; ``bench/pyramid_levels.py``), homography correctness at eps = 1 / 3 / 5 px of the
-shipped network: one level 0.027 / 0.207 / -, levels 1 to 0.5 0.216 / 0.541 / 0.649, with the enlarged level
-0.315 / 0.613 / 0.703; SIFT 0.541 / 0.802 / 0.856.
+Chosen on the 111 viewpoint pairs of the 37 validation photographs (480 x 640, best 1000 points, NMS 8, mutual
+nearest neighbours and RANSAC; ``python bench/pyramid_levels.py``), homography correctness at eps = 1 / 3 / 5 px of
+the shipped network and the time per image on one thread of the 2-core Xeon beside other work: one level
+0.027 / 0.207 / 0.306 (237 ms); levels 1 to 0.5 0.216 / 0.541 / 0.649 (632 ms); 1.19 to 0.5 0.378 / 0.577 / 0.730
+(991 ms); 1.41 to 0.5, the default, 0.405 / 0.694 / 0.802 (1.6 s); 2 to 0.5 0.514 / 0.703 / 0.820 (3.5 s); SIFT
+0.541 / 0.802 / 0.856 (119 ms). The enlarged levels place the points more finely (the network's cells cover less
+of the scene); the level 2 doubles the time for little more at 3 px.
 """
 from __future__ import annotations
 
@@ -38,7 +42,7 @@ PYRAMID_STEP = 2.0 ** -0.25
 #: the automatic pyramid stops before a level's shorter side falls below this many pixels
 PYRAMID_MIN_SIDE = 240
 #: enlarged levels (step^-1, ...) the automatic pyramid puts above the image when it has levels below it
-PYRAMID_LEVELS_ABOVE = 1
+PYRAMID_LEVELS_ABOVE = 2
 
 
 def pyramid_scales(
@@ -52,7 +56,7 @@ def pyramid_scales(
     event frames stay single-scale.
 
     >>> [round(s, 2) for s in pyramid_scales((480, 640))]
-    [1.19, 1.0, 0.84, 0.71, 0.59, 0.5]
+    [1.41, 1.19, 1.0, 0.84, 0.71, 0.59, 0.5]
     >>> pyramid_scales((180, 240)), pyramid_scales((260, 346))
     ((1.0,), (1.0,))
     """
@@ -66,12 +70,12 @@ def pyramid_scales(
     short = min(height, width)
     below = [1.0]
     k = 1
-    while short * step**k >= min_side - 1e-9:
-        below.append(step**k)
+    while short * round(step**k, 12) >= min_side:  # rounded: 2^(-4/4) is 0.5, not 0.49999999999999994
+        below.append(round(step**k, 12))
         k += 1
     if len(below) == 1:
         return (1.0,)
-    return tuple(step**-j for j in range(levels_above, 0, -1)) + tuple(below)
+    return tuple(round(step**-j, 12) for j in range(levels_above, 0, -1)) + tuple(below)
 
 
 def check_scales(scales: object) -> str | tuple[float, ...]:
