@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from evio_lib.features import create_detector
+from evio_lib.features.evaluation.options import scales_argument
 from evio_lib.features.network import shipped_weights
 from evio_lib.features.training.datasets import image_pool
 
@@ -32,7 +33,7 @@ def similarity(shape: tuple[int, int], zoom: float, degrees: float) -> np.ndarra
 
 def probe_parser(description: str, *, detectors: list[str], size: str, images: int, keypoints: int, nms: int
                  ) -> argparse.ArgumentParser:
-    """Return the probes' parser (--weights, --detectors, --size, --images, --keypoints, --nms, --seed) with these
+    """Return the probes' parser (--weights, --detectors, --size, --images, --keypoints, --nms, --seed, --cnn-scales) with these
     defaults."""
     parser = argparse.ArgumentParser(description=description)
     parser.add_argument("--weights", nargs="*", default=shipped_weights(),
@@ -43,14 +44,10 @@ def probe_parser(description: str, *, detectors: list[str], size: str, images: i
     parser.add_argument("--keypoints", type=int, default=keypoints)
     parser.add_argument("--nms", type=int, default=nms)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--cnn-scales", default="auto",
-                        help="the networks' pyramid: auto (their default) or comma-separated scales, e.g. 1 (one level)")
+    parser.add_argument("--cnn-scales", type=scales_argument, default=(1.0,),
+                        help="the networks' pyramid: comma-separated scales (default 1: one level, the 8 x 8 cells this "
+                             "probe is about) or auto (the detector's default pyramid)")
     return parser
-
-
-def cnn_scales(text: str) -> str | tuple[float, ...]:
-    """Return the ``scales`` option of the networks from --cnn-scales ("auto" or "1,0.71,...")."""
-    return "auto" if text == "auto" else tuple(float(v) for v in text.split(","))
 
 
 def probe_setup(args: argparse.Namespace) -> tuple[tuple[int, int], list[np.ndarray], dict[str, Any]]:
@@ -58,6 +55,6 @@ def probe_setup(args: argparse.Namespace) -> tuple[tuple[int, int], list[np.ndar
     shape = tuple(int(v) for v in args.size.lower().split("x"))
     images = image_pool("val", seed=args.seed, size=shape, n_images=args.images)
     detectors = {w: create_detector("superpoint", weights=w, max_keypoints=args.keypoints, nms_radius=args.nms,
-                                    scales=cnn_scales(args.cnn_scales)) for w in args.weights}
+                                    scales=args.cnn_scales) for w in args.weights}
     detectors |= {n: create_detector(n, max_keypoints=args.keypoints, nms_radius=args.nms) for n in args.detectors}
     return shape, images, detectors

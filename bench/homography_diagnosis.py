@@ -29,6 +29,7 @@ import argparse
 import numpy as np
 
 from evio_lib.features import create_detector
+from evio_lib.features.evaluation.options import scales_argument
 from evio_lib.features.evaluation.benchmark import BenchmarkSettings, diagnose_pairs, heldout_pairs
 from evio_lib.features.network import shipped_weights
 
@@ -44,15 +45,14 @@ def main() -> None:
     parser.add_argument("--splits", nargs="*", default=["viewpoint", "illumination"])
     parser.add_argument("--eps", type=float, default=3.0)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--cnn-scales", default="auto",
+    parser.add_argument("--cnn-scales", type=scales_argument, default="auto",
                         help="the networks' pyramid: auto (their default) or comma-separated scales, e.g. 1 (one level)")
     args = parser.parse_args()
 
     settings = BenchmarkSettings()  # the thesis's homography task: size, point budget, NMS radius
     height, width = settings.homography_size
     options = dict(max_keypoints=settings.homography_keypoints, nms_radius=settings.homography_nms)
-    scales = "auto" if args.cnn_scales == "auto" else tuple(float(v) for v in args.cnn_scales.split(","))
-    detectors = {w: create_detector("superpoint", weights=w, scales=scales, **options) for w in args.weights}
+    detectors = {w: create_detector("superpoint", weights=w, scales=args.cnn_scales, **options) for w in args.weights}
     detectors |= {n: create_detector(n, **options) for n in args.detectors}
     pairs = heldout_pairs(args.seed, n_images=args.images, pairs_per_image=args.pairs, pool=args.pool,
                           splits=args.splits, size=(height, width))

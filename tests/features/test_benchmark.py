@@ -309,6 +309,27 @@ def test_main_benchmark_gives_the_networks_the_pyramid_asked_for(tmp_path, camer
     assert [row["detector"] for row in summary] == ["tiny_net (scales 1,0.5)", "fast"]  # FAST has no pyramid
 
 
+def test_the_pyramid_reaches_every_network_however_spelt(tmp_path, camera, monkeypatch):
+    from evio_lib.features import base
+
+    made = []
+    real = base.create_detector
+
+    def spy(name, **options):
+        made.append((name, options.get("scales")))
+        return real(name, **options)
+
+    monkeypatch.setattr(base, "create_detector", spy)
+    frames = np.stack([camera[:120, :160], camera[120:, 160:]])
+    np.save(tmp_path / "frames.npy", frames)
+    code = main_benchmark(["--dataset", "events", "--event-frames", str(tmp_path / "frames.npy"), "--detectors",
+                           "SuperPoint", "distilled-narrow", "fast", "--cnn-scales", "1,0.5", "--fast", "--quiet",
+                           "--speed-shapes", "64x80"])
+    assert code == 0
+    assert {scales for name, scales in made if name != "fast"} == {(1.0, 0.5)}
+    assert {scales for name, scales in made if name == "fast"} == {None}
+
+
 @pytest.mark.parametrize("bad", ["0", "1,1", "1,x", "5", ""])
 def test_the_command_refuses_a_bad_pyramid(bad, capsys):
     from evio_lib.cli import main

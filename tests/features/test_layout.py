@@ -11,13 +11,14 @@ FORMER = {"superpoint": "network", "train": "training.train", "train_options": "
           "benchmark": "evaluation.benchmark", "benchmark_options": "evaluation.options",
           "evaluate": "evaluation.evaluate", "hpatches": "evaluation.hpatches"}
 
-# the public names of evio_lib.features.network (the former single module's __all__)
+# the public names of evio_lib.features.network (every module's __all__)
 NETWORK_ALL = ["CELL", "MODEL_CONFIGS", "DEFAULT_WEIGHTS", "WEIGHTS_DIR", "TRAINING_COMMAND", "INFERENCE_MODES",
                "SuperPointNet", "build_model", "count_parameters", "pad_to_cells", "logits_to_heatmap",
                "nms_heatmap", "extract_keypoints", "refine_keypoints", "window_centroids", "sample_descriptors", "postprocess",
                "calibration_images", "quantize_int8", "inference_model", "save_checkpoint", "load_checkpoint",
                "load_model", "resolve_weights", "shipped_weights", "SuperPointDetector",
-               "PYRAMID_LEVELS_ABOVE", "PYRAMID_MIN_SIDE", "PYRAMID_STEP", "check_scales", "merge_levels", "pyramid_scales", "resize_level"]
+               "PYRAMID_LEVELS_ABOVE", "PYRAMID_MIN_SIDE", "PYRAMID_STEP", "check_scales", "merge_levels", "parse_scales", "pyramid_scales",
+               "resize_level"]
 
 
 @pytest.mark.parametrize("old,new", sorted(FORMER.items()))

@@ -6,8 +6,9 @@ import pytest
 
 from evio_lib.features.base import Features
 from evio_lib.features.network import SuperPointDetector
-from evio_lib.features.network.pyramid import (PYRAMID_LEVELS_ABOVE, PYRAMID_MIN_SIDE, PYRAMID_STEP, check_scales, merge_levels,
-                                               pyramid_scales, resize_level)
+from evio_lib.features.network.postprocessing import postprocess
+from evio_lib.features.network.pyramid import (PYRAMID_LEVELS_ABOVE, PYRAMID_MIN_SIDE, PYRAMID_STEP, check_scales,
+                                               merge_levels, parse_scales, pyramid_scales, resize_level)
 
 
 def test_the_automatic_levels_follow_the_shorter_side():
@@ -27,12 +28,21 @@ def test_the_automatic_levels_follow_the_shorter_side():
             pyramid_scales((480, 640), **bad)
 
 
-@pytest.mark.parametrize("bad", ["big", [], [0.0], [1.0, 1.0], [float("nan")], [5.0], [True], None, [[1.0]]])
+@pytest.mark.parametrize("bad", ["big", [], [0.0], [1e-300], [0.05], [1.0, 1.0], [float("nan")], [5.0], [True],
+                                 [np.True_], None, [[1.0]]])
 def test_bad_scales_are_refused_with_the_expected_form(bad):
     with pytest.raises(ValueError, match="scales"):
         check_scales(bad)
     with pytest.raises(ValueError, match="scales"):
         SuperPointDetector(weights=None, allow_random=True, inference="fused", scales=bad)
+
+
+@pytest.mark.parametrize("bad", ["", "x", "1,x", "0", "1,1", "auto,1", "5"])
+def test_a_command_line_pyramid_is_parsed_or_refused_in_words(bad):
+    assert parse_scales(" auto ") == "auto" and parse_scales("1") == (1.0,)
+    assert parse_scales("1.41,1,0.5") == (1.41, 1.0, 0.5)
+    with pytest.raises(ValueError, match="comma-separated"):
+        parse_scales(bad)
 
 
 def test_a_level_is_the_area_average_of_the_image():
@@ -43,6 +53,8 @@ def test_a_level_is_the_area_average_of_the_image():
     assert resize_level(image, 1.0) is image
     enlarged = resize_level(image, 1.5)
     assert enlarged.shape == (72, 96) and enlarged.min() >= 0.0 and enlarged.max() <= 1.0  # bicubic, clipped
+    white = np.ones((720, 1280), np.float32)  # area sums of ones can exceed 1 by rounding: clipped too
+    assert all(resize_level(white, s).max() <= 1.0 for s in pyramid_scales(white.shape))
 
 
 def test_merged_levels_map_back_to_image_pixels_best_first():
@@ -57,8 +69,12 @@ def test_merged_levels_map_back_to_image_pixels_best_first():
     np.testing.assert_allclose(merged.keypoints, [[9.5, 19.5], [10.0, 20.0], [0.5, 0.5], [3.0, 4.0]])
     np.testing.assert_allclose(merged.scores, [0.9, 0.6, 0.6, 0.2])
     np.testing.assert_allclose(merged.descriptors[:, 0], [2.0, 1.0, 2.0, 1.0])
-    clipped = merge_levels([half], [(50, 50)], (100, 100), max_keypoints=10)
-    assert clipped.keypoints.max() == 99.0  # (49.6 + 0.5) * 2 - 0.5 = 99.7, clipped onto the last pixel
+    enlarged = feats([[0.0, 0.0], [140.0, 70.0]], [0.5, 0.4], 3.0)  # a level of 141 x 141 for a 100 x 100 image
+    clipped = merge_levels([enlarged], [(141, 141)], (100, 100), max_keypoints=10)
+    np.testing.assert_allclose(clipped.keypoints, [[0.0, 0.0], [99.0, 49.5]], atol=1e-4)  # -0.145 clipped to 0
+    kept = merge_levels([enlarged, full], [(141, 141), (100, 100)], (100, 100), max_keypoints=10, border=4)
+    np.testing.assert_allclose(kept.keypoints, [[10.0, 20.0]])  # (0, 0), (99, 49.5) and (3, 4) lie within 4 px
+    assert len(merge_levels([full], [(100, 100)], (100, 100), 10, border=3)) == 2
     with pytest.raises(ValueError, match="one shape per level"):
         merge_levels([full, half], [(100, 100)], (100, 100), 4)
 
@@ -75,11 +91,15 @@ def textured():
 
 def test_single_scale_is_the_thesis_detector_and_small_images_stay_single_scale(textured):
     auto = SuperPointDetector(max_keypoints=300, nms_radius=4, inference="fused")
-    single = SuperPointDetector(max_keypoints=300, nms_radius=4, inference="fused", scales=(1.0,))
     small = textured[:180, :240]
-    a, b = auto.detect_and_describe(small), single.detect_and_describe(small)
-    np.testing.assert_array_equal(a.keypoints, b.keypoints)
-    np.testing.assert_array_equal(a.descriptors, b.descriptors)
+    for image in (small, np.round(small * 255).astype(np.uint8)):
+        out, shape = auto._run(image)  # the network's outputs, then the thesis's post-processing by hand
+        by_hand = postprocess(out["logits"], out["descriptors"], image_shape=shape, threshold=auto.threshold,
+                              nms_radius=4, border=auto.border, max_keypoints=300,
+                              subpixel_radius=auto.subpixel_radius)[0]
+        found = auto.detect_and_describe(image)
+        np.testing.assert_array_equal(found.keypoints, by_hand.keypoints)
+        np.testing.assert_array_equal(found.descriptors, by_hand.descriptors)
     assert auto.scales_for(small.shape) == (1.0,) and len(auto.scales_for(textured.shape)) == 7
     assert "scales='auto'" in repr(auto)
 

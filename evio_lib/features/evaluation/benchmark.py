@@ -928,7 +928,7 @@ def main_benchmark(args: argparse.Namespace | Sequence[str] | None = None) -> in
 
     def options_of(detector_name: str) -> dict[str, Any]:
         options: dict[str, Any] = {}
-        if weights is not None and detector_name == "superpoint":
+        if weights is not None and _is_superpoint(detector_name):
             options["weights"] = weights
         if cnn_scales is not None and _is_network(detector_name):
             options["scales"] = cnn_scales
@@ -937,7 +937,8 @@ def main_benchmark(args: argparse.Namespace | Sequence[str] | None = None) -> in
     def row_name_of(detector_name: str, options: dict[str, Any]) -> str | None:
         name = Path(str(weights)).stem if "weights" in options else None
         if "scales" in options:
-            label = options["scales"] if isinstance(options["scales"], str) else ",".join(f"{v:g}" for v in options["scales"])
+            scales = options["scales"]
+            label = scales if isinstance(scales, str) else ",".join(f"{v:g}" for v in scales)
             name = f"{name or detector_name} (scales {label})"
         return name
 
@@ -1041,11 +1042,20 @@ def main_benchmark(args: argparse.Namespace | Sequence[str] | None = None) -> in
     return 0
 
 
+def _is_superpoint(detector_name: str) -> bool:
+    """Return whether ``detector_name`` names the ``superpoint`` detector, however spelt."""
+    from evio_lib.features.base import _normalise_name
+
+    return _normalise_name(detector_name) == "superpoint"
+
+
 def _is_network(detector_name: str) -> bool:
     """Return whether ``detector_name`` is a network detector (``superpoint`` or a shipped checkpoint's name)."""
+    from evio_lib.features.base import _normalise_name
     from evio_lib.features.network import shipped_weights
 
-    return detector_name == "superpoint" or detector_name in shipped_weights()
+    key = _normalise_name(detector_name)  # the registry's spelling: "SuperPoint" and "distilled-narrow" count
+    return key == "superpoint" or key in {_normalise_name(name) for name in shipped_weights()}
 
 
 def _json_default(value: Any) -> Any:

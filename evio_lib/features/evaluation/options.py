@@ -8,17 +8,14 @@ from pathlib import Path
 __all__ = ["add_benchmark_arguments"]
 
 
-def _scales(text: str) -> str | tuple[float, ...]:
-    """Parse --cnn-scales: "auto" or comma-separated positive scale factors (checked by the detector's rule)."""
-    if text.strip() == "auto":
-        return "auto"
+def scales_argument(text: str) -> str | tuple[float, ...]:
+    """argparse type of --cnn-scales: ``pyramid.parse_scales`` with its error as an argparse error."""
+    from evio_lib.features.network.pyramid import parse_scales  # imported only when the option is given
+
     try:
-        values = tuple(float(part) for part in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected auto or comma-separated numbers such as 1,0.71,0.5; got {text!r}") from None
-    if not values or not all(0.0 < v <= 4.0 for v in values) or len(set(values)) != len(values):
-        raise argparse.ArgumentTypeError(f"expected distinct scale factors in (0, 4] such as 1,0.71,0.5; got {text!r}")
-    return values
+        return parse_scales(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
 
 
 def add_benchmark_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
@@ -66,7 +63,7 @@ def add_benchmark_arguments(parser: argparse.ArgumentParser) -> argparse.Argumen
     parser.add_argument("--weights", default=None,
                         help="weights of the 'superpoint' detector: a shipped name (evio_lib/weights/NAME.pt) or a .pt "
                              "path (default: the shipped default weights); the row is named after them")
-    parser.add_argument("--cnn-scales", type=_scales, default=None, metavar="auto|S,S,...",
+    parser.add_argument("--cnn-scales", type=scales_argument, default=None, metavar="auto|S,S,...",
                         help="image pyramid of the network detectors ('superpoint' and every shipped network): auto "
                              "(their default: levels 2^(-k/4) from 1.41 down to a 240-px shorter side; one level for "
                              "smaller images) or comma-separated scale factors, e.g. 1 for the thesis's single-scale "

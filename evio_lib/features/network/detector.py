@@ -46,8 +46,10 @@ class SuperPointDetector(FeatureDetector):
         num_threads: if given, ``torch.set_num_threads(num_threads)`` (process-wide).
         scales: the image pyramid the network runs on (:mod:`evio_lib.features.network.pyramid`): "auto" (default)
             takes levels 2^(-k/4) down to a shorter side of 240 pixels and two enlarged levels (2^(1/4), 2^(1/2)) on
-            top, so a 480 x 640 image gets seven levels and a 180 x 240 event frame one; a sequence such as ``(1.0,)`` fixes the levels (``(1.0,)`` is the thesis's
-            single-scale detector). Every level has its own NMS; the best ``max_keypoints`` of all levels are kept.
+            top, so a 480 x 640 image gets seven levels and a 180 x 240 event frame one; a sequence such as
+            ``(1.0,)`` fixes the levels (``(1.0,)`` is the thesis's single-scale detector). Every level has its own
+            NMS; the best ``max_keypoints`` of all levels are kept, none within ``border`` pixels of the image's
+            edge.
 
     Any image size works: the image is padded to multiples of 8 (edge replication) and the heatmap cropped back.
     Scores are keypoint probabilities; descriptors are float32 with unit L2 norm (D = 256), (N, 0) for a
@@ -133,7 +135,8 @@ class SuperPointDetector(FeatureDetector):
     def heatmap(self, image: np.ndarray) -> np.ndarray:
         """Return the (H, W) float32 keypoint probability map of a grayscale image (before threshold and NMS).
 
-        The map is the network's output on the image itself (the pyramid's first level at scale 1).
+        Always the network's map of the image itself (scale 1), whatever ``scales`` is; it is the map behind
+        :meth:`detect_and_describe` only when ``scales_for(image.shape) == (1.0,)``.
         """
         out, (height, width) = self._run(image)
         return logits_to_heatmap(out["logits"])[0, :height, :width].cpu().numpy()
@@ -146,7 +149,7 @@ class SuperPointDetector(FeatureDetector):
             return self._detect_level(img)
         levels = [resize_level(img, s) for s in scales]
         found = [self._detect_level(level) for level in levels]
-        return merge_levels(found, [level.shape for level in levels], img.shape, self.max_keypoints)
+        return merge_levels(found, [level.shape for level in levels], img.shape, self.max_keypoints, self.border)
 
     def _detect_level(self, image: np.ndarray) -> Features:
         """Return the detections of one level (the thesis's single-scale post-processing)."""

@@ -10,11 +10,14 @@ s_k min(H, W), is at least ``min_side`` (default :data:`PYRAMID_MIN_SIDE` = 240 
 level below the image, :data:`PYRAMID_LEVELS_ABOVE` = 2 enlarged levels 2^(1/4) and 2^(1/2) on top (SIFT, too,
 starts from an enlarged image). A 480 x 640 image gets seven levels (1.41, 1.19, 1, 0.84, 0.71, 0.59, 0.5: about
 6.2 times the pixels of one); a 180 x 240 or 260 x 346 event frame gets one (the thesis's single-scale network). A
-level is an area-averaged copy (``cv2.INTER_AREA``; bicubic, clipped to [0, 1], when enlarging); its keypoints
+level is an area-averaged copy (``cv2.INTER_AREA``; bicubic when enlarging), clipped to [0, 1]; its keypoints
 (x_s, y_s) map back to the image as x = (x_s + 1/2) W / W_s - 1/2 (pixel centres at integers, the level covering
 the image's area), and likewise y. Every level keeps its own NMS (in its own pixels), so a corner may be found at
 several levels, each time with that level's descriptor: :func:`merge_levels` pools them and keeps the best
-``max_keypoints`` by probability. (One NMS across the levels, one descriptor per place, loses most of the gain:
+``max_keypoints`` by probability, leaving out points within ``border`` pixels of the image's edge. The
+enlarged levels cost the most: an image of shorter side m >= 286 gets 3 + floor(4 log2(m / 240)) levels; a 1080 x 1920
+image gets 11, the largest 1527 x 2715 pixels, so give ``scales`` explicitly for large images where time matters.
+(One NMS across the levels, one descriptor per place, loses most of the gain:
 docs/archive.md.)
 
 Chosen on the 111 viewpoint pairs of the 37 validation photographs (480 x 640, best 1000 points, NMS 8, mutual
@@ -35,7 +38,8 @@ from numpy.typing import NDArray
 
 from evio_lib.features.base import Features
 
-__all__ = ["PYRAMID_LEVELS_ABOVE", "PYRAMID_MIN_SIDE", "PYRAMID_STEP", "check_scales", "merge_levels", "pyramid_scales", "resize_level"]
+__all__ = ["PYRAMID_LEVELS_ABOVE", "PYRAMID_MIN_SIDE", "PYRAMID_STEP", "check_scales", "merge_levels", "parse_scales",
+           "pyramid_scales", "resize_level"]
 
 #: ratio between successive levels of the automatic pyramid (four levels per octave)
 PYRAMID_STEP = 2.0 ** -0.25
@@ -46,7 +50,10 @@ PYRAMID_LEVELS_ABOVE = 2
 
 
 def pyramid_scales(
-    shape: tuple[int, int], min_side: int = PYRAMID_MIN_SIDE, step: float = PYRAMID_STEP, levels_above: int = PYRAMID_LEVELS_ABOVE
+    shape: tuple[int, int],
+    min_side: int = PYRAMID_MIN_SIDE,
+    step: float = PYRAMID_STEP,
+    levels_above: int = PYRAMID_LEVELS_ABOVE,
 ) -> tuple[float, ...]:
     """Return the automatic levels of an image of ``shape`` (H, W), largest first.
 
@@ -79,31 +86,53 @@ def pyramid_scales(
 
 
 def check_scales(scales: object) -> str | tuple[float, ...]:
-    """Return ``scales`` checked: "auto", or a non-empty sequence of distinct finite scales in (0, 4].
+    """Return ``scales`` checked: "auto", or a non-empty sequence of distinct finite scales in [1/16, 4].
 
     >>> check_scales([1, 0.5])
     (1.0, 0.5)
     """
+    form = "'auto' or a sequence of distinct scale factors in [1/16, 4] such as (1.0, 0.71, 0.5)"
     if isinstance(scales, str):
         if scales != "auto":
-            raise ValueError(f"scales must be 'auto' or a sequence of scale factors such as (1.0, 0.71, 0.5); got {scales!r}")
+            raise ValueError(f"scales must be {form}; got {scales!r}")
         return scales
     try:
-        values = tuple(float(s) for s in scales)  # type: ignore[union-attr]
+        items = list(scales)  # type: ignore[call-overload]
+        values = tuple(float(s) for s in items)
     except (TypeError, ValueError):
-        raise ValueError(
-            f"scales must be 'auto' or a sequence of scale factors such as (1.0, 0.71, 0.5); got {scales!r}"
-        ) from None
-    if not values or any(isinstance(s, bool) for s in scales) or not all(math.isfinite(s) and 0.0 < s <= 4.0 for s in values):  # type: ignore[union-attr]
-        raise ValueError(f"scales must be a non-empty sequence of finite factors in (0, 4]; got {scales!r}")
-    if len(set(values)) != len(values):
-        raise ValueError(f"scales must be distinct; got {scales!r}")
+        raise ValueError(f"scales must be {form}; got {scales!r}") from None
+    if (not values or any(isinstance(s, (bool, np.bool_)) for s in items)
+            or not all(math.isfinite(s) and 1 / 16 <= s <= 4.0 for s in values) or len(set(values)) != len(values)):
+        raise ValueError(f"scales must be {form}; got {scales!r}")
     return values
 
 
+def parse_scales(text: str) -> str | tuple[float, ...]:
+    """Return the ``scales`` option written on a command line: "auto" or comma-separated factors ("1,0.71,0.5").
+
+    Raises ValueError, naming the expected form, for anything else (:func:`check_scales`).
+
+    >>> parse_scales("1,0.5"), parse_scales("auto")
+    ((1.0, 0.5), 'auto')
+    """
+    text = str(text).strip()
+    if text == "auto":
+        return "auto"
+    try:
+        values = [float(part) for part in text.split(",")]
+    except ValueError:
+        raise ValueError(f"expected auto or comma-separated scale factors in [1/16, 4] such as 1,0.71,0.5; "
+                         f"got {text!r}") from None
+    try:
+        return check_scales(values)
+    except ValueError:
+        raise ValueError(f"expected auto or comma-separated distinct scale factors in [1/16, 4] such as 1,0.71,0.5; "
+                         f"got {text!r}") from None
+
+
 def resize_level(image: NDArray[np.float32], scale: float) -> NDArray[np.float32]:
-    """Return the level of ``image`` at ``scale``: (round(s H), round(s W)), area-averaged (bicubic when enlarging,
-    clipped back to [0, 1]).
+    """Return the level of ``image`` at ``scale``: (round(s H), round(s W)), area-averaged (bicubic when enlarging),
+    clipped back to [0, 1].
 
     >>> resize_level(np.ones((480, 640), np.float32), 0.5).shape
     (240, 320)
@@ -114,21 +143,25 @@ def resize_level(image: NDArray[np.float32], scale: float) -> NDArray[np.float32
     if scale == 1.0:
         return image
     size = (max(1, round(width * scale)), max(1, round(height * scale)))
-    if scale < 1.0:
-        level = cv2.resize(image, size, interpolation=cv2.INTER_AREA)
-    else:
-        level = np.clip(cv2.resize(image, size, interpolation=cv2.INTER_CUBIC), 0.0, 1.0)
+    interpolation = cv2.INTER_AREA if scale < 1.0 else cv2.INTER_CUBIC
+    level = np.clip(cv2.resize(image, size, interpolation=interpolation), 0.0, 1.0)  # area sums may give 1 + 1e-7
     return np.ascontiguousarray(level, dtype=np.float32)
 
 
 def merge_levels(
-    levels: Sequence[Features], level_shapes: Sequence[tuple[int, int]], image_shape: tuple[int, int], max_keypoints: int
+    levels: Sequence[Features],
+    level_shapes: Sequence[tuple[int, int]],
+    image_shape: tuple[int, int],
+    max_keypoints: int,
+    border: float = 0.0,
 ) -> Features:
     """Return the detections of every level in image pixels, pooled, best ``max_keypoints`` by probability first.
 
     ``levels[i]`` holds the keypoints found in a level of shape ``level_shapes[i]`` (H_s, W_s); they map to the image
-    of ``image_shape`` (H, W) by x = (x_s + 1/2) W / W_s - 1/2, y = (y_s + 1/2) H / H_s - 1/2, clipped to the image.
-    Ties in probability keep the order of the levels (the first level first).
+    of ``image_shape`` (H, W) by x = (x_s + 1/2) W / W_s - 1/2, y = (y_s + 1/2) H / H_s - 1/2, clipped to the image;
+    points closer than ``border`` pixels to the image's edge (x < border or x > W - 1 - border, likewise y) are
+    dropped, so an enlarged level keeps the detector's border in image pixels. Ties in probability keep the order of
+    the levels (the first level first).
 
     >>> a = Features(np.array([[10.0, 20.0]]), np.array([0.5]), np.ones((1, 2), np.float32))
     >>> b = Features(np.array([[4.5, 9.5]]), np.array([0.9]), np.ones((1, 2), np.float32))
@@ -148,5 +181,7 @@ def merge_levels(
     kp[:, 0] = np.clip(kp[:, 0], 0.0, width - 1.0)
     kp[:, 1] = np.clip(kp[:, 1], 0.0, height - 1.0)
     sc = np.concatenate(scores)
-    order = np.argsort(-sc, kind="stable")[:max_keypoints]
+    inside = ((kp[:, 0] >= border) & (kp[:, 0] <= width - 1.0 - border) & (kp[:, 1] >= border)
+              & (kp[:, 1] <= height - 1.0 - border))
+    order = np.flatnonzero(inside)[np.argsort(-sc[inside], kind="stable")][:max_keypoints]
     return Features(kp[order], sc[order], np.concatenate(descriptors)[order], binary=levels[0].binary)

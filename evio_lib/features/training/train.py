@@ -1182,7 +1182,9 @@ def benchmark_snapshots(
             continue
         if pairs is None:
             pairs = heldout_pairs(seed, n_images=n_images, pairs_per_image=pairs_per_image, pool="val")
-        result = run_benchmark("superpoint", pairs, settings, name=path.name, detector_options={"weights": path})
+        # one level, as the snapshots were always ranked (and as the cached rows were scored)
+        result = run_benchmark("superpoint", pairs, settings, name=path.name,
+                               detector_options={"weights": path, "scales": (1.0,)})
         n_pairs = dict(result["n_pairs"])
         step = load_checkpoint(path)["metadata"].get("step")
         homography = {split: float(v[float(eps)]) for split, v in result["homography"].items()}
