@@ -815,15 +815,16 @@ display(Markdown(text))
 # ```
 #
 # A corner seen at level $s$ of image 1 looks the same size at level $s/z$ of image 2. With levels a factor
-# $2^{1/4}$ apart, some level of image 2 lies within $2^{1/8} \approx 1.09$ of $s/z$ whenever $s/z$ falls inside
-# image 2's range, so the pair has descriptors computed at nearly the same scale. Each level keeps its own NMS in
-# its own pixels; a level's keypoint $(x_s, y_s)$ maps back to the image as $x = (x_s + \tfrac12)\,W/W_s - \tfrac12$
-# (and likewise $y$), and the best 1000 points of all levels by probability are kept. Levels above 1 are enlarged
-# copies: the network's cells then cover less of the scene, which also places its points more finely.
+# $2^{1/4}$ apart, some level of image 2 lies within a factor $2^{1/8} \approx 1.09$ of $s/z$ whenever $s/z$ falls
+# inside image 2's range, so the pair has descriptors computed at nearly the same scale. Each level keeps its own
+# NMS in its own pixels; a level's keypoint $(x_s, y_s)$ maps back to the image as
+# $x = (x_s + \tfrac12)\,W/W_s - \tfrac12$ (and likewise $y$), and the best 1000 points of all levels by probability
+# are kept. Levels above 1 are enlarged copies: the network's cells then cover less of the scene, which also places
+# its points more finely.
 #
 # `create_detector("superpoint")` does this by default (`scales="auto"`): levels $2^{-k/4}$ down to a shorter side
-# of 240 px plus enlarged ones on top, and a single level for images too small to shrink, such as the 180 x 240
-# event frames the pipeline uses. The cell prints the levels and what they cost.
+# of 240 px plus two enlarged ones on top, and a single level for images too small to shrink once without falling
+# under 240 px, such as the 180 x 240 event frames the pipeline uses. The cell prints the levels and what they cost.
 
 # %%
 from evio_lib.features.network import DEFAULT_WEIGHTS, pyramid_scales
@@ -836,8 +837,9 @@ print("levels of a 180 x 240 event frame:", pyramid_scales((180, 240)))
 assert levels[-1] * min(settings.homography_size) >= 240 and pyramid_scales((180, 240)) == (1.0,)
 
 # %% [markdown]
-# The diagnosis of section 10 again, on the same viewpoint pairs, for the default network once on the image (the
-# row of section 10) and on its pyramid:
+# The diagnosis of section 10 again, on the same viewpoint pairs, for the weights `create_detector("superpoint")`
+# loads (the table names them) once on the image (their row of section 10) and on their pyramid, with SIFT's row of
+# section 10 beside them:
 
 # %%
 pyramid = diagnose_pairs("superpoint", diag_pairs, settings)  # default weights, scales="auto"
@@ -873,7 +875,8 @@ plt.show()
 
 one = diagnoses[DEFAULT_WEIGHTS]
 assert pyramid[:, 1].mean() > one[:, 1].mean()  # more correct matches than at one level
-assert (pyramid[:, 3] <= 3).mean() >= (one[:, 3] <= 3).mean()  # and no fewer homographies within 3 px
+assert (pyramid[:, 3] <= 3).mean() > (one[:, 3] <= 3).mean()  # more homographies within 3 px (the summary)
+assert np.nanmean(pyramid[:, 2]) < np.nanmean(one[:, 2])  # and better placed matches
 
 # %% [markdown]
 # What the pyramid changes (every number from the table above):
@@ -942,14 +945,14 @@ assert filter_config.min_track_length == 3 and filter_config.pixel_noise_px == 1
 # * Our tables keep some of the thesis's rankings and not others (section 9 says which); compare rankings, not
 #   decimals, and only on data alike.
 # * `diagnose_matches` separates matching, selection and localisation with an oracle homography. On the viewpoint
-#   split the networks have fewer correct matches than SIFT, each further from the truth under the zoom of these
-#   pairs, and RANSAC loses some of the pairs the oracle would fit.
+#   split the networks, run once on the image, have fewer correct matches than SIFT, each further from the truth
+#   under the zoom of these pairs, and RANSAC loses some of the pairs the oracle would fit.
 # * On the illumination split the networks are the most repeatable detectors but, at $\varepsilon = 3$, no better
 #   at homographies than the best classical method; on the event-count frames Harris leads every network.
 # * The network sees one scale; SIFT chooses one per point. Run on an image pyramid whose levels each keep their own
 #   points and descriptors (`scales="auto"`, what `create_detector("superpoint")` does at 480 x 640), the same
-#   network finds many more correct matches on the viewpoint pairs and places them better (section 11), at several
-#   times the cost; the small frames of the pipeline stay at one level.
+#   network finds many more correct matches on the viewpoint pairs, places them a little better and gets more
+#   homographies right (section 11), at several times the cost; the small frames of the pipeline stay at one level.
 #
 # ## Exercises
 #
