@@ -222,9 +222,10 @@ HEADLINE: tuple[tuple[str, str, str], ...] = (
      "ATE {run_euroc.ate_se3_m} m, RMSE {run_euroc.rmse_m} m",
      "run_euroc"),
     ("Feature network against SIFT, homography correctness at 3 px (held-out viewpoint / illumination pairs)",
-     "CNN {features.viewpoint_cnn:.3f} / {features.illumination_cnn:.3f}; SIFT {features.viewpoint_sift:.3f} / "
+     "CNN on its image pyramid {features_pyramid.viewpoint_cnn:.3f} / {features_pyramid.illumination_cnn:.3f}, "
+     "at one level {features.viewpoint_cnn:.3f} / {features.illumination_cnn:.3f}; SIFT {features.viewpoint_sift:.3f} / "
      "{features.illumination_sift:.3f}",
-     "features"),
+     "features_pyramid"),
     ("Events to frames, SSIM on held-out simulated stretches (room gentle / room fast / terrain)",
      "network {reconstruction.ssim_network_gentle:.3f} / {reconstruction.ssim_network_fast:.3f} / "
      "{reconstruction.ssim_network_aerial:.3f}; high-pass filter {reconstruction.ssim_highpass_gentle:.3f} / "
