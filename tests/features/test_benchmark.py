@@ -265,9 +265,13 @@ def test_format_table_speed_and_errors():
 
 
 # ---------------------------------------------------------------------------------------------- command line
+def _save_event_frames(tmp_path, camera):
+    """Write two 120 x 160 crops of the camera image as tmp_path/frames.npy (an --event-frames stack)."""
+    np.save(tmp_path / "frames.npy", np.stack([camera[:120, :160], camera[120:, 160:]]))
+
+
 def test_main_benchmark_on_event_frames(tmp_path, camera, capsys):
-    frames = np.stack([camera[:120, :160], camera[120:, 160:]])
-    np.save(tmp_path / "frames.npy", frames)
+    _save_event_frames(tmp_path, camera)
     out = tmp_path / "out"
     code = main_benchmark(["--dataset", "events", "--event-frames", str(tmp_path / "frames.npy"), "--detectors",
                            "fast", "--fast", "--quiet", "--speed-shapes", "60x80", "--out", str(out)])
@@ -283,8 +287,7 @@ def test_main_benchmark_on_event_frames(tmp_path, camera, capsys):
 def test_main_benchmark_passes_weights_to_the_superpoint_detector(tmp_path, camera, capsys):
     sp = pytest.importorskip("evio_lib.features.network")
     weights = sp.save_checkpoint(sp.build_model("narrow", seed=3), tmp_path / "tiny_net.pt")
-    frames = np.stack([camera[:120, :160], camera[120:, 160:]])
-    np.save(tmp_path / "frames.npy", frames)
+    _save_event_frames(tmp_path, camera)
     out = tmp_path / "out"
     code = main_benchmark(["--dataset", "events", "--event-frames", str(tmp_path / "frames.npy"), "--detectors",
                            "superpoint", "--weights", str(weights), "--fast", "--quiet", "--speed-shapes", "64x80",
@@ -298,8 +301,7 @@ def test_main_benchmark_passes_weights_to_the_superpoint_detector(tmp_path, came
 def test_main_benchmark_gives_the_networks_the_pyramid_asked_for(tmp_path, camera, capsys):
     sp = pytest.importorskip("evio_lib.features.network")
     weights = sp.save_checkpoint(sp.build_model("narrow", seed=3), tmp_path / "tiny_net.pt")
-    frames = np.stack([camera[:120, :160], camera[120:, 160:]])
-    np.save(tmp_path / "frames.npy", frames)
+    _save_event_frames(tmp_path, camera)
     out = tmp_path / "out"
     code = main_benchmark(["--dataset", "events", "--event-frames", str(tmp_path / "frames.npy"), "--detectors",
                            "superpoint", "fast", "--weights", str(weights), "--cnn-scales", "1,0.5", "--fast",
@@ -320,8 +322,7 @@ def test_the_pyramid_reaches_every_network_however_spelt(tmp_path, camera, monke
         return real(name, **options)
 
     monkeypatch.setattr(base, "create_detector", spy)
-    frames = np.stack([camera[:120, :160], camera[120:, 160:]])
-    np.save(tmp_path / "frames.npy", frames)
+    _save_event_frames(tmp_path, camera)
     code = main_benchmark(["--dataset", "events", "--event-frames", str(tmp_path / "frames.npy"), "--detectors",
                            "SuperPoint", "distilled-narrow", "fast", "--cnn-scales", "1,0.5", "--fast", "--quiet",
                            "--speed-shapes", "64x80"])
