@@ -595,11 +595,14 @@ for name in chain[1:]:
 # %% [markdown]
 # ### The project's trained networks
 #
-# Three trained networks come with the project (`evio_lib/weights/`); lesson 08 evaluates them. Two were trained by
-# this chain's steps (section 1's network stops after Round 1, started from MagicPoint's weights); the third,
+# Four trained networks come with the project (`evio_lib/weights/`); lesson 08 evaluates them. Two were trained by
+# this chain's steps (section 1's network stops after Round 1, started from MagicPoint's weights). The third,
 # `distilled_narrow`, has half the channels and learned to give the outputs of section 1's network: per 8 x 8 cell
 # the same softmax over the 65 channels and descriptors pointing the same way (**knowledge distillation**: a small
-# network trained to copy a larger one; `evio_lib/features/training/distill.py`).
+# network trained to copy a larger one; `evio_lib/features/training/distill.py`). The fourth, `photos_detdesc`, is
+# section 1's network trained further on natural photographs, labelled by its own homographic adaptation, with one
+# more term in the loss that asks its points to follow the image when it moves by part of a cell (the reprojection
+# loss, `evio_lib/features/training/reprojection.py`).
 # The cell prints what each weights file says about its training and checks that none of them collapsed
 # (section 3): it measures the two cosines and the retrieval of each on validation pairs. None of them was trained
 # on these images (the distilled network's checkpoint was chosen by its loss on validation images).
