@@ -595,17 +595,19 @@ for name in chain[1:]:
 # %% [markdown]
 # ### The project's trained networks
 #
-# Four trained networks come with the project (`evio_lib/weights/`); lesson 08 evaluates them. Two were trained by
-# this chain's steps (section 1's network stops after Round 1, started from MagicPoint's weights). The third,
-# `distilled_narrow`, has half the channels and learned to give the outputs of section 1's network: per 8 x 8 cell
-# the same softmax over the 65 channels and descriptors pointing the same way (**knowledge distillation**: a small
-# network trained to copy a larger one; `evio_lib/features/training/distill.py`). The fourth, `photos_detdesc`, is
-# section 1's network trained further on natural photographs, labelled by its own homographic adaptation, with one
-# more term in the loss that asks its points to follow the image when it moves by part of a cell (the reprojection
-# loss, `evio_lib/features/training/reprojection.py`).
+# Four trained networks come with the project (`evio_lib/weights/`); lesson 08 evaluates them. Two come from the
+# thesis's chain: `pretrained_detdesc_round2_cpu` from the steps printed above, and section 1's network from the
+# pre-trained Round 1 step, started from MagicPoint's weights, trained on a GPU with the settings its line prints
+# below. The third, `distilled_narrow`, has half the channels and learned to give the outputs of section 1's
+# network: per 8 x 8 cell the same softmax over the 65 channels and descriptors pointing the same way (**knowledge
+# distillation**: a small network trained to copy a larger one; `evio_lib/features/training/distill.py`). The
+# fourth, `photos_detdesc`, is section 1's network trained further on natural photographs, labelled by its own
+# homographic adaptation, with one more term in the loss that asks its points to follow the image when it moves by
+# part of a cell (the reprojection loss, `evio_lib/features/training/reprojection.py`).
 # The cell prints what each weights file says about its training and checks that none of them collapsed
 # (section 3): it measures the two cosines and the retrieval of each on validation pairs. None of them was trained
-# on these images (the distilled network's checkpoint was chosen by its loss on validation images).
+# on these images, though every checkpoint was chosen on validation images: the distilled network's by its loss, the
+# others by their retrieval.
 
 # %%
 val_cfg = training.load_config("pretrained_detdesc_round2")

@@ -369,13 +369,14 @@ assert all(f.min() >= 0 and f.max() <= 1 and f.max() > 0 for f in frames)
 #
 # This lesson runs a subset; the cell below prints how many pairs and which detectors. The network rows are:
 # `pretrained_detdesc_round1_gpu` (one round of homographic adaptation, trained with more steps and data),
-# `pretrained_detdesc_round2_cpu` (two rounds of a shorter training, the chain notebook 07 runs) and
+# `pretrained_detdesc_round2_cpu` (two rounds of a shorter training, the chain notebook 07 runs),
 # `distilled_narrow`, a network with half the channels (about a quarter of the multiply-adds) trained to give the
 # outputs of `pretrained_detdesc_round1_gpu` (knowledge distillation: a small network taught by a larger one; not in
 # the thesis), and `photos_detdesc`, `pretrained_detdesc_round1_gpu` trained further on natural photographs with a
-# loss that asks its points to follow the image (lesson 07, section 4). Their speed is in section 8. Each runs as the thesis's detector does, once on the image itself
-# (`scales=(1.0,)`); section 11 runs the library's default, the same network on an image pyramid. With so few pairs a
-# single pair moves a homography score by a step the cell prints; read the tables as trends, not as final results.
+# loss that asks its points to follow the image (lesson 07, section 4). Their speed is in section 8. Each runs as the
+# thesis's detector does, once on the image itself (`scales=(1.0,)`); section 11 runs the library's default, the
+# same network on an image pyramid. With so few pairs a single pair moves a homography score by a step the cell
+# prints; read the tables as trends, not as final results.
 
 # %%
 classical = [n for n in available_detectors() if n != "superpoint" and not n.startswith("superpoint")]
@@ -463,7 +464,8 @@ print("all metrics in [0, 1] and non-decreasing in eps")
 # description together, one image at a time, after warm-up calls) at the DAVIS resolution 180 x 240 and at the
 # thesis's evaluation size 240 x 320. Compare each row with the camera: a front end that detects in every image of a
 # 20 Hz camera needs 20 frames/s, one that detects only in key frames and tracks in between needs fewer. The numbers
-# depend on the machine and on what else runs on it.
+# depend on the machine and on what else runs on it: on a busy machine single timings scatter widely, so compare the
+# classical rows with the network rows rather than the networks with one another.
 
 # %%
 timing_images = [p.image1 for p in bench_pairs[: 2 if FAST else 4]]
@@ -950,8 +952,9 @@ assert filter_config.min_track_length == 3 and filter_config.pixel_noise_px == 1
 # * `diagnose_matches` separates matching, selection and localisation with an oracle homography. On the viewpoint
 #   split the networks, run once on the image, have fewer correct matches than SIFT, each further from the truth
 #   under the zoom of these pairs, and RANSAC loses some of the pairs the oracle would fit.
-# * On the illumination split the networks are the most repeatable detectors but, at $\varepsilon = 3$, no better
-#   at homographies than the best classical method; on the event-count frames Harris leads every network.
+# * On the illumination split, at $\varepsilon = 3$, the best network repeats more of its points than any classical
+#   detector but estimates no more homographies correctly than the best classical method; on the event-count frames
+#   Harris leads every network.
 # * The network sees one scale; SIFT chooses one per point. Run on an image pyramid whose levels each keep their own
 #   points and descriptors (`scales="auto"`, what `create_detector("superpoint")` does at 480 x 640), the same
 #   network finds many more correct matches on the viewpoint pairs, places them a little better and gets more
