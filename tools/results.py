@@ -222,7 +222,9 @@ HEADLINE: tuple[tuple[str, str, str], ...] = (
      "ATE {run_euroc.ate_se3_m} m, RMSE {run_euroc.rmse_m} m",
      "run_euroc"),
     ("Feature network against SIFT, homography correctness at 3 px (held-out viewpoint / illumination pairs)",
-     "CNN on its image pyramid {features_pyramid.viewpoint_cnn:.3f} / {features_pyramid.illumination_cnn:.3f}, "
+     "CNN on its image pyramid {features_pyramid.viewpoint_cnn:.3f} / {features_pyramid.illumination_cnn:.3f} "
+     "(fine-tuned on photographs, `photos_detdesc`: **{features_photos_detdesc.viewpoint_cnn:.3f}** / "
+     "{features_photos_detdesc.illumination_cnn:.3f}), "
      "at one level {features.viewpoint_cnn:.3f} / {features.illumination_cnn:.3f}; SIFT {features.viewpoint_sift:.3f} / "
      "{features.illumination_sift:.3f}",
      "features_pyramid"),
