@@ -50,8 +50,9 @@ _BUILTIN_DETECTORS: dict[str, tuple[str, str]] = {
     "superpoint": ("evio_lib.features.network.detector", "SuperPointDetector"),   # default weights: below
 }
 #: Shipped weights behind the name "superpoint" (and SuperPointDetector()'s default): the best shipped network on the
-#: held-out benchmark (docs/results/features.md), pre-trained DetDesc Round 1; ``weights=`` picks another.
-SUPERPOINT_DEFAULT_WEIGHTS = "pretrained_detdesc_round1_gpu"
+#: held-out benchmark (docs/results/features.md): pre-trained DetDesc Round 1 fine-tuned on natural photographs with
+#: the reprojection loss (training/superpoint_photos); ``weights=`` picks another.
+SUPERPOINT_DEFAULT_WEIGHTS = "photos_detdesc"
 # Modules that register trained variants (register_detector) when imported; loaded on a registry miss.
 _PLUGIN_MODULES: tuple[str, ...] = ("evio_lib.features.network.detector",)
 _REGISTERED: dict[str, Callable[..., "FeatureDetector"]] = {}
@@ -415,7 +416,7 @@ def create_detector(name: str, **options: Any) -> FeatureDetector:
         **options: ``max_keypoints``, ``nms_radius`` and the detector's own options (see its class).
 
     Raises ValueError for an unknown name (the message lists the available ones) or an unknown option.
-    "superpoint" is the best shipped network (``SUPERPOINT_DEFAULT_WEIGHTS``, pre-trained DetDesc Round 1).
+    "superpoint" is the best shipped network (``SUPERPOINT_DEFAULT_WEIGHTS``, ``photos_detdesc``).
 
     >>> det = create_detector("fast", max_keypoints=300, nms_radius=4)
     >>> det.name, det.max_keypoints, det.nms_radius

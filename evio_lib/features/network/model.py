@@ -65,8 +65,9 @@ DEFAULT_WEIGHTS = SUPERPOINT_DEFAULT_WEIGHTS
 # How shipped weights are made (the training chain); quoted by the missing-weights error.
 TRAINING_COMMAND = (
     "python -m evio_lib features-train pretrained_detdesc_round1 --chain  (writes "
-    "runs/features/pretrained_detdesc_round1/best.pt, the stage behind the default weights; copy it to "
-    "evio_lib/weights/ under the weights name; docs/howto/train-features.md gives every shipped file's commands)"
+    "runs/features/pretrained_detdesc_round1/best.pt, the network the default weights are fine-tuned from; copy it "
+    "to evio_lib/weights/ under the weights name; docs/howto/train-features.md gives every shipped file's commands, "
+    "the fine-tuning on photographs among them)"
 )
 _POOL_AFTER = (1, 3, 5)  # 2x2 max-pool after encoder convolutions 2, 4 and 6 (0-based 1, 3, 5)
 _CHECKPOINT_FORMAT = "evio-superpoint-1"
