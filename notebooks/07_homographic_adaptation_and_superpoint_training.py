@@ -593,6 +593,53 @@ for name in chain[1:]:
     assert cfg.label_max_keypoints > minimum  # the cap never pushes labels below the warning level
 
 # %% [markdown]
+# ### Training on natural photographs
+#
+# The thesis's real-image steps train on MS-COCO photographs. A config can train on a folder of photographs
+# instead of the pool (`"photos": "auto"`: a folder beside the checkout or `$EVIO_PHOTOS`, each photograph assigned
+# to train, validation or test by a hash of its name; only the training ones are labelled and trained on). That is
+# how the fourth shipped network below, `photos_detdesc`, was made: section 1's network, labelled its own training
+# photographs by homographic adaptation, then trained further on warped pairs of them with one more term, the
+# **reprojection loss** $\lambda_r L_r$. $L_r$ takes each cell's peak in image 1, refined to the heat centroid of the
+# window around it, carries it by $\mathcal H$ into image 2 and measures how far the nearest refined peak there lies
+# (capped at 3 px, both directions averaged): the detector loss only says in which pixel of a cell a label lies, this
+# term asks the points to follow the image when it moves by a fraction of a cell. The cell prints the recipe its
+# weights file records and, where the photographs are present, labels one training photograph as the run did
+# (section 1's network, the config's warps, threshold and cap, at the training size).
+
+# %%
+from evio_lib.features.evaluation.photos import fit_photo
+from evio_lib.sim.photos import default_photo_folder, list_photos, load_photo
+
+photo_meta = load_checkpoint(resolve_weights("photos_detdesc"))["metadata"]
+photo_cfg = photo_meta["config"]
+print(f"photos_detdesc: {photo_meta['step']} steps from {photo_cfg['init_from']}, labels by {photo_cfg['labels_from']} "
+      f"over {photo_cfg['n_homographies']} warps (threshold {photo_cfg['label_threshold']:g}, best "
+      f"{photo_cfg['label_max_keypoints']}), {photo_cfg['image_size'][0]} x {photo_cfg['image_size'][1]} crops, "
+      f"batch {photo_cfg['batch_size']}, lr {photo_cfg['lr']:g}, reprojection weight {photo_cfg['lambda_reprojection']:g}, "
+      f"photographs: {photo_cfg['photos']}")
+assert photo_cfg["labels_from"] == trained_name and photo_cfg["lambda_reprojection"] > 0
+
+photo_folder = default_photo_folder()
+if photo_folder is None:
+    print("no photograph folder found (../shared/data/photos or $EVIO_PHOTOS): the labelling below is skipped")
+else:
+    counts = {split: len(list_photos(photo_folder, split)) for split in ("train", "val", "test")}
+    print(f"photographs per split: {counts}")
+    photo = fit_photo(load_photo(list_photos(photo_folder, "train")[0]), tuple(photo_cfg["image_size"]))
+    photo_adapted = homographic_adaptation(photo, cnn_heatmaps, rng=3, n_homographies=photo_cfg["n_homographies"])
+    photo_labels, _ = heatmap_to_keypoints(photo_adapted.heatmap, photo_cfg["label_threshold"], nms_radius=4,
+                                           border=4, max_keypoints=photo_cfg["label_max_keypoints"])
+    print(f"{len(photo_labels)} labels on the first training photograph")
+    fig = plot_heatmap_row([photo, photo_adapted.heatmap, photo],
+                           ["training photograph", f"aggregate over {photo_cfg['n_homographies']} warps",
+                            "labels the run trains on"],
+                           ["gray", "magma", "gray"], points={2: photo_labels},
+                           colorbar_labels={1: "keypoint probability"})
+    plt.show()
+    assert 0 < len(photo_labels) <= photo_cfg["label_max_keypoints"]
+
+# %% [markdown]
 # ### The project's trained networks
 #
 # Four trained networks come with the project (`evio_lib/weights/`); lesson 08 evaluates them. Two come from the
@@ -601,9 +648,9 @@ for name in chain[1:]:
 # below. The third, `distilled_narrow`, has half the channels and learned to give the outputs of section 1's
 # network: per 8 x 8 cell the same softmax over the 65 channels and descriptors pointing the same way (**knowledge
 # distillation**: a small network trained to copy a larger one; `evio_lib/features/training/distill.py`). The
-# fourth, `photos_detdesc`, is section 1's network trained further on natural photographs, labelled by its own
-# homographic adaptation, with one more term in the loss that asks its points to follow the image when it moves by
-# part of a cell (the reprojection loss, `evio_lib/features/training/reprojection.py`).
+# fourth, `photos_detdesc`, is section 1's network trained further on natural photographs with the reprojection loss
+# (the subsection above; `evio_lib/features/training/reprojection.py`); it is the one `create_detector("superpoint")`
+# loads.
 # The cell prints what each weights file says about its training and checks that none of them collapsed
 # (section 3): it measures the two cosines and the retrieval of each on validation pairs. None of them was trained
 # on these images, though every checkpoint was chosen on validation images: the distilled network's by its loss, the

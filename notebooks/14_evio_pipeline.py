@@ -875,7 +875,8 @@ display(Markdown(
 # Whether the visual rows overtake it over the whole recordings is what the full sweep measures: every row, both
 # presets, the whole room and flight, three seeds (`python -m evio_lib table`, hours of computing; its data line below
 # gives the lengths and seeds). Its
-# APS rows, as the project recorded them (the command and the commit it ran at are printed with the table), beside
+# APS rows, as the project recorded them (the command, the commit it ran at and which rows came from an earlier
+# command are printed with the table), beside
 # the thesis's grayscale rows on its real recordings (boxes_6dof, 69.8 m, and the Camp Atterbury flight, 1 077 m):
 
 # %%
@@ -903,16 +904,22 @@ for row, label in (("sift_aps", "SIFT, APS frames"), ("cnn_aps", "CNN, APS frame
     lines.append(f"| {label} | {sweep_cell('boxes_like', row)} | {sweep_cell('aerial_like', row)} | "
                  + (f"{thesis[1]} / {thesis[2]} % ({thesis[0]})" if thesis else "-") + " |")
 display(Markdown("\n".join(lines)))
-print(f"the full sweep's numbers: {sweep['data']}\ncommand: {sweep['command']}\nat commit {sweep['commit']}")
+print(f"the full sweep's numbers: {sweep['data']}\ncommand: {sweep['command']}\nat commit {sweep['commit']}\n"
+      f"provenance: {sweep['provenance']}")
 assert values["boxes_like.sift_aps.mean"] < 1.0 and values["boxes_like.klt_aps.mean"] < 1.0
 assert values["boxes_like.cnn_aps.std"] > max(values["boxes_like.sift_aps.std"], values["boxes_like.klt_aps.std"])
 display(Markdown(
     f"Over the whole recordings SIFT and KLT stay under 1 % of the distance in the room "
     f"({values['boxes_like.sift_aps.mean']:.2f} and {values['boxes_like.klt_aps.mean']:.2f} %), as the thesis's "
     f"SIFT and CNN rows on its real Boxes recording do ({THESIS_GRAYSCALE['sift_aps'][1]} and "
-    f"{THESIS_GRAYSCALE['cnn_aps'][1]} %). The CNN's row is the least steady of the three on these simulated frames: "
-    f"{sweep_cell('boxes_like', 'cnn_aps')} % in the room, and over the flight "
-    f"{sweep_cell('aerial_like', 'cnn_aps')}{'' if 'diverged' in sweep_cell('aerial_like', 'cnn_aps') else ' %'}."))
+    f"{THESIS_GRAYSCALE['cnn_aps'][1]} %). In the room the CNN's row is the least steady of the three on these "
+    f"simulated frames ({sweep_cell('boxes_like', 'cnn_aps')} %); over the flight "
+    + (f"{values['aerial_like.cnn_aps.diverged']} of its {values['aerial_like.cnn_aps.seeds']} seeds diverged"
+       if "aerial_like.cnn_aps.diverged" in values else
+       f"it reaches {sweep_cell('aerial_like', 'cnn_aps')} %, "
+       + ("the largest mean of the three" if values["aerial_like.cnn_aps.mean"] > max(
+           values["aerial_like.sift_aps.mean"], values["aerial_like.klt_aps.mean"]) else "within the other rows' means"))
+    + "."))
 
 # %% [markdown]
 # The thesis's numbers come from other sensors, scenes and durations: read them for orientation, not as a
