@@ -26,8 +26,8 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                         "mc-events: event windows warped with the gyroscope's rotation and counted (no network); "
                         "aps+events, aps+mc-events: both streams, each with its own tracker, fused by the filter")
     p.add_argument("--features", default=None,
-                   help="feature detector: sift, superpoint (the shipped CNN), distilled_narrow (the half-width CNN "
-                        "distilled from it, faster: docs/results/speed.md), orb, fast, ... (default: the tracker's "
+                   help="feature detector: sift, superpoint (the shipped CNN, photos_detdesc), distilled_narrow (a "
+                        "half-width CNN, faster: docs/results/speed.md), orb, fast, ... (default: the tracker's "
                         "own, sift for the descriptor tracker and fast for klt)")
     p.add_argument("--weights", type=Path, default=None,
                    help="a CNN checkpoint for --features superpoint (default: the shipped network)")

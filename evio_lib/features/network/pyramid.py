@@ -22,7 +22,7 @@ docs/archive.md.)
 
 Chosen on the 111 viewpoint pairs of the 37 validation photographs (480 x 640, best 1000 points, NMS 8, mutual
 nearest neighbours and RANSAC; ``python bench/pyramid_levels.py``), homography correctness at eps = 1 / 3 / 5 px of
-the shipped network and the time per image on one thread of the 2-core Xeon beside other work: one level
+``pretrained_detdesc_round1_gpu`` (the default network then) and the time per image on one thread of the 2-core Xeon beside other work: one level
 0.027 / 0.207 / 0.306 (237 ms); levels 1 to 0.5 0.216 / 0.541 / 0.649 (632 ms); 1.19 to 0.5 0.378 / 0.577 / 0.730
 (991 ms); 1.41 to 0.5, the default, 0.405 / 0.694 / 0.802 (1.6 s); 2 to 0.5 0.514 / 0.703 / 0.820 (3.5 s); SIFT
 0.541 / 0.802 / 0.856 (119 ms). The enlarged levels place the points more finely (the network's cells cover less
