@@ -68,6 +68,7 @@ from evio_lib.evaluation.plots_features import (
 )
 from evio_lib.features.evaluation.evaluate import match_descriptors
 from evio_lib.features.network import (
+    DEFAULT_WEIGHTS,
     SuperPointDetector,
     inference_model,
     load_checkpoint,
@@ -595,17 +596,24 @@ for name in chain[1:]:
 # %% [markdown]
 # ### Training on natural photographs
 #
-# The thesis's real-image steps train on MS-COCO photographs. A config can train on a folder of photographs
-# instead of the pool (`"photos": "auto"`: a folder beside the checkout or `$EVIO_PHOTOS`, each photograph assigned
-# to train, validation or test by a hash of its name; only the training ones are labelled and trained on). That is
-# how the fourth shipped network below, `photos_detdesc`, was made: section 1's network, labelled its own training
-# photographs by homographic adaptation, then trained further on warped pairs of them with one more term, the
-# **reprojection loss** $\lambda_r L_r$. $L_r$ takes each cell's peak in image 1, refined to the heat centroid of the
-# window around it, carries it by $\mathcal H$ into image 2 and measures how far the nearest refined peak there lies
-# (capped at 3 px, both directions averaged): the detector loss only says in which pixel of a cell a label lies, this
-# term asks the points to follow the image when it moves by a fraction of a cell. The cell prints the recipe its
-# weights file records and, where the photographs are present, labels one training photograph as the run did
-# (section 1's network, the config's warps, threshold and cap, at the training size).
+# The thesis's real-image steps train on MS-COCO photographs. A config can mix a folder of natural photographs
+# into its training images (`"photos"`: a folder, or `"auto"` for one beside the checkout or in `$EVIO_PHOTOS`;
+# photographs then make 60 % of the training images, the pool the rest). Each photograph belongs to the training,
+# validation or test split by a hash of its name, and only the training ones are labelled and trained on.
+#
+# That is how the network `photos_detdesc` was made (config `photos_detdesc_reprojection10`). Section 1's network
+# labelled the training photographs by homographic adaptation; then it was trained further on warped pairs of random
+# crops of them, pairs that zoom more than the thesis's, with one more term in the loss, the **reprojection loss**
+# $\lambda_r L_r$. The detector loss only says in which pixel of a cell a label lies; $L_r$ asks the points to follow
+# the image when it moves by a fraction of a cell. In image 1 each cell's most probable pixel, where the detector
+# would keep it (probability at least 1/65, no stronger heat within 4 px), is refined to the heat centroid of the
+# 5 x 5 window around it, a sub-pixel point $c_1$; $\mathcal H$ carries it to $q = \mathcal H c_1$ in image 2, where
+# the nearest such refined point $c_2$ should land: $L_r$ is the mean of $\min(\lVert c_2 - q \rVert, 3\,\text{px})$,
+# weighted by each cell's keypoint probability, computed from image 1 to image 2 and back and averaged.
+#
+# The cell prints the recipe the weights file records and, where a photograph folder is found, labels the first
+# training photograph the way the run labelled its crops (section 1's network, the config's warps, threshold and
+# cap), here on the whole photograph resized to the training size.
 
 # %%
 from evio_lib.features.evaluation.photos import fit_photo
@@ -613,16 +621,15 @@ from evio_lib.sim.photos import default_photo_folder, list_photos, load_photo
 
 photo_meta = load_checkpoint(resolve_weights("photos_detdesc"))["metadata"]
 photo_cfg = photo_meta["config"]
-print(f"photos_detdesc: {photo_meta['step']} steps from {photo_cfg['init_from']}, labels by {photo_cfg['labels_from']} "
+print(f"photos_detdesc (config {photo_cfg['name']}): {photo_meta['step']} steps from {photo_cfg['init_from']}, labels by {photo_cfg['labels_from']} "
       f"over {photo_cfg['n_homographies']} warps (threshold {photo_cfg['label_threshold']:g}, best "
       f"{photo_cfg['label_max_keypoints']}), {photo_cfg['image_size'][0]} x {photo_cfg['image_size'][1]} crops, "
-      f"batch {photo_cfg['batch_size']}, lr {photo_cfg['lr']:g}, reprojection weight {photo_cfg['lambda_reprojection']:g}, "
-      f"photographs: {photo_cfg['photos']}")
+      f"batch {photo_cfg['batch_size']}, lr {photo_cfg['lr']:g}, reprojection weight {photo_cfg['lambda_reprojection']:g}")
 assert photo_cfg["labels_from"] == trained_name and photo_cfg["lambda_reprojection"] > 0
 
 photo_folder = default_photo_folder()
 if photo_folder is None:
-    print("no photograph folder found (../shared/data/photos or $EVIO_PHOTOS): the labelling below is skipped")
+    print("no photograph folder found (../shared/data/photos or $EVIO_PHOTOS): no photograph to label")
 else:
     counts = {split: len(list_photos(photo_folder, split)) for split in ("train", "val", "test")}
     print(f"photographs per split: {counts}")
@@ -633,7 +640,7 @@ else:
     print(f"{len(photo_labels)} labels on the first training photograph")
     fig = plot_heatmap_row([photo, photo_adapted.heatmap, photo],
                            ["training photograph", f"aggregate over {photo_cfg['n_homographies']} warps",
-                            "labels the run trains on"],
+                            "its labels (the run labelled random crops)"],
                            ["gray", "magma", "gray"], points={2: photo_labels},
                            colorbar_labels={1: "keypoint probability"})
     plt.show()
@@ -650,11 +657,12 @@ else:
 # distillation**: a small network trained to copy a larger one; `evio_lib/features/training/distill.py`). The
 # fourth, `photos_detdesc`, is section 1's network trained further on natural photographs with the reprojection loss
 # (the subsection above; `evio_lib/features/training/reprojection.py`); it is the one `create_detector("superpoint")`
-# loads.
+# loads (the cell prints the name).
 # The cell prints what each weights file says about its training and checks that none of them collapsed
 # (section 3): it measures the two cosines and the retrieval of each on validation pairs. None of them was trained
-# on these images, though every checkpoint was chosen on validation images: the distilled network's by its loss, the
-# others by their retrieval.
+# on these images, though every checkpoint was chosen on validation images: the distilled network's by its loss,
+# `photos_detdesc`'s by its homography scores on validation photographs (lesson 08 defines them), the others by their
+# retrieval.
 
 # %%
 val_cfg = training.load_config("pretrained_detdesc_round2")
@@ -686,7 +694,8 @@ def training_summary(name: str) -> str:
 names = [name for name in sorted(shipped_weights()) if is_superpoint(name)]  # evio_lib/weights/*.pt
 assert names, "no trained SuperPoint weights in evio_lib/weights"
 chance = 3 / (val_cfg.image_size[0] * val_cfg.image_size[1] / 64)  # ~3 corresponding cells among all
-print(f"{len(items)} validation pairs; chance retrieval about {chance:.0%}")
+print(f"{len(items)} validation pairs; chance retrieval about {chance:.0%}; "
+      f"create_detector('superpoint') loads {DEFAULT_WEIGHTS}")
 for name in names:  # loop over the trained networks
     net = load_model(resolve_weights(name)).eval()
     with torch.no_grad():
