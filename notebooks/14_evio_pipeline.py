@@ -12,7 +12,7 @@
 # # 14 — The complete EVIO pipeline on APS frames
 #
 # Every piece of the course now exists on its own: frames from APS or from events (lesson 04), feature detectors
-# (05-08), the MSCKF with its update and its consistency fixes (11-13). This lesson joins them into the pipeline of
+# (05-08), the Kalman filter and the MSCKF with its update and its consistency fixes (10-13). This lesson joins them into the pipeline of
 # the thesis this course follows (Friedel 2020, "Event-based visual-inertial odometry using smart features",
 # Chapter IV §4.5) and runs it on the camera's ordinary frames, the **APS frames** (the DAVIS's Active Pixel Sensor
 # images, exposed like any camera's):
@@ -29,8 +29,8 @@
 #
 # The code lives in `evio_lib.frontend` (the tracker) and `evio_lib.pipeline` (`load_dataset`, `PipelineConfig`,
 # `run_pipeline`, `run_table`); the same runs are one command away: `python -m evio_lib run` and
-# `python -m evio_lib table`. Every number below is from one run (of one seed, on simulated data) unless a table
-# says otherwise.
+# `python -m evio_lib table`. Every number below is from one run of one seed, on simulated data unless the cell loads
+# a real recording, and unless a table says otherwise.
 
 # %%
 import os
