@@ -30,7 +30,9 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                         "half-width CNN, faster: docs/results/speed.md), orb, fast, ... (default: the tracker's "
                         "own, sift for the descriptor tracker and fast for klt)")
     p.add_argument("--weights", type=Path, default=None,
-                   help="a CNN checkpoint for --features superpoint (default: the shipped network)")
+                   help="the CNN's weights for --features superpoint: a checkpoint file (.pt) or the name of a "
+                        "shipped network, e.g. pretrained_detdesc_round1_gpu (default: the shipped default, "
+                        "photos_detdesc)")
     p.add_argument("--cnn-inference", choices=["auto", "fused", "bf16", "int8"], default=None,
                    help="the CNN's arithmetic (--features superpoint): auto (default: bf16 where the CPU has it, else "
                         "int8), fused (fp32), bf16, or int8 (faster than bf16, less accurate in the pipeline; "
@@ -168,12 +170,14 @@ def main_run(args: argparse.Namespace) -> int:
     if args.out is not None:  # before any work: a refused folder costs nothing
         preset = str(args.dataset) in PRESETS  # a preset name is no path; its recording lives in the cache
         check_output_dir(args.out, args.force, name="--out", inputs=[
-            ("the input recording", None if preset else args.dataset), ("the --weights checkpoint", args.weights),
+            ("the input recording", None if preset else args.dataset),
+            ("the --weights checkpoint", None if _shipped_name(args.weights) else args.weights),
             ("the --extrinsics file", args.extrinsics), ("the --calib file", getattr(args, "calib", None)),
             ("the recording cache", sequence_cache_dir() if preset else None)])
     set_threads(args.threads)
     options = (("weights", str(args.weights)),) if args.weights is not None else ()
-    _require_checkpoint_file("--weights", args.weights)
+    if not _shipped_name(args.weights):
+        _require_checkpoint_file("--weights", args.weights, "or the name of a shipped network")
     if args.features is None and args.weights is not None:
         raise ValueError(f"--weights {args.weights} is a CNN checkpoint: name the network it is for, --features "
                          f"superpoint (or distilled_narrow)")
@@ -298,11 +302,24 @@ def _check_speed(speed: float | None) -> None:
             raise ValueError(f"--{error}") from None
 
 
-def _require_checkpoint_file(option: str, path: Path | None) -> None:
-    """Raise ValueError unless ``path`` (the value of ``option``) is None or an existing file."""
+def _require_checkpoint_file(option: str, path: Path | None, alternative: str = "") -> None:
+    """Raise ValueError unless ``path`` (the value of ``option``) is None or an existing file; ``alternative`` (e.g.
+    "or the name of a shipped network") is added to what the message says is expected."""
     if path is not None and not path.is_file():
-        problem = "a folder; expected a checkpoint file (.pt)" if path.is_dir() else "no such checkpoint file"
+        also = f" {alternative}" if alternative else ""
+        problem = (f"a folder; expected a checkpoint file (.pt){also}" if path.is_dir()
+                   else f"no such checkpoint file{also}")
         raise ValueError(f"{option} {path}: {problem}")
+
+
+def _shipped_name(weights: Path | None) -> bool:
+    """True when ``weights`` (``run --weights``) is a bare name of shipped CNN weights (``evio_lib/weights/NAME.pt``)
+    and no file of that name exists here (a file wins)."""
+    if weights is None or weights.exists() or weights.name != str(weights) or weights.suffix:
+        return False
+    from evio_lib.features.network import shipped_weights
+
+    return str(weights) in shipped_weights()
 
 
 #: PipelineConfig fields and the ``run`` options that set them (for messages).

@@ -135,6 +135,26 @@ def test_pixel_noise_options_reach_the_config(pipeline_cache, boxes_aps, monkeyp
     assert main(fused) == 0 and configs[-1].event_tracker is None
 
 
+def test_run_weights_takes_a_shipped_name(monkeypatch, capsys, pipeline_cache):
+    """``run --weights NAME`` loads the shipped network NAME, as ``features-benchmark --weights`` does; an unknown
+    bare name is refused in one line that names both forms."""
+    from evio_lib.pipeline import run as run_module
+
+    configs = []
+    real = run_module.run_pipeline
+    monkeypatch.setattr(run_module, "run_pipeline", lambda data, config, **kw: configs.append(config) or real(
+        data, config, **kw))
+    args = ["run", "boxes_like", "--duration", "3", "--max-duration", "0.2", "--features", "superpoint", "--quiet",
+            "--no-figures", "--weights"]
+    assert main(args + ["pretrained_detdesc_round1_gpu"]) == 0
+    assert dict(configs[-1].detector_options)["weights"] == "pretrained_detdesc_round1_gpu"
+    capsys.readouterr()
+    assert main(args + ["no_such_network"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: --weights no_such_network: no such checkpoint file or the name of a shipped network")
+    assert err.count("\n") == 1
+
+
 @pytest.mark.parametrize("args, message", [
     (["run", "nowhere_at_all"], "neither a preset"),
     (["run", "boxes_like", "--bias-init", "1,2"], "--bias-init must be"),
