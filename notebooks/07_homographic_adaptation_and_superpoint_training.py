@@ -621,10 +621,12 @@ from evio_lib.sim.photos import default_photo_folder, list_photos, load_photo
 
 photo_meta = load_checkpoint(resolve_weights("photos_detdesc"))["metadata"]
 photo_cfg = photo_meta["config"]
-print(f"photos_detdesc (config {photo_cfg['name']}): {photo_meta['step']} steps from {photo_cfg['init_from']}, labels by {photo_cfg['labels_from']} "
+print(f"photos_detdesc (config {photo_cfg['name']}): {photo_meta['step']} steps from {photo_cfg['init_from']}, "
+      f"labels by {photo_cfg['labels_from']} "
       f"over {photo_cfg['n_homographies']} warps (threshold {photo_cfg['label_threshold']:g}, best "
       f"{photo_cfg['label_max_keypoints']}), {photo_cfg['image_size'][0]} x {photo_cfg['image_size'][1]} crops, "
-      f"batch {photo_cfg['batch_size']}, lr {photo_cfg['lr']:g}, reprojection weight {photo_cfg['lambda_reprojection']:g}")
+      f"batch {photo_cfg['batch_size']}, lr {photo_cfg['lr']:g}, "
+      f"reprojection weight {photo_cfg['lambda_reprojection']:g}")
 assert photo_cfg["labels_from"] == trained_name and photo_cfg["lambda_reprojection"] > 0
 
 photo_folder = default_photo_folder()
@@ -649,15 +651,17 @@ else:
 # %% [markdown]
 # ### The project's trained networks
 #
-# Four trained networks come with the project (`evio_lib/weights/`); lesson 08 evaluates them. Two come from the
-# thesis's chain: `pretrained_detdesc_round2_cpu` from the steps printed above, and section 1's network from the
-# pre-trained Round 1 step, started from MagicPoint's weights, trained on a GPU with the settings its line prints
-# below. The third, `distilled_narrow`, has half the channels and learned to give the outputs of section 1's
-# network: per 8 x 8 cell the same softmax over the 65 channels and descriptors pointing the same way (**knowledge
-# distillation**: a small network trained to copy a larger one; `evio_lib/features/training/distill.py`). The
-# fourth, `photos_detdesc`, is section 1's network trained further on natural photographs with the reprojection loss
-# (the subsection above; `evio_lib/features/training/reprojection.py`); it is the one `create_detector("superpoint")`
-# loads (the cell prints the name).
+# Four trained networks come with the project (`evio_lib/weights/`); lesson 08 evaluates them. Two follow the
+# thesis's chain: `pretrained_detdesc_round2_cpu` from the steps printed above (its line below gives the step of the
+# checkpoint that was kept), and section 1's network, the thesis's pre-trained Round 1 step (a DetDesc run started
+# from MagicPoint's weights, where the chain above starts `detdesc_round1` from random weights), trained on a GPU
+# with the settings its line prints below. The third, `distilled_narrow`, has half the channels and learned to give
+# the outputs of section 1's network: per 8 x 8 cell the same softmax over the 65 channels and descriptors pointing
+# the same way (**knowledge distillation**: a small network trained to copy a larger one;
+# `evio_lib/features/training/distill.py`). The fourth, `photos_detdesc`, is section 1's network trained further on
+# natural photographs with the reprojection loss (the subsection above;
+# `evio_lib/features/training/reprojection.py`); it is the one `create_detector("superpoint")` loads (the cell
+# prints the name).
 # The cell prints what each weights file says about its training and checks that none of them collapsed
 # (section 3): it measures the two cosines and the retrieval of each on validation pairs. None of them was trained
 # on these images, though every checkpoint was chosen on validation images: the distilled network's by its loss,

@@ -25,7 +25,8 @@
 # 5. the **benchmark tables** in the form of Tables 2-5 for every available detector, plus a speed table.
 #
 # Repeatability, homography correctness and the matching score are first computed by hand on one image pair and
-# checked against `evio_lib.features.evaluation.evaluate` (the NN mAP comes from the library); the tables then come from `evio_lib.features.evaluation.benchmark`.
+# checked against `evio_lib.features.evaluation.evaluate` (the NN mAP comes from the library); the tables then come
+# from `evio_lib.features.evaluation.benchmark`.
 #
 # **The protocol, drawn** on a made-up scene before any of it is computed: (1) a pair of images related by a known
 # homography $H$, so that every point of image 1 has a true place in image 2; (2) repeatability, the detector alone:
@@ -920,7 +921,7 @@ display(Markdown(text))
 
 # %%
 from evio_lib.features.evaluation.benchmark import photo_pairs
-from evio_lib.sim.photos import default_photo_folder
+from evio_lib.sim.photos import default_photo_folder, list_photos
 
 photo_folder = default_photo_folder()
 photo_rows = []
@@ -930,6 +931,7 @@ else:
     n_photos = 2 if FAST else 8
     real_pairs = photo_pairs(photo_folder, "test", SEED, n_images=n_photos, pairs_per_image=1)
     n_real_view = sum(p.split == "viewpoint" for p in real_pairs)
+    n_test = len(list_photos(photo_folder, "test"))  # the whole test split
     print(f"{len(real_pairs)} pairs ({n_real_view} viewpoint) of {n_photos} test photographs, 480 x 640; "
           f"create_detector('superpoint') loads {DEFAULT_WEIGHTS}; one pair moves a score by 1/{n_real_view}")
     photo_calls = [dict(detector="sift", pairs=real_pairs, settings=settings, name="sift")]
@@ -977,9 +979,10 @@ if photo_rows:
         + listed([f"{label(name)} {v:.3f}" for name, v in il1.items()]) + ". "
         + ("The two networks score alike in every column of the table. " if same else
            "The fine-tuned network and the one it started from differ in " f"{differ} of the table's six columns. ")
-        + f"With {n_real_view} pairs per split one pair is a step of {1 / n_real_view:.3f}: the whole test split (38 photographs, 190 pairs per split) "
-        "is a command away, `python -m evio_lib features-benchmark --dataset photos --out DIR`, and its numbers are "
-        "in docs/results/features.md."))
+        + f"With {n_real_view} pairs per split one pair is a step of {1 / n_real_view:.3f}: the whole test split "
+        f"({n_test} photographs, 5 pairs of each per split) is a command away, "
+        "`python -m evio_lib features-benchmark --dataset photos --out DIR`, and its numbers are in "
+        "docs/results/features.md."))
 
 # %% [markdown]
 # ## 13. From features to the filter
