@@ -167,16 +167,17 @@ def main_run(args: argparse.Namespace) -> int:
     from evio_lib.pipeline.output import write_run
     from evio_lib.pipeline.run import PipelineConfig, run_pipeline, set_threads
 
+    shipped_weights_name = _shipped_name(args.weights)
     if args.out is not None:  # before any work: a refused folder costs nothing
         preset = str(args.dataset) in PRESETS  # a preset name is no path; its recording lives in the cache
         check_output_dir(args.out, args.force, name="--out", inputs=[
             ("the input recording", None if preset else args.dataset),
-            ("the --weights checkpoint", None if _shipped_name(args.weights) else args.weights),
+            ("the --weights checkpoint", None if shipped_weights_name else args.weights),
             ("the --extrinsics file", args.extrinsics), ("the --calib file", getattr(args, "calib", None)),
             ("the recording cache", sequence_cache_dir() if preset else None)])
     set_threads(args.threads)
     options = (("weights", str(args.weights)),) if args.weights is not None else ()
-    if not _shipped_name(args.weights):
+    if not shipped_weights_name:
         _require_checkpoint_file("--weights", args.weights, "or the name of a shipped network")
     if args.features is None and args.weights is not None:
         raise ValueError(f"--weights {args.weights} is a CNN checkpoint: name the network it is for, --features "
@@ -313,13 +314,16 @@ def _require_checkpoint_file(option: str, path: Path | None, alternative: str = 
 
 
 def _shipped_name(weights: Path | None) -> bool:
-    """True when ``weights`` (``run --weights``) is a bare name of shipped CNN weights (``evio_lib/weights/NAME.pt``)
-    and no file of that name exists here (a file wins)."""
-    if weights is None or weights.exists() or weights.name != str(weights) or weights.suffix:
+    """True when the detector will read ``weights`` (``run --weights``) as the name of shipped CNN weights
+    (``evio_lib/weights/NAME.pt``), by :func:`~evio_lib.features.network.resolve_weights`'s own rule."""
+    if weights is None:
         return False
-    from evio_lib.features.network import shipped_weights
+    from evio_lib.features.network import resolve_weights
 
-    return str(weights) in shipped_weights()
+    try:
+        return resolve_weights(str(weights)) != Path(str(weights))  # a name resolves into the weights folder
+    except (FileNotFoundError, ValueError):
+        return False
 
 
 #: PipelineConfig fields and the ``run`` options that set them (for messages).
