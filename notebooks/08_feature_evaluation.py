@@ -712,7 +712,8 @@ display(Markdown(f"{len(diag_pairs)} viewpoint pairs (held-out images, 480 x 640
 fig = plot_oracle_corner_errors({name: (d[:, 1], d[:, 4]) for name, d in diagnoses.items()}, eps=3.0)
 plt.show()
 print("in the scatter: errors are clipped at 1000 px, so the top edge holds every pair whose oracle fit is off by "
-      "that much or more, and the pairs with fewer than 4 correct matches (no homography); a pair with none sits at x = 1")
+      "that much or more, and the pairs with fewer than 4 correct matches (no homography); a pair with none sits at "
+      "x = 1")
 
 # %% [markdown]
 # The checks behind the reading of the table: each network's localisation error against SIFT's, how often the
