@@ -55,6 +55,7 @@ __all__ = [
     "RenderResult",
     "Scene",
     "indoor_room",
+    "photo_room",
     "aerial_ground",
     "scene_from_preset",
     "PRESETS",
@@ -965,6 +966,54 @@ def indoor_room(seed: int = 0) -> Scene:
         centre, size, yaw = floor_boxes[int(lower)]
         top_size = np.array([size[0] * rng.uniform(0.5, 0.9), size[1] * rng.uniform(0.5, 0.9), rng.uniform(0.2, 0.5)])
         add_box(centre, top_size, yaw + float(rng.uniform(-0.2, 0.2)), float(size[2]), f"box {len(floor_boxes) + j}")
+    return Scene(planes, background=0.5)
+
+
+def photo_room(photos: Sequence[str], seed: int = 0, gamma: float = 2.2) -> Scene:
+    """Return a room like :func:`indoor_room` whose every surface is one of ``photos``, in linear light.
+
+    Floor, ceiling, the four walls and 5-8 boxes (x in [-1.2, 1.2] m, y in [1.8, 3.2] m), each face a whole photograph
+    of the list resized to the face, so that large smooth regions, dark and bright, fill much of the view. The
+    photographs' values V are display-encoded; the scene's intensity is I = V^gamma with V first rescaled to
+    [0.05, 0.95], so the scene spans 0.05^2.2 to 0.95^2.2, about 700 to 1 for the default gamma (a renderer in linear
+    light; ``gamma=1`` keeps the display values). A held-out recording for the reconstructors: the photographs
+    come from a split the networks never trained on, and its light is that of a simulator that decodes its textures.
+
+    Args:
+        photos: paths of photographs (e.g. ``list_photos(folder, "val")``), at least one.
+        seed: seed of the layout and of which photograph goes where.
+        gamma: the display encoding undone, I = V^gamma (> 0).
+    """
+    import cv2
+
+    from evio_lib.sim.photos import load_photo
+
+    if len(photos) == 0:
+        raise ValueError("photo_room needs at least one photograph; got an empty list")
+    if not (np.isfinite(gamma) and gamma > 0):
+        raise ValueError(f"gamma must be a positive number; got {gamma!r}")
+    rng = np.random.default_rng(seed)
+    ex, ey, ez = np.eye(3)
+
+    def texture(shape: tuple[int, int]) -> np.ndarray:
+        photo = load_photo(photos[int(rng.integers(len(photos)))])
+        photo = cv2.resize(photo, (shape[1], shape[0]), interpolation=cv2.INTER_AREA)
+        return rescale_contrast(photo.astype(np.float64), 0.05, 0.95) ** gamma
+
+    planes = [_face([0.0, 0.0, 0.0], ez, -ey, 8.0, 8.0, texture((512, 512)), "floor"),
+              _face([0.0, 0.0, 3.0], -ez, ey, 8.0, 8.0, texture((512, 512)), "ceiling")]
+    for name, centre, toward in (("wall +y", [0.0, 4.0, 1.5], -ey), ("wall -y", [0.0, -4.0, 1.5], ey),
+                                 ("wall +x", [4.0, 0.0, 1.5], -ex), ("wall -x", [-4.0, 0.0, 1.5], ex)):
+        planes.append(_face(centre, toward, -ez, 8.0, 3.0, texture((384, 1024)), name))
+    for i in range(int(rng.integers(5, 9))):  # boxes may overlap: the renderer draws the nearest surface
+        width, depth, height = rng.uniform([0.35, 0.35, 0.3], [0.9, 0.9, 1.0])
+        centre = np.array([rng.uniform(-1.2, 1.2), rng.uniform(1.8, 3.2), 0.5 * height])
+        yaw = float(rng.uniform(-0.6, 0.6))
+        bx, by = np.array([np.cos(yaw), np.sin(yaw), 0.0]), np.array([-np.sin(yaw), np.cos(yaw), 0.0])
+        planes.append(_face(centre + 0.5 * height * ez, ez, -by, width, depth, texture((256, 256)), f"box {i} top"))
+        for axis, half, side_width in ((by, depth, width), (-by, depth, width), (bx, width, depth), (-bx, width, depth)):
+            planes.append(_face(centre + 0.5 * half * axis, axis, -ez, side_width, height, texture((256, 256)),
+                                f"box {i} side"))
     return Scene(planes, background=0.5)
 
 

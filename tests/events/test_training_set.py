@@ -251,7 +251,7 @@ def test_training_on_a_set_raises_validation_ssim_and_keeps_the_best(tmp_path):
     assert summary["best_val_ssim"] == max(h["val_ssim"] for h in history) > untrained["ssim"]
     best = torch.load(tmp_path / "run" / "best.pt", weights_only=True)
     assert best["history"][-1]["val_ssim"] == summary["best_val_ssim"]
-    assert best["training_set_manifest"]["config"] == json.loads(json.dumps(SMALL.__dict__))   # the data's recipe
+    assert TrainingSetConfig.from_dict(best["training_set_manifest"]["config"]) == SMALL   # the data's recipe
     with pytest.raises(ValueError, match="voxel bins"):
         ReconstructionTrainConfig(training_set=str(tmp_path / "set"), data={"num_bins": 3})
     with pytest.raises(ValueError, match="not a training set"):

@@ -15,6 +15,7 @@ times, for reference.
 from __future__ import annotations
 
 import os
+import warnings
 from dataclasses import dataclass
 from typing import Sequence
 from pathlib import Path
@@ -27,7 +28,8 @@ from evio_lib.events.reconstruct import (Reconstructor, reconstruct_at_times, re
 from evio_lib.events.representations import count_windows, window_size_from_fraction
 
 __all__ = ["normalize_for_metrics", "image_quality", "EvalSequence", "simulated_eval_sequence", "score_windows",
-           "score_aps_frames", "score_at_frame_times", "load_slider_slice", "quality_table", "THESIS_FRACTION"]
+           "score_aps_frames", "score_at_frame_times", "load_slider_slice", "quality_table", "THESIS_FRACTION",
+           "LINEAR_LIGHT_SEEDS", "linear_light_room_sequence"]
 
 #: The held-out stretches: (preset, start [s], duration [s], length of the preset's motion [s]). ``boxes_like`` grows
 #: violent towards the end of its motion: "fast" is its last stretch, "slow" its start.
@@ -136,6 +138,59 @@ def simulated_eval_sequence(stretch: str, duration: float | None = None, seed: i
 
     return EvalSequence(name=stretch, events=events, width=camera.width, height=camera.height, render=render,
                         frame_times=frame_times, frames=frames)
+
+
+#: Seeds of the linear-light photo rooms (:func:`linear_light_room_sequence`): validation on the photo folder's val
+#: photographs, test on its test photographs.
+LINEAR_LIGHT_SEEDS = {"val": (303, 404, 505), "test": (606, 707, 808)}
+
+
+def linear_light_room_sequence(seed: int, split: str = "val", photos: str | Path | None = None, gamma: float = 2.2,
+                               contrast: float = 0.2, render_rate_hz: float = 1000.0, start: float = 1.0,
+                               duration: float = 1.0) -> EvalSequence:
+    """Return a held-out recording unlike the training sequences: a room of photographs in linear light.
+
+    The scene is :func:`evio_lib.sim.scene.photo_room` of the photo folder's ``split`` photographs (never seen in
+    training), its light I = V^``gamma`` spanning about 700 to 1; the camera follows ``boxes_like``'s motion of the same
+    seed from ``start`` for ``duration`` seconds (DAVIS240C, 240 x 180). The events come from renders at a fixed
+    ``render_rate_hz`` with linear interpolation between them (the training sets and the presets sample adaptively),
+    with one contrast threshold for every pixel, no mismatch, no refractory period and no noise. No APS frames.
+    Simulated in a few seconds, so not cached.
+
+    Raises ValueError naming the folder when no photo folder is found (``photos=None`` looks where
+    :func:`evio_lib.sim.photos.default_photo_folder` does).
+    """
+    from evio_lib.events.simulate import EventCameraParams, simulate_events
+    from evio_lib.geometry.camera import PinholeRadtan
+    from evio_lib.sim.photos import list_photos, resolve_photo_option
+    from evio_lib.sim.presets import _pose_function
+    from evio_lib.sim.rig import CameraImuExtrinsics
+    from evio_lib.sim.scene import photo_room
+    from evio_lib.sim.trajectory import trajectory_from_preset
+
+    folder = resolve_photo_option(photos)
+    if folder is None:
+        raise ValueError("no photo folder: give photos=DIR (a folder of .jpg/.png photographs) or set $EVIO_PHOTOS")
+    if not (np.isfinite(render_rate_hz) and render_rate_hz > 0):
+        raise ValueError(f"render_rate_hz must be a positive number of renders per second; got {render_rate_hz!r}")
+    scene = photo_room([str(p) for p in list_photos(folder, split)], seed=seed, gamma=gamma)
+    pose_at = _pose_function(trajectory_from_preset("boxes_like", duration=10.0, seed=seed),
+                             CameraImuExtrinsics.default())
+    camera = PinholeRadtan.davis240c()
+
+    def render(t: float) -> np.ndarray:
+        R, p = pose_at(np.array([t]))
+        return scene.render_intensity(camera, R[0], p[0])
+
+    params = EventCameraParams(contrast_pos=contrast, contrast_neg=contrast, contrast_sigma=0.0, refractory_s=0.0)
+    step = 1.0 / float(render_rate_hz)
+    with warnings.catch_warnings():  # the fixed step is meant: no warning that a step exceeded the change bound
+        warnings.simplefilter("ignore", RuntimeWarning)
+        events, _ = simulate_events(render, start, start + duration, camera.width, camera.height, params=params,
+                                    rng=np.random.default_rng(seed), dt_min=step, dt_max=step)
+    return EvalSequence(name=f"linear-light room, {split} photographs, seed {seed}", events=events,
+                        width=camera.width, height=camera.height, render=render, frame_times=np.zeros(0),
+                        frames=np.zeros((0, camera.height, camera.width), np.uint8))
 
 
 def score_windows(reconstructor: Reconstructor, sequence: EvalSequence, fraction: float | None, warmup_s: float = 0.1,

@@ -103,6 +103,7 @@ class TrainingSetConfig:
     leak_rate_max_hz: float = 0.2         # leak events per pixel ~ U(0, max)
     hot_pixel_fraction_max: float = 0.001
     refractory_max_s: float = 1e-3
+    linear_light_fraction: float = 0.0    # sequences whose textures are display values decoded to linear light
 
     def __post_init__(self) -> None:
         for name in ("height", "width", "windows", "num_bins"):
@@ -131,6 +132,8 @@ class TrainingSetConfig:
             value = getattr(self, name)
             if not (np.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be >= 0; got {value!r}")
+        if not (np.isfinite(self.linear_light_fraction) and 0 <= self.linear_light_fraction <= 1):
+            raise ValueError(f"linear_light_fraction must lie in [0, 1]; got {self.linear_light_fraction!r}")
 
     @classmethod
     def from_dict(cls, values: dict) -> "TrainingSetConfig":
@@ -146,11 +149,17 @@ def _farmland() -> np.ndarray:
     return aerial_terrain_texture(1024, seed=12345)
 
 
-def _texture(rng: np.random.Generator, split: str, size: tuple[int, int], photos: tuple[str, ...] = ()) -> np.ndarray:
+def _texture(rng: np.random.Generator, split: str, size: tuple[int, int], photos: tuple[str, ...] = (),
+             linear_gamma: float | None = None) -> np.ndarray:
     """Return a float32 texture in [0, 1] of ``size`` from one of the split's sources, with random contrast and gamma.
 
     ``photos``: the split's photographs of a photo folder (:mod:`evio_lib.sim.photos`); when given, a texture is one of
     them with probability :data:`PHOTO_FOLDER_FRACTION`, else drawn as without them.
+
+    ``linear_gamma``: the texture's values V are display values and the scene's light is I = V^gamma (a
+    display-encoded photograph decoded to linear intensity, as a simulator that renders in linear light sees it).
+    Half of such textures first span nearly the whole display range, V in [U(0, 0.05), U(0.85, 1)], so that the
+    scene's contrast reaches several hundred to one, where a display-encoded texture spans a few to one.
     """
     image, source = None, None
     if photos and rng.random() < PHOTO_FOLDER_FRACTION:         # a natural photograph of the folder
@@ -178,7 +187,14 @@ def _texture(rng: np.random.Generator, split: str, size: tuple[int, int], photos
         tex = procedural_texture(kind, size, seed=seed, scale_px=float(np.exp(rng.uniform(np.log(3.0), np.log(largest)))))
     if rng.random() < 0.3:                                      # smooth content: out-of-focus or low-texture surfaces
         tex = cv2.GaussianBlur(tex.astype(np.float32), (0, 0), float(rng.uniform(0.5, 3.0)))
-    return random_contrast(rng, tex, gamma=(0.5, 2.0), min_span=0.25)
+    tex = random_contrast(rng, tex, gamma=(0.5, 2.0), min_span=0.25)
+    if linear_gamma is None:
+        return tex
+    if rng.random() < 0.5:                                      # nearly the whole display range
+        lo, hi = np.percentile(tex, [1, 99])
+        black, white = float(rng.uniform(0.0, 0.05)), float(rng.uniform(0.85, 1.0))
+        tex = black + (white - black) * np.clip((tex - lo) / max(hi - lo, 1e-3), 0.0, 1.0)
+    return (tex ** linear_gamma).astype(np.float32)              # I = V^gamma: linear light
 
 
 def _shape_mask(rng: np.random.Generator, size: tuple[int, int], centre: tuple[float, float],
@@ -217,6 +233,10 @@ class _LayeredScene:
         margin = max(h, w)                                       # textures extend a view size beyond every border
         self.canvas_from_ref = np.array([[1.0, 0.0, margin], [0.0, 1.0, margin], [0.0, 0.0, 1.0]])
         canvas = (h + 2 * margin, w + 2 * margin)
+        linear_gamma = None                                      # drawn only where asked: other sets stay as made
+        if config.linear_light_fraction > 0 and rng.random() < config.linear_light_fraction:
+            linear_gamma = float(rng.uniform(1.8, 2.6))
+        self.linear_gamma = linear_gamma
         d0 = rng.uniform(2.0, 6.0)
         n_fg = int(rng.integers(0, config.max_foreground + 1))
         depths = np.concatenate([[d0], np.sort(rng.uniform(0.5, 0.8, n_fg) * d0)[::-1]])   # far to near
@@ -230,7 +250,7 @@ class _LayeredScene:
             tilt = rng.normal(0.0, 0.25, 2)
             normal = np.array([tilt[0], tilt[1], 1.0])
             normal /= np.linalg.norm(normal)
-            texture = _texture(rng, split, canvas, photos)
+            texture = _texture(rng, split, canvas, photos, linear_gamma)
             if k == 0:
                 self.layers.append((texture, None, normal, depth, np.zeros(3)))
                 continue
@@ -362,6 +382,8 @@ def make_sequence(rng: np.random.Generator, split: str = "train", config: Traini
     meta = {"contrast_pos": params.contrast_pos, "contrast_neg": params.contrast_neg, "rule": rule,
             "fraction": fraction, "fraction_drawn": fraction_drawn, "speed": scene.speed, "layers": len(scene.layers),
             "events": int(events.size), "duration": duration, "noise_hz": params.background_rate_hz}
+    if scene.linear_gamma is not None:
+        meta["linear_gamma"] = scene.linear_gamma
     return {"voxels": voxels, "frames": frames, "flow": flow}, meta
 
 
@@ -402,7 +424,10 @@ def _write_sequence(folder: Path, split: str, i: int, seed: int, config: Trainin
 
 
 def _manifest(config: TrainingSetConfig, seed: int, counts: dict[str, int], photos: dict | None = None) -> dict:
-    manifest = {"format": _FORMAT, "generator": GENERATOR_VERSION, "seed": int(seed), "config": asdict(config),
+    settings = asdict(config)
+    if not settings["linear_light_fraction"]:                   # a set without linear light keeps v3's manifest
+        del settings["linear_light_fraction"]
+    manifest = {"format": _FORMAT, "generator": GENERATOR_VERSION, "seed": int(seed), "config": settings,
                 "sequences": dict(counts)}
     if photos is not None:                                      # a set made without photographs keeps v3's manifest
         manifest["photos"] = photos
