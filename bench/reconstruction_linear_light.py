@@ -17,11 +17,13 @@ About 4 s of simulation per recording and 10-30 s per method and n (one thread).
 from __future__ import annotations
 
 import argparse
+import sys
 
 import numpy as np
 
 from evio_lib.events.reconstruct import PRECISIONS, reconstructor_by_name_or_file
 from evio_lib.events.reconstruction.evaluation import LINEAR_LIGHT_SEEDS, linear_light_room_sequence, score_windows
+from evio_lib.sim.photos import list_photos, resolve_photo_option
 
 
 def main() -> None:
@@ -46,26 +48,34 @@ def main() -> None:
         parser.error(f"--fractions must lie in (0, 10]; got {args.fractions}")
     if not (np.isfinite(args.gamma) and args.gamma > 0):
         parser.error(f"--gamma must be a positive number; got {args.gamma}")
+    try:  # the photo folder first: a missing one is said in one line before anything is simulated
+        folder = resolve_photo_option(args.photos)
+        if folder is None:
+            raise ValueError("no photo folder found: give --photos DIR (a folder of .jpg/.png photographs)")
+        list_photos(folder, args.split)
+    except ValueError as error:
+        print(f"error: {error}", file=sys.stderr)
+        raise SystemExit(2)
     seeds = LINEAR_LIGHT_SEEDS[args.split]
     scores = {(m, n): [] for m in args.methods for n in args.fractions}
+    labels = dict.fromkeys(args.methods, "")
     print("| recording | events | method | " + " | ".join(f"n = {n:g}" for n in args.fractions) + " |")
     print("|---|---|---|" + "---|" * len(args.fractions))
     for seed in seeds:
-        try:
-            sequence = linear_light_room_sequence(seed, args.split, photos=args.photos, gamma=args.gamma)
-        except ValueError as error:
-            raise SystemExit(f"error: {error}")
+        sequence = linear_light_room_sequence(seed, args.split, photos=folder, gamma=args.gamma)
         for method in args.methods:
             row = []
-            for n in args.fractions:
+            for n in args.fractions:  # a fresh state for each n
                 rec = reconstructor_by_name_or_file(method, sequence.width, sequence.height, precision=args.precision)
                 ssim = score_windows(rec, sequence, n, max_frames=args.max_frames)["ssim"]
                 scores[(method, n)].append(ssim)
                 row.append(ssim)
-            print(f"| seed {seed} | {sequence.events.size:,} | {method} | " + " | ".join(f"{v:.3f}" for v in row)
-                  + " |", flush=True)
+            chosen = getattr(rec, "precision", None)   # what auto picked (int8 for FireNet on an x86 CPU)
+            labels[method] = method if chosen is None else f"{method} ({chosen})"
+            print(f"| seed {seed} | {sequence.events.size:,} | {labels[method]} | "
+                  + " | ".join(f"{v:.3f}" for v in row) + " |", flush=True)
     for method in args.methods:
-        print(f"| mean of {len(seeds)} | | {method} | "
+        print(f"| mean of {len(seeds)} | | {labels[method]} | "
               + " | ".join(f"{np.mean(scores[(method, n)]):.3f}" for n in args.fractions) + " |")
 
 

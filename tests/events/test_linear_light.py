@@ -3,6 +3,10 @@ rooms of photographs in linear light (the scene, the recording, the bench's refu
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -98,3 +102,13 @@ def test_the_linear_light_recording_has_events_and_a_truth_to_score_against(tmp_
         linear_light_room_sequence(303, "val", photos="none")
     with pytest.raises(ValueError, match="render_rate_hz must be a positive number"):
         linear_light_room_sequence(303, "val", photos=folder, render_rate_hz=0.0)
+
+
+def test_the_bench_says_a_missing_photo_folder_in_one_line(tmp_path):
+    root = Path(__file__).resolve().parents[2]
+    result = subprocess.run([sys.executable, str(root / "bench" / "reconstruction_linear_light.py"), "--photos",
+                             str(tmp_path / "nowhere")], capture_output=True, text=True, cwd=root,
+                            env={**os.environ, "PYTHONPATH": str(root)})
+    assert result.returncode == 2 and result.stdout == ""
+    assert result.stderr.strip().splitlines() == [f"error: --photos {tmp_path / 'nowhere'}: not a folder (expected a "
+                                                  f"folder of .jpg/.png photographs)"]
