@@ -975,7 +975,7 @@ def photo_room(photos: Sequence[str], seed: int = 0, gamma: float = 2.2) -> Scen
     Floor, ceiling, the four walls and 5-8 boxes (x in [-1.2, 1.2] m, y in [1.8, 3.2] m), each face a whole photograph
     of the list resized to the face, so that large smooth regions, dark and bright, fill much of the view. The
     photographs' values V are display-encoded; the scene's intensity is I = V^gamma with V first rescaled to
-    [0.05, 0.95], so the scene spans 0.05^2.2 to 0.95^2.2, about 700 to 1 for the default gamma (a renderer in linear
+    [0.05, 0.95], so the scene spans 0.05^2.2 to 0.95^2.2, about 650 to 1 for the default gamma (a renderer in linear
     light; ``gamma=1`` keeps the display values). A held-out recording for the reconstructors: the photographs
     come from a split the networks never trained on, and its light is that of a simulator that decodes its textures.
 
@@ -1011,7 +1011,8 @@ def photo_room(photos: Sequence[str], seed: int = 0, gamma: float = 2.2) -> Scen
         yaw = float(rng.uniform(-0.6, 0.6))
         bx, by = np.array([np.cos(yaw), np.sin(yaw), 0.0]), np.array([-np.sin(yaw), np.cos(yaw), 0.0])
         planes.append(_face(centre + 0.5 * height * ez, ez, -by, width, depth, texture((256, 256)), f"box {i} top"))
-        for axis, half, side_width in ((by, depth, width), (-by, depth, width), (bx, width, depth), (-bx, width, depth)):
+        sides = ((by, depth, width), (-by, depth, width), (bx, width, depth), (-bx, width, depth))
+        for axis, half, side_width in sides:
             planes.append(_face(centre + 0.5 * half * axis, axis, -ez, side_width, height, texture((256, 256)),
                                 f"box {i} side"))
     return Scene(planes, background=0.5)

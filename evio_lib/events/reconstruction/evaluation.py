@@ -151,14 +151,14 @@ def linear_light_room_sequence(seed: int, split: str = "val", photos: str | Path
     """Return a held-out recording unlike the training sequences: a room of photographs in linear light.
 
     The scene is :func:`evio_lib.sim.scene.photo_room` of the photo folder's ``split`` photographs (never seen in
-    training), its light I = V^``gamma`` spanning about 700 to 1; the camera follows ``boxes_like``'s motion of the same
-    seed from ``start`` for ``duration`` seconds (DAVIS240C, 240 x 180). The events come from renders at a fixed
-    ``render_rate_hz`` with linear interpolation between them (the training sets and the presets sample adaptively),
-    with one contrast threshold for every pixel, no mismatch, no refractory period and no noise. No APS frames.
-    Simulated in a few seconds, so not cached.
+    training), its light I = V^``gamma`` (about 650 to 1 for gamma 2.2); the camera follows ``boxes_like``'s
+    motion of the same seed from ``start`` for ``duration`` seconds (DAVIS240C, 240 x 180). The events come from
+    renders at a fixed ``render_rate_hz`` with linear interpolation between them (the training sets and the presets
+    sample adaptively), with one contrast threshold for every pixel, no mismatch, no refractory period and no noise.
+    No APS frames. Simulated in a few seconds, so not cached.
 
-    Raises ValueError naming the folder when no photo folder is found (``photos=None`` looks where
-    :func:`evio_lib.sim.photos.default_photo_folder` does).
+    Raises ValueError when no photo folder is found (``photos=None`` looks where
+    :func:`evio_lib.sim.photos.default_photo_folder` does) or the folder holds no photograph of ``split``.
     """
     from evio_lib.events.simulate import EventCameraParams, simulate_events
     from evio_lib.geometry.camera import PinholeRadtan
@@ -185,7 +185,8 @@ def linear_light_room_sequence(seed: int, split: str = "val", photos: str | Path
     params = EventCameraParams(contrast_pos=contrast, contrast_neg=contrast, contrast_sigma=0.0, refractory_s=0.0)
     step = 1.0 / float(render_rate_hz)
     with warnings.catch_warnings():  # the fixed step is meant: no warning that a step exceeded the change bound
-        warnings.simplefilter("ignore", RuntimeWarning)
+        warnings.filterwarnings("ignore", message="simulate_events: .* exceeded max_log_change",
+                                category=RuntimeWarning)
         events, _ = simulate_events(render, start, start + duration, camera.width, camera.height, params=params,
                                     rng=np.random.default_rng(seed), dt_min=step, dt_max=step)
     return EvalSequence(name=f"linear-light room, {split} photographs, seed {seed}", events=events,

@@ -23,7 +23,9 @@ every machine, for any number of worker processes, and in a set of any size.
   ellipses, value and fractal (Perlin-style) noise, checkerboards, stripes, tiles) at feature sizes log-uniform over
   3 px to a third of the canvas, and the aerial farmland texture; 30 % of them blurred (sigma 0.5-3 px: surfaces out
   of focus or with little texture, which the held-out scenes have and a network must not fill with invented detail);
-  each stretched, with random contrast, gamma and brightness.
+  each stretched, with random contrast, gamma and brightness. With ``linear_light_fraction`` F > 0, a share F of
+  the sequences takes those values as display values and renders their decoding, I = V^g with g ~ U(1.8, 2.6)
+  (light of a wide range, as a renderer in linear intensity gives; :func:`_texture`).
   Photographs and procedural seed ranges are disjoint between the ``train``, ``val`` and ``test`` splits.
 - **Motion**, slow to violent: per axis a drift plus a sinusoid for rotation and translation; the speed is
   log-uniform over 0.2-4 view widths per second; bounded so every plane stays in front of the camera.
@@ -328,7 +330,8 @@ def make_sequence(rng: np.random.Generator, split: str = "train", config: Traini
 
     arrays: ``voxels`` (L, B, H, W) float16 (normalised voxel grids), ``frames`` (L, H, W) float16 (sharp linear
     intensity at each window's end), ``flow`` (L, 2, H, W) float16 (pixel k -> its place in view k - 1, minus itself;
-    zero for k = 0). metadata: the drawn contrast, window rule, speed, events and duration. ``photos``: paths of the
+    zero for k = 0). metadata: the drawn contrast, window rule, speed, events and duration, and ``linear_gamma``
+    for a sequence in linear light. ``photos``: paths of the
     split's photographs of a photo folder (see :func:`_texture`); empty: the textures of generator version 3 alone.
 
     The window rule (and for count windows n) is drawn first. A sequence with fewer than L n H W events is simulated
