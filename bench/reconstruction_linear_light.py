@@ -2,8 +2,9 @@
 
 Each recording (:func:`evio_lib.events.reconstruction.evaluation.linear_light_room_sequence`) is a room whose every
 surface is a photograph of the photo folder's validation (or test) split, its light the photographs' display values
-decoded with gamma 2.2 (about 700 to 1), its events from renders at a fixed 1 kHz with one threshold C = 0.2 and no
-mismatch or noise: photographs, light, renderer and sensor all differ from what the networks trained on. Each
+decoded with gamma 2.2 (about 650 to 1), its events from renders at a fixed 1 kHz with one threshold C = 0.2 and no
+mismatch or noise: photographs (held out from training, though checkpoints are kept on the sets' validation
+sequences of the same photographs), light, renderer and sensor all differ from what the networks trained on. Each
 recording is 1 s of the boxes_like motion; windows of n H W events, 8 scored per recording (evenly spread, after the
 first 0.1 s), each against the sharp render at its last event, with the 1st/99th-percentile stretch of
 evio_lib.events.reconstruction.evaluation.
