@@ -880,6 +880,21 @@ def _paste(canvas: np.ndarray, picture: np.ndarray, row: int, col: int, frame_va
     canvas[row : row + height, col : col + width] = picture
 
 
+def _box_faces(centre_xy: np.ndarray, size: np.ndarray, yaw: float, z0: float, label: str,
+               texture: Any) -> list[TexturedPlane]:
+    """Return the top and four sides of a box standing at height ``z0``, rotated by ``yaw`` about z, each face with
+    ``texture()`` (called for the top, then for each side, in that order)."""
+    ez = np.array([0.0, 0.0, 1.0])
+    bx = np.array([np.cos(yaw), np.sin(yaw), 0.0])
+    by = np.array([-np.sin(yaw), np.cos(yaw), 0.0])
+    width, depth, height = size
+    middle = np.array([centre_xy[0], centre_xy[1], z0 + 0.5 * height])
+    faces = [_face(middle + 0.5 * height * ez, ez, -by, width, depth, texture(), f"{label} top")]
+    for axis, half, side_width in ((by, depth, width), (-by, depth, width), (bx, width, depth), (-bx, width, depth)):
+        faces.append(_face(middle + 0.5 * half * axis, axis, -ez, side_width, height, texture(), f"{label} side"))
+    return faces
+
+
 def indoor_room(seed: int = 0) -> Scene:
     """Return a textured room (x, y in [-4, 4] m, z in [0, 3] m) with 5-8 textured boxes in front of the camera.
 
@@ -938,15 +953,7 @@ def indoor_room(seed: int = 0) -> Scene:
         return albedo(np.ascontiguousarray(np.rot90(photo, int(rng.integers(4)))))
 
     def add_box(centre_xy: np.ndarray, size: np.ndarray, yaw: float, z0: float, label: str) -> None:
-        bx = np.array([np.cos(yaw), np.sin(yaw), 0.0])
-        by = np.array([-np.sin(yaw), np.cos(yaw), 0.0])
-        width, depth, height = size
-        middle = np.array([centre_xy[0], centre_xy[1], z0 + 0.5 * height])
-        planes.append(_face(middle + 0.5 * height * ez, ez, -by, width, depth, face_texture(), f"{label} top"))
-        sides = ((by, depth, width), (-by, depth, width), (bx, width, depth), (-bx, width, depth))
-        for axis, half, side_width in sides:
-            planes.append(_face(middle + 0.5 * half * axis, axis, -ez, side_width, height, face_texture(),
-                                f"{label} side"))
+        planes.extend(_box_faces(centre_xy, size, yaw, z0, label, face_texture))
 
     n_boxes = int(rng.integers(5, 9))
     n_stacked = int(rng.integers(1, 3))
@@ -1006,15 +1013,10 @@ def photo_room(photos: Sequence[str], seed: int = 0, gamma: float = 2.2) -> Scen
                                  ("wall +x", [4.0, 0.0, 1.5], -ex), ("wall -x", [-4.0, 0.0, 1.5], ex)):
         planes.append(_face(centre, toward, -ez, 8.0, 3.0, texture((384, 1024)), name))
     for i in range(int(rng.integers(5, 9))):  # boxes may overlap: the renderer draws the nearest surface
-        width, depth, height = rng.uniform([0.35, 0.35, 0.3], [0.9, 0.9, 1.0])
-        centre = np.array([rng.uniform(-1.2, 1.2), rng.uniform(1.8, 3.2), 0.5 * height])
+        size = rng.uniform([0.35, 0.35, 0.3], [0.9, 0.9, 1.0])
+        centre_xy = np.array([rng.uniform(-1.2, 1.2), rng.uniform(1.8, 3.2)])
         yaw = float(rng.uniform(-0.6, 0.6))
-        bx, by = np.array([np.cos(yaw), np.sin(yaw), 0.0]), np.array([-np.sin(yaw), np.cos(yaw), 0.0])
-        planes.append(_face(centre + 0.5 * height * ez, ez, -by, width, depth, texture((256, 256)), f"box {i} top"))
-        sides = ((by, depth, width), (-by, depth, width), (bx, width, depth), (-bx, width, depth))
-        for axis, half, side_width in sides:
-            planes.append(_face(centre + 0.5 * half * axis, axis, -ez, side_width, height, texture((256, 256)),
-                                f"box {i} side"))
+        planes.extend(_box_faces(centre_xy, size, yaw, 0.0, f"box {i}", lambda: texture((256, 256))))
     return Scene(planes, background=0.5)
 
 
