@@ -165,7 +165,9 @@ def test_command_line_errors_are_one_line(tmp_path, capsys):
 
     for argv, expected in ((["--sequences", "0"], "--sequences must be >= 1"),
                            (["--set", "windows=0"], "windows must be a positive integer"),
-                           (["--set", "speed"], "--set expects KEY=JSON")):
+                           (["--set", "speed"], "--set expects KEY=JSON"),
+                           (["--set", 'noise_rate_max_hz="high"'], "noise_rate_max_hz must be a number; got 'high'"),
+                           (["--set", "linear_light_fraction=true"], "linear_light_fraction must be a number; got True")):
         code = main(["reconstruct-data", "--out", str(tmp_path / "x"), *argv])
         err = capsys.readouterr().err.strip().splitlines()
         assert code == 2 and len(err) == 1 and err[0].startswith("error:") and expected in err[0], err

@@ -51,7 +51,7 @@ from __future__ import annotations
 import json
 import os
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from functools import lru_cache
 from pathlib import Path
 
@@ -108,6 +108,10 @@ class TrainingSetConfig:
     linear_light_fraction: float = 0.0    # sequences whose textures are display values decoded to linear light
 
     def __post_init__(self) -> None:
+        for field in fields(self):                                  # every setting is a number (from JSON or --set)
+            value = getattr(self, field.name)
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+                raise ValueError(f"{field.name} must be a number; got {value!r}")
         for name in ("height", "width", "windows", "num_bins"):
             value = getattr(self, name)
             if isinstance(value, bool) or int(value) != value or value < 1:
