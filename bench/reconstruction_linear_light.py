@@ -11,6 +11,7 @@ evio_lib.events.reconstruction.evaluation.
 
 Usage:  python bench/reconstruction_linear_light.py [--methods high_pass firenet RUN/best.pt] [--split val|test]
                                                     [--fractions 0.1 0.35] [--photos DIR] [--gamma 2.2]
+                                                    [--contrast 0.2]
 
 Choose on --split val (seeds 303, 404, 505); score --split test (seeds 606, 707, 808) once, for the network kept.
 About 4 s of simulation per recording and 10-30 s per method and n (one thread).
@@ -41,6 +42,8 @@ def main() -> None:
                                                        "$EVIO_PHOTOS)")
     parser.add_argument("--gamma", type=float, default=2.2, help="the display encoding undone, I = V^gamma (1: "
                                                                  "display values as light)")
+    parser.add_argument("--contrast", type=float, default=0.2,
+                        help="the rooms' contrast threshold C (the high-pass filter assumes 0.2 whatever it is)")
     parser.add_argument("--precision", choices=PRECISIONS, default=None, help="the networks' arithmetic")
     args = parser.parse_args()
     if args.max_frames < 1:
@@ -49,6 +52,8 @@ def main() -> None:
         parser.error(f"--fractions must lie in (0, 10]; got {args.fractions}")
     if not (np.isfinite(args.gamma) and args.gamma > 0):
         parser.error(f"--gamma must be a positive number; got {args.gamma}")
+    if not (np.isfinite(args.contrast) and 0 < args.contrast <= 2):
+        parser.error(f"--contrast must lie in (0, 2]; got {args.contrast}")
     try:  # the photo folder first: a missing one is said in one line before anything is simulated
         folder = resolve_photo_option(args.photos)
         if folder is None:
@@ -63,7 +68,8 @@ def main() -> None:
     print("| recording | events | method | " + " | ".join(f"n = {n:g}" for n in args.fractions) + " |")
     print("|---|---|---|" + "---|" * len(args.fractions))
     for seed in seeds:
-        sequence = linear_light_room_sequence(seed, args.split, photos=folder, gamma=args.gamma)
+        sequence = linear_light_room_sequence(seed, args.split, photos=folder, gamma=args.gamma,
+                                              contrast=args.contrast)
         for method in args.methods:
             row = []
             for n in args.fractions:  # a fresh state for each n

@@ -95,6 +95,8 @@ def test_the_linear_light_recording_has_events_and_a_truth_to_score_against(tmp_
     assert events["x"].max() < 240 and events["y"].max() < 180 and set(np.unique(events["p"])) <= {-1, 1}
     again = linear_light_room_sequence(303, "val", photos=folder, duration=0.1, render_rate_hz=300)
     np.testing.assert_array_equal(events, again.events)                     # deterministic from the seed
+    coarser = linear_light_room_sequence(303, "val", photos=folder, duration=0.1, render_rate_hz=300, contrast=0.4)
+    assert 0 < coarser.events.size < 0.75 * events.size                     # twice the threshold: about half the events
     truth = sequence.render(1.1)
     assert truth.shape == (180, 240) and truth.min() >= 0
     score = score_windows(create_reconstructor("high_pass", 240, 180), sequence, 0.1, warmup_s=0.05, max_frames=2)
