@@ -2,9 +2,10 @@
 
 Each recording (:func:`evio_lib.events.reconstruction.evaluation.linear_light_room_sequence`) is a room whose every
 surface is a photograph of the photo folder's validation (or test) split, its light the photographs' display values
-decoded with gamma 2.2 (about 650 to 1), its events from renders at a fixed 1 kHz with one threshold C = 0.2 and no
-mismatch or noise: photographs (held out from training, though checkpoints are kept on the sets' validation
-sequences of the same photographs), light, renderer and sensor all differ from what the networks trained on. Each
+decoded with gamma 2.2 (about 650 to 1), its events from renders at a fixed 1 kHz with one threshold C = 0.2
+(`--contrast`) and no mismatch or noise: photographs (held out from training, though checkpoints are kept on the
+sets' validation sequences of the same photographs), light, renderer and sensor all differ from what the networks
+trained on. Each
 recording is 1 s of the boxes_like motion; windows of n H W events, 8 scored per recording (evenly spread, after the
 first 0.1 s), each against the sharp render at its last event, with the 1st/99th-percentile stretch of
 evio_lib.events.reconstruction.evaluation.
@@ -43,7 +44,7 @@ def main() -> None:
     parser.add_argument("--gamma", type=float, default=2.2, help="the display encoding undone, I = V^gamma (1: "
                                                                  "display values as light)")
     parser.add_argument("--contrast", type=float, default=0.2,
-                        help="the rooms' contrast threshold C (the high-pass filter assumes 0.2 whatever it is)")
+                        help="the rooms' contrast threshold C (direct and high_pass assume 0.2 whatever it is)")
     parser.add_argument("--precision", choices=PRECISIONS, default=None, help="the networks' arithmetic")
     args = parser.parse_args()
     if args.max_frames < 1:

@@ -8,7 +8,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import cv2
 import numpy as np
 import pytest
 
@@ -19,18 +18,6 @@ from evio_lib.sim.photos import list_photos
 from evio_lib.sim.scene import photo_room
 
 SMALL = TrainingSetConfig(height=32, width=32, windows=4, duration_min=0.3, duration_max=0.4)
-
-
-def _photo_folder(folder, count=30, seed=0):
-    """Write ``count`` smooth random grayscale photographs; about a fifth fall in each held-out split by name."""
-    rng = np.random.default_rng(seed)
-    for i in range(count):
-        path = folder / "urban100" / f"img_{i:03d}.png"
-        path.parent.mkdir(parents=True, exist_ok=True)
-        image = cv2.GaussianBlur(rng.uniform(0, 255, (60, 80)).astype(np.float32), (0, 0), 3.0)
-        image = (image - image.min()) / (image.max() - image.min()) * 255  # each spans the whole display range
-        assert cv2.imwrite(str(path), image.astype(np.uint8))
-    return folder
 
 
 def test_a_set_without_linear_light_keeps_its_sequences_and_manifest(tmp_path):
@@ -73,8 +60,8 @@ def test_the_fraction_is_recorded_refused_out_of_range_and_part_of_the_settings(
         TrainingSetConfig(linear_light_fraction=1.5)
 
 
-def test_the_photo_room_is_made_of_the_photographs_in_linear_light(tmp_path):
-    photos = [str(p) for p in list_photos(_photo_folder(tmp_path / "photos"))]
+def test_the_photo_room_is_made_of_the_photographs_in_linear_light(tmp_path, make_photo_folder):
+    photos = [str(p) for p in list_photos(make_photo_folder(tmp_path / "photos"))]
     display, linear = photo_room(photos, seed=1, gamma=1.0), photo_room(photos, seed=1, gamma=2.2)
     assert len(linear.planes) == len(display.planes) >= 6 + 5 * 5
     for a, b in zip(display.planes, linear.planes):  # the same photograph on each face, only decoded
@@ -87,8 +74,8 @@ def test_the_photo_room_is_made_of_the_photographs_in_linear_light(tmp_path):
         photo_room(photos, gamma=0.0)
 
 
-def test_the_linear_light_recording_has_events_and_a_truth_to_score_against(tmp_path):
-    folder = _photo_folder(tmp_path / "photos")
+def test_the_linear_light_recording_has_events_and_a_truth_to_score_against(tmp_path, make_photo_folder):
+    folder = make_photo_folder(tmp_path / "photos")
     sequence = linear_light_room_sequence(303, "val", photos=folder, duration=0.1, render_rate_hz=300)
     events = sequence.events
     assert events.size > 500 and np.all(np.diff(events["t"]) >= 0)
@@ -115,3 +102,6 @@ def test_the_bench_says_a_missing_photo_folder_in_one_line(tmp_path):
     assert result.returncode == 2 and result.stdout == ""
     assert result.stderr.strip().splitlines() == [f"error: --photos {tmp_path / 'nowhere'}: not a folder (expected a "
                                                   f"folder of .jpg/.png photographs)"]
+    result = subprocess.run([sys.executable, str(root / "bench" / "reconstruction_linear_light.py"), "--contrast", "0"],
+                            capture_output=True, text=True, cwd=root, env={**os.environ, "PYTHONPATH": str(root)})
+    assert result.returncode == 2 and "--contrast must lie in (0, 2]; got 0.0" in result.stderr

@@ -158,6 +158,10 @@ def test_refusals_name_the_problem(tmp_path):
         TrainingSetConfig.from_dict({"hieght": 32})
     with pytest.raises(ValueError, match="duration_min"):
         TrainingSetConfig(duration_min=2.0, duration_max=1.0)
+    with pytest.raises(ValueError, match="max_foreground must be a number; got True"):
+        TrainingSetConfig(max_foreground=True)
+    numpy_numbers = TrainingSetConfig(height=np.int64(32), duration_min=np.float32(0.5), duration_max=1)
+    assert numpy_numbers.height == 32                               # numpy scalars and ints for floats are numbers
 
 
 def test_command_line_errors_are_one_line(tmp_path, capsys):
@@ -166,9 +170,12 @@ def test_command_line_errors_are_one_line(tmp_path, capsys):
     for argv, expected in ((["--sequences", "0"], "--sequences must be >= 1"),
                            (["--set", "windows=0"], "windows must be a positive integer"),
                            (["--set", "speed"], "--set expects KEY=JSON"),
-                           (["--set", 'noise_rate_max_hz="high"'], "noise_rate_max_hz must be a number; got 'high'"),
-                           (["--set", "linear_light_fraction=true"], "linear_light_fraction must be a number; got True")):
-        code = main(["reconstruct-data", "--out", str(tmp_path / "x"), *argv])
+                           (["--set", 'noise_rate_max_hz="high"'],
+                            "noise_rate_max_hz must be a number; got 'high'"),
+                           (["--set", "linear_light_fraction=true"],
+                            "linear_light_fraction must be a number; got True")):
+        code = main(["reconstruct-data", "--out", str(tmp_path / "x"), "--sequences", "1", "--val", "1", "--test", "0",
+                     "--photos", "none", *argv])
         err = capsys.readouterr().err.strip().splitlines()
         assert code == 2 and len(err) == 1 and err[0].startswith("error:") and expected in err[0], err
     assert not (tmp_path / "x").exists()
