@@ -11,7 +11,7 @@ from evio_lib.events.reconstruction.data import ReconstructionDataConfig, recons
 from evio_lib.events.reconstruction.evaluation import normalize_for_metrics
 from evio_lib.events.reconstruction.training import (ReconstructionTrainConfig, learning_rate, main_reconstruct_train,
                                                   sequence_loss, ssim_torch, stretch_torch, train_reconstructor,
-                                                  warp_with_homography)
+                                                  warm_state, warp_with_homography)
 
 DATA = ReconstructionDataConfig(height=32, width=32, duration=0.3, windows=3)
 
@@ -289,3 +289,35 @@ def test_sets_of_different_image_sizes_train_together_on_crops_that_fit_the_smal
     assert summary == 0 and (tmp_path / "run" / "best.pt").is_file()
     with pytest.raises(ValueError, match="extra_training_sets needs training_set"):
         ReconstructionTrainConfig(extra_training_sets=[str(tmp_path / "b")])
+
+
+def test_a_warm_start_begins_a_batch_from_the_state_another_batch_left(tmp_path, tiny_data):
+    from evio_lib.events.reconstruction.nets import build_network
+
+    torch.manual_seed(0)
+    net = build_network("firenet")
+    rng = np.random.default_rng(3)
+    other = torch.from_numpy(rng.normal(0, 1, (2, 3, 5, 24, 24)).astype(np.float32))
+    voxels = torch.from_numpy(rng.normal(0, 1, (2, 3, 5, 24, 24)).astype(np.float32))
+    frames = torch.from_numpy(rng.uniform(0.1, 0.9, (2, 3, 24, 24)).astype(np.float32))
+    state = warm_state(net, other)
+    by_hand = None
+    for k in range(3):
+        _, by_hand = net(other[:, k], by_hand)
+    assert all(torch.equal(a, b) for a, b in zip(torch.utils._pytree.tree_leaves(state),
+                                                  torch.utils._pytree.tree_leaves(by_hand)))
+    assert not any(t.requires_grad for t in torch.utils._pytree.tree_leaves(state))   # no gradient through it
+    config = ReconstructionTrainConfig(data=DATA)
+    cold, _ = sequence_loss(net, voxels, frames, None, config)
+    warm, _ = sequence_loss(net, voxels, frames, None, config, state=state)
+    again, _ = sequence_loss(net, voxels, frames, None, config, state=None)
+    assert warm.item() != cold.item() and again.item() == cold.item()
+    data, val = tiny_data
+    runs = {}
+    for p in (0.0, 1.0):
+        config = ReconstructionTrainConfig(data=DATA, n_train=6, n_val=2, batch_size=2, crop=24, steps=3,
+                                           validate_every=3, warm_start=p)
+        runs[p] = train_reconstructor(config, tmp_path / f"w{p}", data=data, val_data=val, progress=False)["last"]
+    assert runs[0.0]["val_l1"] != runs[1.0]["val_l1"]                   # the warm starts changed the training
+    with pytest.raises(ValueError, match=r"warm_start must be a probability in \[0, 1\]"):
+        ReconstructionTrainConfig(data=DATA, warm_start=1.5)

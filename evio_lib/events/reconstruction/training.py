@@ -29,6 +29,8 @@ probability ``time_reversal`` the batch played backwards: window order and voxel
 previous window's end: one window fewer), and no temporal-consistency term (the stored flow points the other way).
 A polarity swap alone is not used: it stands for the negated log image, whose linear intensity 1/I is not an image in
 [0, 1] the network can output.
+With probability ``warm_start`` (default 0) a batch starts from the recurrent state the network left after another
+random batch (:func:`warm_state`, no gradients), not from an empty one, so that it learns to overwrite a stale image.
 
 The learning rate is constant or (``lr_schedule="cosine"``) follows lr_k = lr_min + (lr - lr_min)(1 + cos(pi k / steps)) / 2
 with lr_min = ``lr_final_fraction`` lr, a function of the step alone (so ``--resume`` continues the same schedule).
@@ -103,6 +105,7 @@ class ReconstructionTrainConfig:
     lr_schedule: str = "constant"      # or "cosine": lr decays to lr_final_fraction * lr over `steps`
     lr_final_fraction: float = 0.05
     select_by: str = "ssim"            # validation metric of best.pt: "ssim" (raw) or "ssim_stretched"
+    warm_start: float = 0.0            # probability that a batch starts from the state another batch left behind
 
     def __post_init__(self) -> None:
         if isinstance(self.data, dict):
@@ -130,6 +133,8 @@ class ReconstructionTrainConfig:
             raise ValueError(f"select_by must be one of {SELECTION_METRICS}; got {self.select_by!r}")
         if not (np.isfinite(self.time_reversal) and 0 <= self.time_reversal <= 1):
             raise ValueError(f"time_reversal must be a probability in [0, 1]; got {self.time_reversal!r}")
+        if isinstance(self.warm_start, bool) or not (np.isfinite(self.warm_start) and 0 <= self.warm_start <= 1):
+            raise ValueError(f"warm_start must be a probability in [0, 1]; got {self.warm_start!r}")
         if self.extra_training_sets and self.training_set is None:
             raise ValueError("extra_training_sets needs training_set (the folder whose val split validates the run)")
         if self.training_set is not None:
@@ -270,13 +275,14 @@ def temporal_consistency_loss(pred: torch.Tensor, pred_prev: torch.Tensor, frame
 
 
 def sequence_loss(net: torch.nn.Module, voxels: torch.Tensor, frames: torch.Tensor, flow: torch.Tensor | None,
-                  config: ReconstructionTrainConfig) -> tuple[torch.Tensor, dict[str, float]]:
+                  config: ReconstructionTrainConfig, state=None) -> tuple[torch.Tensor, dict[str, float]]:
     """Return (loss, parts) of one batch: voxels (N, L, B, H, W), frames (N, L, H, W), flow (N, L, 2, H, W) or None.
 
-    ``flow=None`` leaves out the temporal-consistency term (a batch played backwards).
+    ``flow=None`` leaves out the temporal-consistency term (a batch played backwards). ``state``: the network's
+    recurrent state to start from (None: empty), e.g. the one another batch left behind (:func:`warm_state`).
     """
     # the parts are summed on the device and read once at the end: a read per window would wait for a GPU each time
-    state, prev, sums = None, None, {key: voxels.new_zeros(()) for key in ("l1", "ssim", "tc", "ssim_stretched")}
+    prev, sums = None, {key: voxels.new_zeros(()) for key in ("l1", "ssim", "tc", "ssim_stretched")}
     total = voxels.new_zeros(())
     n_windows = voxels.shape[1]
     for k in range(n_windows):
@@ -342,6 +348,21 @@ def _augment_batch(rng: np.random.Generator, voxels, frames, flow, crop: int, ti
             return reversed_voxels.contiguous(), reversed_frames.contiguous(), None
         return np.ascontiguousarray(reversed_voxels), np.ascontiguousarray(reversed_frames), None
     return voxels, frames, flow
+
+
+def warm_state(net: torch.nn.Module, voxels: torch.Tensor):
+    """Return the recurrent state ``net`` holds after the windows of ``voxels`` (N, L, B, H, W), without gradients.
+
+    A batch started from it (``warm_start`` > 0) begins with another scene's image in the state: the network has to
+    overwrite it, as on a long recording it has to recover from whatever its state holds. Training sequences
+    otherwise always start empty, and a network never taught to recover may not (docs/results/reconstruction.md,
+    "Over a long run").
+    """
+    state = None
+    with torch.no_grad():
+        for k in range(voxels.shape[1]):
+            _, state = net(voxels[:, k], state)
+    return state
 
 
 def _as_float_tensor(x, device: str) -> torch.Tensor | None:
@@ -576,7 +597,13 @@ def train_reconstructor(config: ReconstructionTrainConfig, out: str | Path, resu
         while step < config.steps:
             idx = rng.integers(0, n_train, config.batch_size)
             v, f, w = _augment_batch(rng, *data.take(idx), config.crop, config.time_reversal)
-            loss, parts = sequence_loss(net, *(_as_float_tensor(x, config.device) for x in (v, f, w)), config)
+            state = None                                     # no draw at warm_start = 0: older runs resume the same
+            if config.warm_start > 0 and rng.random() < config.warm_start:
+                other = _augment_batch(rng, *data.take(rng.integers(0, n_train, config.batch_size)), config.crop,
+                                       config.time_reversal)[0]
+                state = warm_state(net, _as_float_tensor(other, config.device))
+            loss, parts = sequence_loss(net, *(_as_float_tensor(x, config.device) for x in (v, f, w)), config,
+                                        state=state)
             for group in optimizer.param_groups:
                 group["lr"] = learning_rate(config, step)
             optimizer.zero_grad()
