@@ -18,12 +18,9 @@ from __future__ import annotations
 import argparse
 import sys
 
-import numpy as np
-
-from evio_lib.events.reconstruct import PRECISIONS, reconstruct_windows, reconstructor_by_name_or_file
-from evio_lib.events.reconstruction.evaluation import (EVAL_SEED, EVAL_STRETCHES, VALIDATION_SEED, image_quality,
-                                                       simulated_eval_sequence)
-from evio_lib.events.representations import count_windows, window_size_from_fraction
+from evio_lib.events.reconstruct import PRECISIONS, reconstructor_by_name_or_file
+from evio_lib.events.reconstruction.evaluation import (EVAL_SEED, EVAL_STRETCHES, VALIDATION_SEED,
+                                                       simulated_eval_sequence, window_scores)
 
 
 def main() -> None:
@@ -43,28 +40,26 @@ def main() -> None:
     if args.points < 2:
         parser.error(f"--points must be >= 2; got {args.points}")
     sequence = simulated_eval_sequence(args.stretch, seed=VALIDATION_SEED if args.split == "val" else EVAL_SEED)
-    bounds = count_windows(sequence.events, window_size_from_fraction(args.fraction, sequence.width, sequence.height))
-    if len(bounds) == 0:
-        parser.error(f"--fraction {args.fraction:g}: the {args.stretch} stretch has {sequence.events.size:,} events, "
-                     f"not one window")
-    scored = np.unique(np.linspace(0, len(bounds) - 1, min(args.points, len(bounds))).round().astype(int))
     try:                                                            # every name and file checked before the runs
         recs = {m: reconstructor_by_name_or_file(m, sequence.width, sequence.height, precision=args.precision)
                 for m in args.methods}
     except ValueError as error:                                     # an unknown name, a missing or foreign file
         print(f"error: {error}", file=sys.stderr)
         raise SystemExit(2)
-    print(f"{args.stretch} ({args.split}), n = {args.fraction:g}: {len(bounds)} windows of "
-          f"{sequence.events.size:,} events; SSIM at each window index")
-    print("| method | " + " | ".join(str(k) for k in scored) + " |")
-    print("|---|" + "---|" * len(scored))
-    for method, rec in recs.items():
-        frames, times = reconstruct_windows(rec, sequence.events, bounds)
-        ssim = [image_quality(frames[k], sequence.render(float(times[k])))["ssim"] for k in scored]
+    for i, (method, rec) in enumerate(recs.items()):
+        try:                                                        # all windows fed, every one may be scored
+            each = window_scores(rec, sequence, args.fraction, warmup_s=0.0, max_frames=args.points)
+        except ValueError:                                          # the stretch holds not one window
+            parser.error(f"--fraction {args.fraction:g}: the {args.stretch} stretch has {sequence.events.size:,} "
+                         f"events, not one window")
+        if i == 0:
+            print(f"{args.stretch} ({args.split}), n = {args.fraction:g}: {each['windows']} windows of "
+                  f"{sequence.events.size:,} events; SSIM at each window index")
+            print("| method | " + " | ".join(str(k) for k in each["index"]) + " |")
+            print("|---|" + "---|" * len(each["index"]))
         chosen = getattr(rec, "precision", None)
         label = method if chosen is None else f"{method} ({chosen})"
-        print(f"| {label} | " + " | ".join(f"{v:.2f}" for v in ssim) + " |", flush=True)
-
+        print(f"| {label} | " + " | ".join(f"{v:.2f}" for v in each["ssim"]) + " |", flush=True)
 
 if __name__ == "__main__":
     main()

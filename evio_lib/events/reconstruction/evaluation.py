@@ -194,14 +194,16 @@ def linear_light_room_sequence(seed: int, split: str = "val", photos: str | Path
                         frames=np.zeros((0, camera.height, camera.width), np.uint8))
 
 
-def score_windows(reconstructor: Reconstructor, sequence: EvalSequence, fraction: float | None, warmup_s: float = 0.1,
-                  max_frames: int | None = None, bounds: np.ndarray | None = None) -> dict[str, float]:
-    """Return mean {"mse", "ssim", "frames", "mean_fraction"} of ``reconstructor`` against the sharp truth.
+def window_scores(reconstructor: Reconstructor, sequence: EvalSequence, fraction: float | None,
+                  warmup_s: float = 0.1, max_frames: int | None = None,
+                  bounds: np.ndarray | None = None) -> dict[str, np.ndarray | int | float]:
+    """Return the scores of each scored window of ``reconstructor`` against the sharp truth.
 
     Windows are N_e = ``fraction`` H W events, or the given ``bounds`` (K, 2) (e.g. from ``adaptive_windows``; then
-    ``fraction`` is None); ``mean_fraction`` is the windows' mean size over H W. Windows ending in the first
-    ``warmup_s`` seconds are fed but not scored (every method starts from nothing). ``max_frames`` scores only that
-    many windows, evenly spread (the renders of the truth cost time).
+    ``fraction`` is None). Every window is fed, from an empty state; windows ending in the first ``warmup_s`` seconds
+    are not scored (every method starts from nothing). ``max_frames`` scores only that many windows, evenly spread
+    (the renders of the truth cost time). Returns ``index`` (the scored windows' indices), ``mse`` and ``ssim`` (one
+    per scored window), ``windows`` (K) and ``mean_fraction`` (the windows' mean size over H W).
     """
     if bounds is None:
         n_events = window_size_from_fraction(fraction, sequence.width, sequence.height)
@@ -215,9 +217,17 @@ def score_windows(reconstructor: Reconstructor, sequence: EvalSequence, fraction
     if max_frames is not None and scored.size > max_frames:
         scored = scored[np.linspace(0, scored.size - 1, max_frames).round().astype(int)]
     scores = [image_quality(frames[k], sequence.render(float(times[k]))) for k in scored]
-    return {"mse": float(np.mean([s["mse"] for s in scores])), "ssim": float(np.mean([s["ssim"] for s in scores])),
-            "frames": int(scored.size),
+    return {"index": scored, "mse": np.array([x["mse"] for x in scores]),
+            "ssim": np.array([x["ssim"] for x in scores]), "windows": len(bounds),
             "mean_fraction": float(np.diff(bounds, axis=1).mean() / (sequence.width * sequence.height))}
+
+
+def score_windows(reconstructor: Reconstructor, sequence: EvalSequence, fraction: float | None, warmup_s: float = 0.1,
+                  max_frames: int | None = None, bounds: np.ndarray | None = None) -> dict[str, float]:
+    """Return mean {"mse", "ssim", "frames", "mean_fraction"} of :func:`window_scores` (the same arguments)."""
+    each = window_scores(reconstructor, sequence, fraction, warmup_s, max_frames, bounds)
+    return {"mse": float(each["mse"].mean()), "ssim": float(each["ssim"].mean()), "frames": int(each["index"].size),
+            "mean_fraction": each["mean_fraction"]}
 
 
 def score_aps_frames(sequence: EvalSequence, gamma: float | None = None) -> dict[str, float]:

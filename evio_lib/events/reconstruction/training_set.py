@@ -114,7 +114,7 @@ class TrainingSetConfig:
                 raise ValueError(f"{field.name} must be a number; got {value!r}")
         for name in ("height", "width", "windows", "num_bins"):
             value = getattr(self, name)
-            if isinstance(value, bool) or int(value) != value or value < 1:
+            if int(value) != value or value < 1:
                 raise ValueError(f"{name} must be a positive integer; got {value!r}")
         if self.height < 16 or self.width < 16:
             raise ValueError(f"height and width must be >= 16 pixels; got {self.height}x{self.width}")
