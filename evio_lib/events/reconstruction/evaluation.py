@@ -29,7 +29,7 @@ from evio_lib.events.representations import count_windows, window_size_from_frac
 
 __all__ = ["normalize_for_metrics", "image_quality", "EvalSequence", "simulated_eval_sequence", "score_windows",
            "score_aps_frames", "score_at_frame_times", "load_slider_slice", "quality_table", "THESIS_FRACTION",
-           "LINEAR_LIGHT_SEEDS", "linear_light_room_sequence"]
+           "LINEAR_LIGHT_SEEDS", "linear_light_room_sequence", "window_scores"]
 
 #: The held-out stretches: (preset, start [s], duration [s], length of the preset's motion [s]). ``boxes_like`` grows
 #: violent towards the end of its motion: "fast" is its last stretch, "slow" its start.
