@@ -330,3 +330,28 @@ def test_a_warm_start_begins_a_batch_from_the_state_another_batch_left(tmp_path,
     assert warm_run["val_l1"] != cold_run["val_l1"]                    # the states reached the training
     with pytest.raises(ValueError, match=r"warm_start must be a probability in \[0, 1\]"):
         ReconstructionTrainConfig(data=DATA, warm_start=1.5)
+
+
+def test_warm_starts_from_the_previous_batch_chain_the_states_each_batch_ended_in(tmp_path, tiny_data, monkeypatch):
+    import evio_lib.events.reconstruction.training as training
+
+    seen = []                                            # (state passed in, state handed back) at each step
+    real = training.sequence_loss
+
+    def recording(net, voxels, frames, flow, config, state=None, final_state=None):
+        out = real(net, voxels, frames, flow, config, state=state, final_state=final_state)
+        if torch.is_grad_enabled():                      # training steps, not validation
+            seen.append((state, None if final_state is None else final_state[0]))
+        return out
+
+    monkeypatch.setattr(training, "sequence_loss", recording)
+    data, val = tiny_data
+    config = ReconstructionTrainConfig(data=DATA, n_train=6, n_val=2, batch_size=2, crop=24, steps=4, validate_every=4,
+                                       warm_start=1.0, warm_start_from="previous", time_reversal=0.5)
+    train_reconstructor(config, tmp_path / "chain", data=data, val_data=val, progress=False)
+    assert len(seen) == 4 and seen[0][0] is None                     # nothing before the first batch
+    for (_, ended), (started, _) in zip(seen, seen[1:]):
+        assert ended is not None and started is ended                # each batch starts where the last one ended
+        assert not any(t.requires_grad for t in _tensors(started))   # cut from the last batch's graph
+    with pytest.raises(ValueError, match="warm_start_from must be one of"):
+        ReconstructionTrainConfig(data=DATA, warm_start_from="random")

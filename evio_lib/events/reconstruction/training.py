@@ -29,8 +29,12 @@ probability ``time_reversal`` the batch played backwards: window order and voxel
 previous window's end: one window fewer), and no temporal-consistency term (the stored flow points the other way).
 A polarity swap alone is not used: it stands for the negated log image, whose linear intensity 1/I is not an image in
 [0, 1] the network can output.
-With probability ``warm_start`` (default 0) a batch starts from the recurrent state the network left after another
-random batch (:func:`warm_state`, no gradients), not from an empty one, so that it learns to overwrite a stale image.
+With probability ``warm_start`` (default 0) a batch starts from a recurrent state another batch left, not from an
+empty one, so that it learns to overwrite a stale image. ``warm_start_from`` says which: ``"other"`` (default) runs
+the network without gradients over another random batch (:func:`warm_state`); ``"previous"`` takes the state the
+previous training step's batch ended in (detached, no extra pass), so runs of warm draws chain batches and the state
+a batch starts from can be many sequences old (a chain is on average 1 / (1 - warm_start) batches long), as on a long
+recording. A resumed run starts its chain afresh.
 
 The learning rate is constant or (``lr_schedule="cosine"``) follows lr_k = lr_min + (lr - lr_min)(1 + cos(pi k / steps)) / 2
 with lr_min = ``lr_final_fraction`` lr, a function of the step alone (so ``--resume`` continues the same schedule).
@@ -62,7 +66,7 @@ from evio_lib.cli_args import parse_set_options, settings_from_dict
 from evio_lib.io.checkpoint import load_state, read_checkpoint
 from evio_lib.events.reconstruction.training_options import add_reconstruct_train_arguments  # no torch
 
-__all__ = ["ReconstructionTrainConfig", "LR_SCHEDULES", "SELECTION_METRICS", "ssim_torch", "stretch_torch",
+__all__ = ["ReconstructionTrainConfig", "LR_SCHEDULES", "SELECTION_METRICS", "WARM_START_SOURCES", "ssim_torch", "stretch_torch",
            "learning_rate", "warp_with_homography", "warp_with_flow",
            "flow_from_homographies", "temporal_consistency_loss", "SequenceSource", "open_split",
            "sequence_loss", "train_reconstructor", "evaluate_on_samples", "add_reconstruct_train_arguments",
@@ -71,6 +75,7 @@ __all__ = ["ReconstructionTrainConfig", "LR_SCHEDULES", "SELECTION_METRICS", "ss
 
 LR_SCHEDULES = ("constant", "cosine")
 SELECTION_METRICS = ("ssim", "ssim_stretched")
+WARM_START_SOURCES = ("other", "previous")
 #: Smallest percentile spread the stretch divides by: a nearly flat crop is not blown up into amplified noise.
 STRETCH_MIN_SPREAD = 0.05
 
@@ -106,6 +111,7 @@ class ReconstructionTrainConfig:
     lr_final_fraction: float = 0.05
     select_by: str = "ssim"            # validation metric of best.pt: "ssim" (raw) or "ssim_stretched"
     warm_start: float = 0.0            # probability that a batch starts from the state another batch left behind
+    warm_start_from: str = "other"     # that batch: "other" (a random one, run without gradients) or "previous"
 
     def __post_init__(self) -> None:
         if isinstance(self.data, dict):
@@ -135,6 +141,8 @@ class ReconstructionTrainConfig:
             raise ValueError(f"time_reversal must be a probability in [0, 1]; got {self.time_reversal!r}")
         if isinstance(self.warm_start, bool) or not (np.isfinite(self.warm_start) and 0 <= self.warm_start <= 1):
             raise ValueError(f"warm_start must be a probability in [0, 1]; got {self.warm_start!r}")
+        if self.warm_start_from not in WARM_START_SOURCES:
+            raise ValueError(f"warm_start_from must be one of {WARM_START_SOURCES}; got {self.warm_start_from!r}")
         if self.extra_training_sets and self.training_set is None:
             raise ValueError("extra_training_sets needs training_set (the folder whose val split validates the run)")
         if self.training_set is not None:
@@ -275,11 +283,13 @@ def temporal_consistency_loss(pred: torch.Tensor, pred_prev: torch.Tensor, frame
 
 
 def sequence_loss(net: torch.nn.Module, voxels: torch.Tensor, frames: torch.Tensor, flow: torch.Tensor | None,
-                  config: ReconstructionTrainConfig, state=None) -> tuple[torch.Tensor, dict[str, float]]:
+                  config: ReconstructionTrainConfig, state=None, final_state: list | None = None
+                  ) -> tuple[torch.Tensor, dict[str, float]]:
     """Return (loss, parts) of one batch: voxels (N, L, B, H, W), frames (N, L, H, W), flow (N, L, 2, H, W) or None.
 
     ``flow=None`` leaves out the temporal-consistency term (a batch played backwards). ``state``: the network's
     recurrent state to start from (None: empty), e.g. the one another batch left behind (:func:`warm_state`).
+    ``final_state``: a list that receives the state after the last window, detached (``warm_start_from="previous"``).
     """
     # the parts are summed on the device and read once at the end: a read per window would wait for a GPU each time
     prev, sums = None, {key: voxels.new_zeros(()) for key in ("l1", "ssim", "tc", "ssim_stretched")}
@@ -307,6 +317,8 @@ def sequence_loss(net: torch.nn.Module, voxels: torch.Tensor, frames: torch.Tens
             sums["tc"] = sums["tc"] + tc.detach()
         total = total + loss / n_windows
         prev = pred
+    if final_state is not None:
+        final_state.append(_detached(state))
     values = torch.stack(list(sums.values())).double().cpu().numpy() / n_windows
     return total, {key: float(value) for key, value in zip(sums, values)}
 
@@ -362,6 +374,15 @@ def warm_state(net: torch.nn.Module, voxels: torch.Tensor):
     with torch.no_grad():
         for k in range(voxels.shape[1]):
             _, state = net(voxels[:, k], state)
+    return state
+
+
+def _detached(state):
+    """A recurrent state (tensors nested in lists and tuples) cut from the graph that made it."""
+    if isinstance(state, torch.Tensor):
+        return state.detach()
+    if isinstance(state, (list, tuple)):
+        return type(state)(_detached(x) for x in state)
     return state
 
 
@@ -593,17 +614,23 @@ def train_reconstructor(config: ReconstructionTrainConfig, out: str | Path, resu
 
         bar = tqdm(total=config.steps, initial=step, desc=f"training {config.architecture}", unit="step")
     running = None
+    previous_state = None                                    # the state the last batch ended in (warm_start_from)
     try:
         while step < config.steps:
             idx = rng.integers(0, n_train, config.batch_size)
             v, f, w = _augment_batch(rng, *data.take(idx), config.crop, config.time_reversal)
             state = None                                     # no draw at warm_start = 0: older runs resume the same
             if config.warm_start > 0 and rng.random() < config.warm_start:
-                other = _augment_batch(rng, *data.take(rng.integers(0, n_train, config.batch_size)), config.crop,
-                                       config.time_reversal)[0]
-                state = warm_state(net, _as_float_tensor(other, config.device))
+                if config.warm_start_from == "previous":
+                    state = previous_state                   # None on a run's (or a resumed run's) first step
+                else:
+                    other = _augment_batch(rng, *data.take(rng.integers(0, n_train, config.batch_size)), config.crop,
+                                           config.time_reversal)[0]
+                    state = warm_state(net, _as_float_tensor(other, config.device))
+            ended_in = [] if config.warm_start_from == "previous" else None
             loss, parts = sequence_loss(net, *(_as_float_tensor(x, config.device) for x in (v, f, w)), config,
-                                        state=state)
+                                        state=state, final_state=ended_in)
+            previous_state = ended_in[0] if ended_in else None
             for group in optimizer.param_groups:
                 group["lr"] = learning_rate(config, step)
             optimizer.zero_grad()
