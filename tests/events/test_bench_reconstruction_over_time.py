@@ -73,3 +73,29 @@ def test_it_refuses_a_stretch_without_a_window_and_an_unknown_method(tmp_path, m
             bench.main()
         out, err = capsys.readouterr()
         assert stop.value.code == 2 and out == "" and expected in err.strip().splitlines()[-1]
+
+
+def test_start_window_feeds_the_later_windows_from_an_empty_state(tmp_path, monkeypatch, capsys, make_photo_folder):
+    sequence = linear_light_room_sequence(303, "val", photos=make_photo_folder(tmp_path / "photos"), duration=0.1,
+                                          render_rate_hz=300)
+    bench = _bench()
+    monkeypatch.setattr(bench, "simulated_eval_sequence", lambda stretch, seed: sequence)
+    bounds = count_windows(sequence.events, window_size_from_fraction(0.02, sequence.width, sequence.height))
+    fresh, times = reconstruct_windows(create_reconstructor("high_pass", sequence.width, sequence.height),
+                                       sequence.events, bounds[10:])
+    expected = [f"{image_quality(frames, sequence.render(float(t)))['ssim']:.2f}" for frames, t in zip(fresh, times)]
+    monkeypatch.setattr(sys, "argv", ["x", "--methods", "high_pass", "--points", "40", "--fraction", "0.02",
+                                      "--start-window", "10"])
+    bench.main()
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines[0].endswith("17 windows of " f"{sequence.events.size:,} events, fed from window 10; SSIM at each "
+                             "window index")
+    assert lines[1] == "| method | " + " | ".join(str(k) for k in range(10, 17)) + " |"   # the whole stretch's indices
+    assert [v.strip() for v in lines[3].split("|")[2:-1]] == expected
+    for start, expected in (("17", "error: --start-window 17: the stretch has 17 windows at n = 0.02 (indices 0-16)"),
+                            ("-1", "error: --start-window must be >= 0; got -1")):
+        monkeypatch.setattr(sys, "argv", ["x", "--fraction", "0.02", "--start-window", start])
+        with pytest.raises(SystemExit) as stop:
+            bench.main()
+        out, err = capsys.readouterr()
+        assert stop.value.code == 2 and out == "" and err.strip().splitlines()[-1].endswith(expected)

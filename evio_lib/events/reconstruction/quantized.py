@@ -15,9 +15,12 @@ range [lo, hi] (s = (hi - lo) / 255, z = round(-lo / s)):
 
 - the ConvGRU states h and r . h lie in (-1, 1) by construction (h' = (1 - z) h + z tanh(.)): the fixed range
   [-1, 1]; the residual blocks read h;
-- every other range is **calibrated**: the float forward pass is run over voxel grids of the training-set
-  generator's validation split (:func:`calibration_voxels`, fixed seed), and each range is the widest per-window
-  0.01 / 99.99 % quantile (a few hot pixels must not stretch a whole scale);
+- every other range is **calibrated**: the float forward pass is run over :data:`CALIBRATION_SEQUENCES` = 16
+  voxel-grid sequences of the training-set generator's validation split (:func:`calibration_voxels`, fixed seed),
+  and each range is the widest per-window 0.01 / 99.99 % quantile (a few hot pixels must not stretch a whole scale).
+  Four sequences were used before: their ranges were narrower than those a network reaches on a long held-out
+  stretch, and clipping there moved a network trained on photographs by up to 0.03 SSIM from its float32 frames
+  (docs/results/reconstruction.md, "int8 and float32");
 - the six gate inputs (``gru{1,2}_x``, ``_h``, ``_rh``: the convolutions summed inside sigmoid(.) and tanh(.)) are
   then capped at +-:data:`GATE_INPUT_CAP` = 6. Past 6 the nonlinearities are flat (1 - sigmoid(6) = 0.0025, under
   one 8-bit grey level; 1 - tanh(6) = 1e-5), so clipping there costs almost nothing, while a calibrated range of
@@ -45,11 +48,15 @@ from torch.nn import functional as F
 
 from evio_lib.events.reconstruction.nets import FireNet
 
-__all__ = ["INT8_ENGINE", "Int8Ranges", "FireNetInt8", "calibrate_firenet", "calibration_voxels", "int8_forward",
+__all__ = ["CALIBRATION_SEQUENCES", "INT8_ENGINE", "Int8Ranges", "FireNetInt8", "calibrate_firenet",
+           "calibration_voxels", "int8_forward",
            "int8_unavailable", "stored_ranges", "weights_digest"]
 
 #: Gate inputs (summed inside sigmoid/tanh) are clipped to [-GATE_INPUT_CAP, GATE_INPUT_CAP]: see the module docstring.
 GATE_INPUT_CAP = 6.0
+#: How many generator sequences (40 windows of 64 x 64 each) :func:`calibration_voxels` gives a calibration.
+CALIBRATION_SEQUENCES = 16
+
 #: The calibrated tensors of :class:`FireNetInt8` (each a range [lo, hi] of float values).
 RANGE_NAMES = ("voxels", "head", "gru1_x", "gru1_h", "gru1_rh", "res1_a", "res1_b", "res1_out",
                "gru2_x", "gru2_h", "gru2_rh", "res2_a", "res2_b")
@@ -322,7 +329,7 @@ def _float_forward_recording(net: FireNet, voxels: torch.Tensor, state: list | N
     return torch.sigmoid(net.pred(x)), hs
 
 
-def calibration_voxels(sequences: int = 4, seed: int = 0) -> list[np.ndarray]:
+def calibration_voxels(sequences: int = CALIBRATION_SEQUENCES, seed: int = 0) -> list[np.ndarray]:
     """Return ``sequences`` voxel-grid sequences (each (40, 5, 64, 64) float32) of the training-set generator's
     validation split, seed ``seed``: the calibration data of :func:`calibrate_firenet` (0.5-2 s of CPU each; since
     generator version 3 they hold windows of the n drawn, and the ranges they give differ from version 2's)."""
@@ -404,8 +411,8 @@ def int8_forward(net: FireNet, stored: dict | None = None) -> FireNetInt8:
     """Return the int8 forward pass of ``net``.
 
     Its ranges come from ``stored`` (a checkpoint's ``int8_ranges``, :func:`stored_ranges`) when they were calibrated
-    for exactly these weights (same SHA-1), else from a calibration on :func:`calibration_voxels` (4 sequences
-    simulated, then 160 float windows at 64 x 64; its time: docs/results/reconstruction.md#int8-and-float32), done
+    for exactly these weights (same SHA-1), else from a calibration on :func:`calibration_voxels` (16 sequences
+    simulated, then 640 float windows at 64 x 64; its time: docs/results/reconstruction.md#int8-and-float32), done
     once per set of weights and process. Raises ValueError for anything but a FireNet on the CPU, and where the
     compiled kernels cannot load (no numba, or no writable cache for its machine code)."""
     if type(net) is not FireNet or any(p.device.type != "cpu" for p in net.parameters()):
