@@ -11,7 +11,8 @@ from an empty state (indices stay those of the whole stretch): a network that is
 fails on the content, not on a state carried from earlier windows.
 
 Usage:  python bench/reconstruction_over_time.py [--stretch boxes_like_fast] [--fraction 0.1] [--points 16] \\
-            [--start-window 0] [--split val|test] [--precision auto|float32|bfloat16|int8] [--methods firenet RUN/best.pt]
+            [--start-window 0] [--split val|test] [--precision auto|float32|bfloat16|int8] \\
+            [--methods firenet RUN/best.pt]
 
 The first call simulates the stretch and caches it in data/cache (as reconstruction_quality.py does).
 """
@@ -33,7 +34,7 @@ def main() -> None:
     parser.add_argument("--stretch", choices=sorted(EVAL_STRETCHES), default="boxes_like_fast")
     parser.add_argument("--fraction", type=float, default=0.1, help="window size n (N_e = n H W events)")
     parser.add_argument("--points", type=int, default=16,
-                        help="scored windows, evenly spread over the stretch (at most every window)")
+                        help="scored windows, evenly spread over the windows fed (at most every one)")
     parser.add_argument("--start-window", type=int, default=0,
                         help="feed the windows from this index on, from an empty state")
     parser.add_argument("--split", choices=["test", "val"], default="val",
@@ -47,12 +48,6 @@ def main() -> None:
     if args.start_window < 0:
         parser.error(f"--start-window must be >= 0; got {args.start_window}")
     sequence = simulated_eval_sequence(args.stretch, seed=VALIDATION_SEED if args.split == "val" else EVAL_SEED)
-    try:                                                            # every name and file checked before the runs
-        recs = {m: reconstructor_by_name_or_file(m, sequence.width, sequence.height, precision=args.precision)
-                for m in args.methods}
-    except ValueError as error:                                     # an unknown name, a missing or foreign file
-        print(f"error: {error}", file=sys.stderr)
-        raise SystemExit(2)
     bounds = count_windows(sequence.events, window_size_from_fraction(args.fraction, sequence.width, sequence.height))
     if len(bounds) == 0:
         parser.error(f"--fraction {args.fraction:g}: the {args.stretch} stretch has {sequence.events.size:,} "
@@ -60,6 +55,12 @@ def main() -> None:
     if args.start_window >= len(bounds):
         parser.error(f"--start-window {args.start_window}: the stretch has {len(bounds)} windows at n = "
                      f"{args.fraction:g} (indices 0-{len(bounds) - 1})")
+    try:                                                            # every name and file checked before the runs
+        recs = {m: reconstructor_by_name_or_file(m, sequence.width, sequence.height, precision=args.precision)
+                for m in args.methods}
+    except ValueError as error:                                     # an unknown name, a missing or foreign file
+        print(f"error: {error}", file=sys.stderr)
+        raise SystemExit(2)
     for i, (method, rec) in enumerate(recs.items()):             # windows from start_window fed, any may be scored
         each = window_scores(rec, sequence, None, warmup_s=0.0, max_frames=args.points,
                              bounds=bounds[args.start_window:])

@@ -61,7 +61,7 @@ def test_training_lowers_the_loss_and_resume_is_exact(tmp_path, tiny_data):
     for key in a:
         torch.testing.assert_close(a[key], b[key])
     # the checkpoint loads through the one-call API
-    rec = create_reconstructor("learned", 32, 32, checkpoint=tmp_path / "w" / "best.pt")
+    rec = create_reconstructor("learned", 32, 32, checkpoint=tmp_path / "w" / "best.pt", precision="float32")
     assert rec.training_steps in (6, 12)
 
 
@@ -341,17 +341,24 @@ def test_warm_starts_from_the_previous_batch_chain_the_states_each_batch_ended_i
     def recording(net, voxels, frames, flow, config, state=None, final_state=None):
         out = real(net, voxels, frames, flow, config, state=state, final_state=final_state)
         if torch.is_grad_enabled():                      # training steps, not validation
-            seen.append((state, None if final_state is None else final_state[0]))
+            by_hand = state                              # the state after the batch's last window, run again
+            with torch.no_grad():
+                for k in range(voxels.shape[1]):
+                    _, by_hand = net(voxels[:, k], by_hand)
+            seen.append((state, None if final_state is None else final_state[0], by_hand, voxels.shape[1]))
         return out
 
     monkeypatch.setattr(training, "sequence_loss", recording)
     data, val = tiny_data
-    config = ReconstructionTrainConfig(data=DATA, n_train=6, n_val=2, batch_size=2, crop=24, steps=4, validate_every=4,
+    config = ReconstructionTrainConfig(data=DATA, n_train=6, n_val=2, batch_size=2, crop=24, steps=4, validate_every=2,
                                        warm_start=1.0, warm_start_from="previous", time_reversal=0.5)
     train_reconstructor(config, tmp_path / "chain", data=data, val_data=val, progress=False)
     assert len(seen) == 4 and seen[0][0] is None                     # nothing before the first batch
-    for (_, ended), (started, _) in zip(seen, seen[1:]):
+    assert len({n for *_, n in seen}) == 2                           # batches played forwards and backwards
+    for (_, ended, by_hand, _), (started, *_) in zip(seen, seen[1:]):  # a validation between steps 2 and 3
         assert ended is not None and started is ended                # each batch starts where the last one ended
+        for a, b in zip(_tensors(ended), _tensors(by_hand), strict=True):
+            torch.testing.assert_close(a, b)                          # the state after the last window
         assert not any(t.requires_grad for t in _tensors(started))   # cut from the last batch's graph
     with pytest.raises(ValueError, match="warm_start_from must be one of"):
         ReconstructionTrainConfig(data=DATA, warm_start_from="random")

@@ -20,7 +20,7 @@ range [lo, hi] (s = (hi - lo) / 255, z = round(-lo / s)):
   and each range is the widest per-window 0.01 / 99.99 % quantile (a few hot pixels must not stretch a whole scale).
   Four sequences were used before: their ranges were narrower than those a network reaches on a long held-out
   stretch, and clipping there moved a network trained on photographs by up to 0.03 SSIM from its float32 frames
-  (docs/results/reconstruction.md, "int8 and float32");
+  (docs/results/reconstruction.md, "Four or 16 calibration sequences");
 - the six gate inputs (``gru{1,2}_x``, ``_h``, ``_rh``: the convolutions summed inside sigmoid(.) and tanh(.)) are
   then capped at +-:data:`GATE_INPUT_CAP` = 6. Past 6 the nonlinearities are flat (1 - sigmoid(6) = 0.0025, under
   one 8-bit grey level; 1 - tanh(6) = 1e-5), so clipping there costs almost nothing, while a calibrated range of
@@ -411,9 +411,9 @@ def int8_forward(net: FireNet, stored: dict | None = None) -> FireNetInt8:
     """Return the int8 forward pass of ``net``.
 
     Its ranges come from ``stored`` (a checkpoint's ``int8_ranges``, :func:`stored_ranges`) when they were calibrated
-    for exactly these weights (same SHA-1), else from a calibration on :func:`calibration_voxels` (16 sequences
-    simulated, then 640 float windows at 64 x 64; its time: docs/results/reconstruction.md#int8-and-float32), done
-    once per set of weights and process. Raises ValueError for anything but a FireNet on the CPU, and where the
+    for exactly these weights (same SHA-1), else from a calibration on :func:`calibration_voxels`
+    (:data:`CALIBRATION_SEQUENCES` sequences simulated, then their float windows at 64 x 64; its time:
+    docs/results/reconstruction.md#int8-and-float32), done once per set of weights and process. Raises ValueError for anything but a FireNet on the CPU, and where the
     compiled kernels cannot load (no numba, or no writable cache for its machine code)."""
     if type(net) is not FireNet or any(p.device.type != "cpu" for p in net.parameters()):
         where = next(net.parameters()).device.type
