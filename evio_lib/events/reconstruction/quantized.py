@@ -413,8 +413,9 @@ def int8_forward(net: FireNet, stored: dict | None = None) -> FireNetInt8:
     Its ranges come from ``stored`` (a checkpoint's ``int8_ranges``, :func:`stored_ranges`) when they were calibrated
     for exactly these weights (same SHA-1), else from a calibration on :func:`calibration_voxels`
     (:data:`CALIBRATION_SEQUENCES` sequences simulated, then their float windows at 64 x 64; its time:
-    docs/results/reconstruction.md#int8-and-float32), done once per set of weights and process. Raises ValueError for anything but a FireNet on the CPU, and where the
-    compiled kernels cannot load (no numba, or no writable cache for its machine code)."""
+    docs/results/reconstruction.md#int8-and-float32), done once per set of weights and process. Raises ValueError
+    for anything but a FireNet on the CPU, and where the compiled kernels cannot load (no numba, or no writable cache
+    for its machine code)."""
     if type(net) is not FireNet or any(p.device.type != "cpu" for p in net.parameters()):
         where = next(net.parameters()).device.type
         raise ValueError(f"precision int8 runs a FireNet on the CPU only; got a {type(net).__name__} on {where}")
