@@ -67,11 +67,9 @@ from evio_lib.io.checkpoint import load_state, read_checkpoint
 from evio_lib.events.reconstruction.training_options import add_reconstruct_train_arguments  # no torch
 
 __all__ = ["ReconstructionTrainConfig", "LR_SCHEDULES", "SELECTION_METRICS", "WARM_START_SOURCES", "ssim_torch",
-           "stretch_torch",
-           "learning_rate", "warp_with_homography", "warp_with_flow",
-           "flow_from_homographies", "temporal_consistency_loss", "SequenceSource", "open_split",
-           "sequence_loss", "train_reconstructor", "evaluate_on_samples", "add_reconstruct_train_arguments",
-           "main_reconstruct_train"]
+           "stretch_torch", "learning_rate", "warp_with_homography", "warp_with_flow", "flow_from_homographies",
+           "temporal_consistency_loss", "SequenceSource", "open_split", "sequence_loss", "train_reconstructor",
+           "evaluate_on_samples", "add_reconstruct_train_arguments", "main_reconstruct_train"]
 
 
 LR_SCHEDULES = ("constant", "cosine")
