@@ -9,9 +9,10 @@ from skimage.metrics import structural_similarity
 from evio_lib.events.reconstruct import create_reconstructor
 from evio_lib.events.reconstruction.data import ReconstructionDataConfig, reconstruction_dataset
 from evio_lib.events.reconstruction.evaluation import normalize_for_metrics
-from evio_lib.events.reconstruction.training import (ReconstructionTrainConfig, learning_rate, main_reconstruct_train,
-                                                  sequence_loss, ssim_torch, stretch_torch, train_reconstructor,
-                                                  warm_state, warp_with_homography)
+from evio_lib.events.reconstruction.training import (ReconstructionTrainConfig, _gaussian_blur_torch, learning_rate,
+                                                  main_reconstruct_train, sequence_loss, ssim_torch, stretch_torch,
+                                                  temporal_consistency_loss, train_reconstructor, warm_state,
+                                                  warp_with_flow, warp_with_homography)
 
 DATA = ReconstructionDataConfig(height=32, width=32, duration=0.3, windows=3)
 
@@ -107,6 +108,37 @@ def test_stretch_matches_the_metrics_normalisation():
         np.testing.assert_allclose(ours[k, 0], normalize_for_metrics(images[k, 0]), atol=1e-9)
     flat = torch.full((1, 1, 8, 8), 0.3) + 0.001 * torch.arange(64.0).reshape(1, 1, 8, 8) / 64
     assert float(stretch_torch(flat).max()) < 0.03          # a nearly flat image is not blown up to [0, 1]
+
+
+def test_gaussian_blur_matches_scipy():
+    from scipy.ndimage import gaussian_filter
+
+    image = np.random.default_rng(5).uniform(0, 1, (2, 1, 30, 26))
+    for sigma in (0.8, 1.5, 3.0):
+        ours = _gaussian_blur_torch(torch.from_numpy(image), sigma).numpy()
+        for k in range(2):   # torch's "reflect" padding is scipy's "mirror"; both cut the kernel at 3 sigma
+            np.testing.assert_allclose(ours[k, 0], gaussian_filter(image[k, 0], sigma, mode="mirror", truncate=3.0),
+                                       atol=1e-6)
+
+
+def test_detail_consistency_forgives_a_brightness_change_and_not_a_flicker():
+    rng = np.random.default_rng(6)
+    frame = torch.from_numpy(rng.uniform(0.2, 0.8, (1, 1, 40, 40)))
+    still = torch.zeros(1, 2, 40, 40)                                   # no motion: every pixel its own source
+    brighter = frame + 0.1 * torch.exp(-((torch.arange(40.0) - 20) / 12) ** 2)[None, None, None]   # a smooth ramp
+    flicker = frame + 0.1 * torch.from_numpy(rng.choice([-1.0, 1.0], (1, 1, 40, 40)))
+    loss = {(name, s): temporal_consistency_loss(pred, frame, frame, frame, still, detail_sigma=s).item()
+            for name, pred in (("brighter", brighter), ("flicker", flicker)) for s in (0.0, 3.0)}
+    assert loss["brighter", 0.0] > 0.03 and loss["brighter", 3.0] < 0.1 * loss["brighter", 0.0]
+    assert loss["flicker", 3.0] > 0.8 * loss["flicker", 0.0] > 0.07
+    moved = torch.zeros(1, 2, 40, 40)
+    moved[:, 0] = 5.0                                   # sources 5 px to the right: the last 5 columns see outside
+    brighter_moved = warp_with_flow(frame, moved) + 0.1  # consistent with the motion, 0.1 brighter everywhere
+    plain = temporal_consistency_loss(brighter_moved, frame, frame, frame, moved).item()
+    detail = temporal_consistency_loss(brighter_moved, frame, frame, frame, moved, detail_sigma=2.0).item()
+    assert plain > 0.09 and detail < 1e-6             # the view's border, where the blur meets outside, is left out
+    with pytest.raises(ValueError, match="tc_detail_sigma"):
+        ReconstructionTrainConfig(data=DATA, tc_detail_sigma=-1.0)
 
 
 class _AffineOfTruth(torch.nn.Module):

@@ -15,7 +15,10 @@ back-propagation through time over L windows, from a zero state):
 - temporal consistency (Lai et al., ECCV 2018, as E2VID+ uses it): TC_k = mean( M_k . |I^_k - W_k(I^_k-1)| ), where W_k
   warps the previous prediction into view k with the true motion (the simulator's homography) and
   M_k = exp(-alpha |I_k - W_k(I_k-1)|^2), alpha = 50, masks pixels where the warp does not explain the true images
-  (occlusions, borders). The true motion is a flow field per window, W_k(I)(u) = I(u + flow_k(u)): a training set
+  (occlusions, borders). With ``tc_detail_sigma`` s > 0 the term sees only the detail of the difference,
+  TC_k = mean( M_k . |D_s(I^_k - W_k(I^_k-1))| ) with D_s(d) = d - G_s * d (G_s a Gaussian of s pixels): texture
+  that flickers from window to window is penalised, while a region's overall brightness, which events do not
+  fix, may still be corrected from one window to the next. The true motion is a flow field per window, W_k(I)(u) = I(u + flow_k(u)): a training set
   (:mod:`evio_lib.events.reconstruction.training_set`) stores it, and a planar sample's homography gives it as
   flow_k(u) = pi(H u) - u.
 
@@ -96,6 +99,7 @@ class ReconstructionTrainConfig:
     lambda_ssim: float = 1.0
     lambda_tc: float = 1.0
     tc_alpha: float = 50.0
+    tc_detail_sigma: float = 0.0       # > 0: the consistency term sees only detail finer than a Gaussian of this (px)
     validate_every: int = 250
     seed: int = 0
     threads: int = 1                   # torch threads: 1 is fastest on a loaded 2-core machine (OpenMP spin-waits)
@@ -128,6 +132,10 @@ class ReconstructionTrainConfig:
         build_network(self.architecture, self.data.num_bins, **self.network_options)  # fails early on a bad name
         if self.init_from is not None and not Path(self.init_from).is_file():
             raise ValueError(f"init_from must be a reconstruct-train checkpoint file; {self.init_from!r} does not exist")
+        if isinstance(self.tc_detail_sigma, bool) or not (np.isfinite(self.tc_detail_sigma)
+                                                          and 0 <= self.tc_detail_sigma <= 8):
+            raise ValueError(f"tc_detail_sigma must lie in [0, 8] pixels (0: the whole difference); got "
+                             f"{self.tc_detail_sigma!r}")
         if not (np.isfinite(self.lambda_stretched) and self.lambda_stretched >= 0):
             raise ValueError(f"lambda_stretched must be >= 0; got {self.lambda_stretched!r}")
         if self.lr_schedule not in LR_SCHEDULES:
@@ -268,17 +276,35 @@ def flow_from_homographies(H_cur_to_prev: np.ndarray, height: int, width: int) -
 
 
 def temporal_consistency_loss(pred: torch.Tensor, pred_prev: torch.Tensor, frame: torch.Tensor, frame_prev: torch.Tensor,
-                              flow: torch.Tensor, alpha: float = 50.0) -> torch.Tensor:
+                              flow: torch.Tensor, alpha: float = 50.0, detail_sigma: float = 0.0) -> torch.Tensor:
     """Return mean(M . |pred - W(pred_prev)|) with M = exp(-alpha |frame - W(frame_prev)|^2) (Lai et al. 2018).
 
     W warps the previous view into the current one with the true ``flow`` (N, 2, H, W) (:func:`warp_with_flow`).
+    ``detail_sigma`` s > 0: mean(M . |D(pred - W(pred_prev))|) with D(d) = d - G_s * d, the difference's detail
+    finer than a Gaussian of s pixels (reflected at the image's border); M is then also zero within 3 s of a pixel
+    whose source lies outside the previous view, where the blur would mix in the outside.
     """
     warped_pred = warp_with_flow(pred_prev, flow)
     with torch.no_grad():
         mask = torch.exp(-alpha * (frame - warp_with_flow(frame_prev, flow)) ** 2)
-        inside = warp_with_flow(torch.ones_like(frame_prev), flow) > 0.999
-        mask = mask * inside
-    return (mask * (pred - warped_pred).abs()).sum() / mask.sum().clamp(min=1.0)
+        inside = (warp_with_flow(torch.ones_like(frame_prev), flow) > 0.999).to(frame.dtype)
+        scored = inside
+        if detail_sigma > 0:                             # erode by the blur's radius: no outside in a scored blur
+            radius = int(3 * detail_sigma + 0.5)
+            scored = 1 - F.max_pool2d(1 - inside, 2 * radius + 1, stride=1, padding=radius)
+        mask = mask * scored
+    difference = pred - warped_pred
+    if detail_sigma > 0:
+        difference = difference - _gaussian_blur_torch(difference * inside, detail_sigma)
+    return (mask * difference.abs()).sum() / mask.sum().clamp(min=1.0)
+
+
+def _gaussian_blur_torch(image: torch.Tensor, sigma: float) -> torch.Tensor:
+    """Return (N, 1, H, W) ``image`` blurred by a Gaussian of ``sigma`` pixels (3 sigma radius, reflected border)."""
+    radius = int(3 * sigma + 0.5)
+    g = _gaussian_kernel_1d(2 * radius + 1, sigma).to(image.device, image.dtype)
+    padded = F.pad(image, (radius, radius, radius, radius), mode="reflect")
+    return F.conv2d(F.conv2d(padded, g.view(1, 1, -1, 1)), g.view(1, 1, 1, -1))
 
 
 def sequence_loss(net: torch.nn.Module, voxels: torch.Tensor, frames: torch.Tensor, flow: torch.Tensor | None,
@@ -311,7 +337,8 @@ def sequence_loss(net: torch.nn.Module, voxels: torch.Tensor, frames: torch.Tens
             if config.lambda_stretched > 0:
                 loss = loss + config.lambda_stretched * ((pred_s - target_s).abs().mean() + 1 - ssim_s)
         if prev is not None and config.lambda_tc > 0 and flow is not None:
-            tc = temporal_consistency_loss(pred, prev, target, frames[:, k - 1:k], flow[:, k], config.tc_alpha)
+            tc = temporal_consistency_loss(pred, prev, target, frames[:, k - 1:k], flow[:, k], config.tc_alpha,
+                                           config.tc_detail_sigma)
             loss = loss + config.lambda_tc * tc
             sums["tc"] = sums["tc"] + tc.detach()
         total = total + loss / n_windows
