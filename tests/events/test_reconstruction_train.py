@@ -125,7 +125,7 @@ def test_detail_consistency_forgives_a_brightness_change_and_not_a_flicker():
     rng = np.random.default_rng(6)
     frame = torch.from_numpy(rng.uniform(0.2, 0.8, (1, 1, 40, 40)))
     still = torch.zeros(1, 2, 40, 40)                                   # no motion: every pixel its own source
-    brighter = frame + 0.1 * torch.exp(-((torch.arange(40.0) - 20) / 12) ** 2)[None, None, None]   # a smooth ramp
+    brighter = frame + 0.1 * torch.exp(-((torch.arange(40.0) - 20) / 12) ** 2)[None, None, None]   # a smooth bump
     flicker = frame + 0.1 * torch.from_numpy(rng.choice([-1.0, 1.0], (1, 1, 40, 40)))
     loss = {(name, s): temporal_consistency_loss(pred, frame, frame, frame, still, detail_sigma=s).item()
             for name, pred in (("brighter", brighter), ("flicker", flicker)) for s in (0.0, 3.0)}
@@ -136,9 +136,31 @@ def test_detail_consistency_forgives_a_brightness_change_and_not_a_flicker():
     brighter_moved = warp_with_flow(frame, moved) + 0.1  # consistent with the motion, 0.1 brighter everywhere
     plain = temporal_consistency_loss(brighter_moved, frame, frame, frame, moved).item()
     detail = temporal_consistency_loss(brighter_moved, frame, frame, frame, moved, detail_sigma=2.0).item()
-    assert plain > 0.09 and detail < 1e-6             # the view's border, where the blur meets outside, is left out
+    assert plain > 0.09 and detail < 1e-6             # the view's border, where the blur meets outside, adds nothing
+    truth_prev = frame.clone()
+    truth = frame.clone()
+    truth[..., 15:20] += 0.6                            # a strip the warp does not explain (an occlusion): M ~ 0 there
+    perfect = temporal_consistency_loss(truth, truth_prev, truth, truth_prev, still, detail_sigma=3.0).item()
+    assert perfect < 1e-6                               # perfect predictions: the masked strip leaks into no blur
+
+
+def test_sequence_loss_passes_the_detail_setting_on():
+    rng = np.random.default_rng(7)
+    frames = torch.from_numpy(rng.uniform(0.1, 0.7, (1, 1, 24, 24)).astype(np.float32)).repeat(1, 3, 1, 1)  # still
+    flickering = frames + torch.from_numpy(rng.normal(0, 0.05, (1, 3, 24, 24)).astype(np.float32))
+    brighter = frames + torch.linspace(0.0, 0.2, 3).view(1, 3, 1, 1)   # each window brighter than the last
+    voxels, flow = torch.zeros(1, 3, 5, 24, 24), torch.zeros(1, 3, 2, 24, 24)
+    parts = {}
+    for s in (0.0, 3.0):
+        config = ReconstructionTrainConfig(data=DATA, crop=24, tc_detail_sigma=s)
+        for name, outputs in (("flicker", flickering), ("brighter", brighter)):
+            parts[name, s] = sequence_loss(_AffineOfTruth(outputs, 1.0, 0.0), voxels, frames, flow, config)[1]["tc"]
+    assert parts["brighter", 0.0] > 0.05 and parts["brighter", 3.0] < 1e-4
+    assert parts["flicker", 3.0] > 0.5 * parts["flicker", 0.0] > 0.01
     with pytest.raises(ValueError, match="tc_detail_sigma"):
         ReconstructionTrainConfig(data=DATA, tc_detail_sigma=-1.0)
+    with pytest.raises(ValueError, match="radius 24 px"):
+        ReconstructionTrainConfig(data=DATA, crop=16, tc_detail_sigma=8.0)
 
 
 class _AffineOfTruth(torch.nn.Module):

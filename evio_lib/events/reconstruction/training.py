@@ -15,11 +15,12 @@ back-propagation through time over L windows, from a zero state):
 - temporal consistency (Lai et al., ECCV 2018, as E2VID+ uses it): TC_k = mean( M_k . |I^_k - W_k(I^_k-1)| ), where W_k
   warps the previous prediction into view k with the true motion (the simulator's homography) and
   M_k = exp(-alpha |I_k - W_k(I_k-1)|^2), alpha = 50, masks pixels where the warp does not explain the true images
-  (occlusions, borders). With ``tc_detail_sigma`` s > 0 the term sees only the detail of the difference,
-  TC_k = mean( M_k . |D_s(I^_k - W_k(I^_k-1))| ) with D_s(d) = d - G_s * d (G_s a Gaussian of s pixels): texture
-  that flickers from window to window is penalised, while a region's overall brightness, which events do not
-  fix, may still be corrected from one window to the next. The true motion is a flow field per window, W_k(I)(u) = I(u + flow_k(u)): a training set
-  (:mod:`evio_lib.events.reconstruction.training_set`) stores it, and a planar sample's homography gives it as
+  (occlusions, borders). With ``tc_detail_sigma`` s > 0 the term sees only the detail of the difference d,
+  TC_k = mean( M_k . |d - G_s * (M_k d) / G_s * M_k| ), d = I^_k - W_k(I^_k-1), G_s a Gaussian of s pixels:
+  texture that flickers from window to window is penalised, while a region's overall brightness, which events do
+  not fix, may still be corrected from one window to the next. The true motion is a flow field per window,
+  W_k(I)(u) = I(u + flow_k(u)): a training set (:mod:`evio_lib.events.reconstruction.training_set`) stores it, and a
+  planar sample's homography gives it as
   flow_k(u) = pi(H u) - u.
 
 Data come from a training set folder (``training_set``: every sequence of its ``train`` split, validation on its ``val``
@@ -136,6 +137,10 @@ class ReconstructionTrainConfig:
                                                           and 0 <= self.tc_detail_sigma <= 8):
             raise ValueError(f"tc_detail_sigma must lie in [0, 8] pixels (0: the whole difference); got "
                              f"{self.tc_detail_sigma!r}")
+        if int(3 * self.tc_detail_sigma + 0.5) >= self.crop:
+            raise ValueError(f"tc_detail_sigma = {self.tc_detail_sigma:g} needs a blur of radius "
+                             f"{int(3 * self.tc_detail_sigma + 0.5)} px, which a crop of {self.crop} px cannot "
+                             f"hold: a smaller tc_detail_sigma or a larger crop")
         if not (np.isfinite(self.lambda_stretched) and self.lambda_stretched >= 0):
             raise ValueError(f"lambda_stretched must be >= 0; got {self.lambda_stretched!r}")
         if self.lr_schedule not in LR_SCHEDULES:
@@ -279,29 +284,27 @@ def temporal_consistency_loss(pred: torch.Tensor, pred_prev: torch.Tensor, frame
                               flow: torch.Tensor, alpha: float = 50.0, detail_sigma: float = 0.0) -> torch.Tensor:
     """Return mean(M . |pred - W(pred_prev)|) with M = exp(-alpha |frame - W(frame_prev)|^2) (Lai et al. 2018).
 
-    W warps the previous view into the current one with the true ``flow`` (N, 2, H, W) (:func:`warp_with_flow`).
-    ``detail_sigma`` s > 0: mean(M . |D(pred - W(pred_prev))|) with D(d) = d - G_s * d, the difference's detail
-    finer than a Gaussian of s pixels (reflected at the image's border); M is then also zero within 3 s of a pixel
-    whose source lies outside the previous view, where the blur would mix in the outside.
+    W warps the previous view into the current one with the true ``flow`` (N, 2, H, W) (:func:`warp_with_flow`); M is
+    zero where a pixel's source lies outside the previous view. ``detail_sigma`` s > 0: mean(M . |d - L(d)|) for the
+    difference d = pred - W(pred_prev), with L(d) = G_s * (M d) / G_s * M its local mean under a Gaussian of s pixels
+    weighted by M (a normalised convolution, reflected at the image's border): the difference's detail, to which
+    pixels the mask leaves out (occluded, outside the previous view) contribute nothing.
     """
     warped_pred = warp_with_flow(pred_prev, flow)
     with torch.no_grad():
         mask = torch.exp(-alpha * (frame - warp_with_flow(frame_prev, flow)) ** 2)
-        inside = (warp_with_flow(torch.ones_like(frame_prev), flow) > 0.999).to(frame.dtype)
-        scored = inside
-        if detail_sigma > 0:                             # erode by the blur's radius: no outside in a scored blur
-            radius = int(3 * detail_sigma + 0.5)
-            scored = 1 - F.max_pool2d(1 - inside, 2 * radius + 1, stride=1, padding=radius)
-        mask = mask * scored
+        mask = mask * (warp_with_flow(torch.ones_like(frame_prev), flow) > 0.999)
     difference = pred - warped_pred
     if detail_sigma > 0:
-        difference = difference - _gaussian_blur_torch(difference * inside, detail_sigma)
+        with torch.no_grad():
+            weight = _gaussian_blur_torch(mask, detail_sigma).clamp(min=1e-6)
+        difference = difference - _gaussian_blur_torch(mask * difference, detail_sigma) / weight
     return (mask * difference.abs()).sum() / mask.sum().clamp(min=1.0)
 
 
 def _gaussian_blur_torch(image: torch.Tensor, sigma: float) -> torch.Tensor:
     """Return (N, 1, H, W) ``image`` blurred by a Gaussian of ``sigma`` pixels (3 sigma radius, reflected border)."""
-    radius = int(3 * sigma + 0.5)
+    radius = int(3 * sigma + 0.5)                      # scipy's rule for truncate=3
     g = _gaussian_kernel_1d(2 * radius + 1, sigma).to(image.device, image.dtype)
     padded = F.pad(image, (radius, radius, radius, radius), mode="reflect")
     return F.conv2d(F.conv2d(padded, g.view(1, 1, -1, 1)), g.view(1, 1, 1, -1))
