@@ -828,8 +828,7 @@ if rooms is not None:
     brighter = [label for label in room_methods if means[label] > means["stretched truth"] + 0.05]
     display(Markdown(
         "Events do not carry the brightness of large regions; a reconstruction guesses it. "
-        + (f"On average {' and '.join(brighter)} {'is' if len(brighter) == 1 else 'are'} brighter than the truth by "
-           "more than 0.05 after the stretch: "
+        + ("Brighter on average than the truth by more than 0.05 after the stretch: "
            + ", ".join(f"{label} by {means[label] - means['stretched truth']:.2f}" for label in brighter) + "."
            if brighter else "No method is on average more than 0.05 brighter than the truth after the stretch.")))
 
