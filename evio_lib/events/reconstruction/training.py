@@ -137,9 +137,9 @@ class ReconstructionTrainConfig:
                                                           and 0 <= self.tc_detail_sigma <= 8):
             raise ValueError(f"tc_detail_sigma must lie in [0, 8] pixels (0: the whole difference); got "
                              f"{self.tc_detail_sigma!r}")
-        if int(3 * self.tc_detail_sigma + 0.5) >= self.crop:
+        if _blur_radius(self.tc_detail_sigma) >= self.crop:
             raise ValueError(f"tc_detail_sigma = {self.tc_detail_sigma:g} needs a blur of radius "
-                             f"{int(3 * self.tc_detail_sigma + 0.5)} px, which a crop of {self.crop} px cannot "
+                             f"{_blur_radius(self.tc_detail_sigma)} px, which a crop of {self.crop} px cannot "
                              f"hold: a smaller tc_detail_sigma or a larger crop")
         if not (np.isfinite(self.lambda_stretched) and self.lambda_stretched >= 0):
             raise ValueError(f"lambda_stretched must be >= 0; got {self.lambda_stretched!r}")
@@ -302,9 +302,14 @@ def temporal_consistency_loss(pred: torch.Tensor, pred_prev: torch.Tensor, frame
     return (mask * difference.abs()).sum() / mask.sum().clamp(min=1.0)
 
 
+def _blur_radius(sigma: float) -> int:
+    """Return the radius in pixels of :func:`_gaussian_blur_torch`'s kernel: 3 sigma, rounded as scipy's truncate=3."""
+    return int(3 * sigma + 0.5)
+
+
 def _gaussian_blur_torch(image: torch.Tensor, sigma: float) -> torch.Tensor:
     """Return (N, 1, H, W) ``image`` blurred by a Gaussian of ``sigma`` pixels (3 sigma radius, reflected border)."""
-    radius = int(3 * sigma + 0.5)                      # scipy's rule for truncate=3
+    radius = _blur_radius(sigma)
     g = _gaussian_kernel_1d(2 * radius + 1, sigma).to(image.device, image.dtype)
     padded = F.pad(image, (radius, radius, radius, radius), mode="reflect")
     return F.conv2d(F.conv2d(padded, g.view(1, 1, -1, 1)), g.view(1, 1, 1, -1))
